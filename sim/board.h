@@ -1,0 +1,33 @@
+/*
+ * One simulated board: an AVR from simavr with the project's firmware loaded,
+ * set up the way the firmware expects on real hardware.
+ */
+#ifndef THERMOTILT_SIM_BOARD_H
+#define THERMOTILT_SIM_BOARD_H
+
+#include <stdint.h>
+
+#include <simavr/sim_avr.h>
+
+typedef void (*board_uart_byte_fn)(void *context, uint8_t byte);
+
+typedef struct board {
+    avr_t *avr;
+    board_uart_byte_fn on_uart_byte;
+    void *uart_context;
+} board_t;
+
+/*
+ * Loads an ELF onto a new MCU. Arduino-built ELFs carry no .mmcu section, so
+ * the MCU name and clock are given here. Returns 0 on success, else prints
+ * one line to stderr and returns -1.
+ */
+int board_load(board_t *board, const char *elf_path, const char *mcu, uint32_t frequency_hz);
+
+/* Raw bytes the firmware writes on USART0 go to this callback instead of stdout. */
+void board_capture_uart0(board_t *board, board_uart_byte_fn on_byte, void *context);
+
+/* Runs until the firmware stops, crashes or max_cycles pass; returns the final state. */
+int board_run(board_t *board, uint64_t max_cycles);
+
+#endif
