@@ -1,0 +1,11 @@
+# Toolchain file for the offline AVR build (Debian's gcc-avr, binutils-avr, avr-libc).
+set(CMAKE_SYSTEM_NAME Generic)
+set(CMAKE_SYSTEM_PROCESSOR avr)
+set(CMAKE_C_COMPILER avr-gcc)
+set(CMAKE_CXX_COMPILER avr-g++)
+set(CMAKE_ASM_COMPILER avr-gcc)
+set(CMAKE_AR avr-gcc-ar)
+set(CMAKE_RANLIB avr-gcc-ranlib)
+set(CMAKE_OBJCOPY avr-objcopy)
+set(CMAKE_SIZE avr-size)
+set(CMAKE_TRY_COMPILE_TARGET_TYPE STATIC_LIBRARY)
