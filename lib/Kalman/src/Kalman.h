@@ -1,0 +1,62 @@
+#ifndef THERMOTILT_KALMAN_H
+#define THERMOTILT_KALMAN_H
+
+#include <stdint.h>
+
+// Scalar (one-state, random-walk) Kalman filter, one instance per axis, as in
+// section 2 of the paper: Q = 1e-8, R = 0.01, chosen there by trial and error.
+//
+// With these values the gain settles at about sqrt(Q/R) = 1e-3, so the filter
+// behaves like a first-order low-pass with a time constant of ~1000 samples,
+// i.e. ~10 s at 100 Hz. The first sample seeds the state (x = z) and P starts
+// at R, so the gain begins near 1/2 and falls like 1/n: early samples are
+// averaged quickly and the gain is within 0.5 % of steady state after ~3000.
+class KalmanFilter {
+public:
+    static const float kPaperProcessNoise;     // Q
+    static const float kPaperMeasurementNoise; // R
+
+    KalmanFilter(float processNoise = kPaperProcessNoise,
+                 float measurementNoise = kPaperMeasurementNoise);
+
+    // Feeds one measurement and returns the new estimate.
+    float update(float measurement);
+
+    // Forgets the state: the next measurement seeds the filter again.
+    void reset();
+
+    bool isSeeded() const { return seeded_; }
+    float estimate() const { return estimate_; }
+    float lastGain() const { return gain_; }
+    float errorCovariance() const { return covariance_; }
+
+private:
+    float processNoise_;
+    float measurementNoise_;
+    float estimate_;
+    // Low-order bits that did not fit in estimate_ (Kahan summation); see update().
+    float lostLowBits_;
+    float covariance_;
+    float gain_;
+    bool seeded_;
+};
+
+// Passes every factor-th sample. push() is called once per sample and returns
+// true on the factor-th, 2*factor-th, ... call. A factor of 0 counts as 1.
+class Decimator {
+public:
+    explicit Decimator(uint8_t factor = 1);
+
+    // Changing the factor restarts the count.
+    void setFactor(uint8_t factor);
+    uint8_t factor() const { return factor_; }
+
+    bool push();
+    void restart() { count_ = 0; }
+
+private:
+    uint8_t factor_;
+    uint8_t count_;
+};
+
+#endif

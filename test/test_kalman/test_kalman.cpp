@@ -1,0 +1,167 @@
+#include <unity.h>
+
+#include "Kalman.h"
+
+// Steady state of P+ = (P + Q) R / (P + Q + R) with Q = 1e-8, R = 0.01, solved
+// by hand/Python: P = (-Q + sqrt(Q^2 + 4QR)) / 2 = 9.995e-6, K = 9.995e-4,
+// i.e. sqrt(Q/R) = 1e-3 within 0.05 %. A first-order lag with that gain
+// reaches 1 - 1/e = 63.2 % of a step after -1/ln(1 - K) = 1000.0 samples.
+static const float kSteadyGain = 1e-3f;
+static const long kSamplesTo632 = 1000;
+static const long kSamplesTo632Tolerance = 20; // 2 %
+// Gain is within 0.5 % of steady state after ~3000 samples (P ~ R/n, then
+// coth-shaped convergence with time constant 500 samples).
+static const int kConvergeSamples = 5000;
+
+// 1 g on the LSM9DS0 at +-2 g is ~16393 LSB (0.061 mg/LSB).
+static const float kOneG = 16393.0f;
+
+void setUp(void) {}
+void tearDown(void) {}
+
+static void converge(KalmanFilter &filter, float value)
+{
+    for (int i = 0; i < kConvergeSamples; ++i)
+        filter.update(value);
+}
+
+static void test_seeds_from_first_sample(void)
+{
+    KalmanFilter filter;
+    TEST_ASSERT_FALSE(filter.isSeeded());
+    TEST_ASSERT_FLOAT_WITHIN(0.0f, 1234.5f, filter.update(1234.5f));
+    TEST_ASSERT_TRUE(filter.isSeeded());
+    // P starts at R, so the second sample gets K = (R+Q)/(2R+Q) ~ 1/2.
+    TEST_ASSERT_FLOAT_WITHIN(0.01f, 1235.5f, filter.update(1236.5f));
+    TEST_ASSERT_FLOAT_WITHIN(0.001f, 0.5f, filter.lastGain());
+}
+
+static void test_reset_reseeds(void)
+{
+    KalmanFilter filter;
+    converge(filter, 100.0f);
+    filter.reset();
+    TEST_ASSERT_FALSE(filter.isSeeded());
+    TEST_ASSERT_FLOAT_WITHIN(0.0f, -42.0f, filter.update(-42.0f));
+    TEST_ASSERT_FLOAT_WITHIN(0.0f, -42.0f, filter.estimate());
+}
+
+static void test_constant_input_stays_constant(void)
+{
+    KalmanFilter filter;
+    for (int i = 0; i < 200; ++i)
+        TEST_ASSERT_FLOAT_WITHIN(0.0f, -321.25f, filter.update(-321.25f));
+}
+
+static void test_steady_gain_is_sqrt_q_over_r(void)
+{
+    KalmanFilter filter;
+    converge(filter, 0.0f);
+    // 1 % tolerance; the exact steady value differs from sqrt(Q/R) by 0.05 %.
+    TEST_ASSERT_FLOAT_WITHIN(kSteadyGain * 0.01f, kSteadyGain, filter.lastGain());
+}
+
+static long samplesToReach(KalmanFilter &filter, float target, float input)
+{
+    long samples = 0;
+    while (filter.estimate() < target && samples < 3 * kSamplesTo632) {
+        filter.update(input);
+        ++samples;
+    }
+    return samples;
+}
+
+static void test_step_response_time_constant(void)
+{
+    KalmanFilter filter;
+    converge(filter, kOneG);
+    long samples = samplesToReach(filter, kOneG + 632.12f, kOneG + 1000.0f);
+    TEST_ASSERT_INT_WITHIN(kSamplesTo632Tolerance, kSamplesTo632, samples);
+}
+
+static void test_one_g_holds_within_half_lsb(void)
+{
+    KalmanFilter filter;
+    converge(filter, kOneG);
+    TEST_ASSERT_FLOAT_WITHIN(0.5f, kOneG, filter.estimate());
+    for (int i = 0; i < 1000; ++i) {
+        // +-1 LSB alternating noise: at K = 1e-3 the ripple is ~0.001 LSB.
+        float estimate = filter.update(kOneG + ((i & 1) ? 1.0f : -1.0f));
+        TEST_ASSERT_FLOAT_WITHIN(0.01f, kOneG, estimate);
+    }
+}
+
+// A float at 16393 resolves 0.002 LSB but a steady correction for a 1-LSB
+// error is 0.001 LSB: a naive filter stalls ~1 LSB short and never reaches
+// 63.2 %. The step must follow the same ~1000-sample curve as a large one.
+static void test_one_lsb_step_at_one_g(void)
+{
+    KalmanFilter filter;
+    converge(filter, kOneG);
+    long samples = samplesToReach(filter, kOneG + 0.6321f, kOneG + 1.0f);
+    TEST_ASSERT_INT_WITHIN(kSamplesTo632Tolerance, kSamplesTo632, samples);
+    for (long i = samples; i < kConvergeSamples; ++i)
+        filter.update(kOneG + 1.0f);
+    // After 5000 samples the lag is exp(-5000 * 9.995e-4) = 0.0068 LSB.
+    TEST_ASSERT_FLOAT_WITHIN(0.005f, kOneG + 1.0f - 0.0068f, filter.estimate());
+}
+
+static void test_decimator_passes_every_nth(void)
+{
+    Decimator decimator(4);
+    int passed = 0;
+    for (int i = 1; i <= 20; ++i) {
+        bool out = decimator.push();
+        TEST_ASSERT_EQUAL(i % 4 == 0, out);
+        passed += out;
+    }
+    TEST_ASSERT_EQUAL(5, passed);
+}
+
+static void test_decimator_factor_one_and_zero(void)
+{
+    Decimator decimator(1);
+    TEST_ASSERT_TRUE(decimator.push());
+    TEST_ASSERT_TRUE(decimator.push());
+    decimator.setFactor(0);
+    TEST_ASSERT_EQUAL_UINT8(1, decimator.factor());
+    TEST_ASSERT_TRUE(decimator.push());
+}
+
+static void test_decimator_factor_change_restarts(void)
+{
+    Decimator decimator(5);
+    decimator.push();
+    decimator.push();
+    decimator.push();
+    decimator.setFactor(3);
+    TEST_ASSERT_FALSE(decimator.push());
+    TEST_ASSERT_FALSE(decimator.push());
+    TEST_ASSERT_TRUE(decimator.push());
+}
+
+static void test_decimator_factor_255(void)
+{
+    Decimator decimator(255);
+    for (int i = 1; i < 255; ++i)
+        TEST_ASSERT_FALSE(decimator.push());
+    TEST_ASSERT_TRUE(decimator.push());
+    TEST_ASSERT_FALSE(decimator.push());
+}
+
+int runUnityTests(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_seeds_from_first_sample);
+    RUN_TEST(test_reset_reseeds);
+    RUN_TEST(test_constant_input_stays_constant);
+    RUN_TEST(test_steady_gain_is_sqrt_q_over_r);
+    RUN_TEST(test_step_response_time_constant);
+    RUN_TEST(test_one_g_holds_within_half_lsb);
+    RUN_TEST(test_one_lsb_step_at_one_g);
+    RUN_TEST(test_decimator_passes_every_nth);
+    RUN_TEST(test_decimator_factor_one_and_zero);
+    RUN_TEST(test_decimator_factor_change_restarts);
+    RUN_TEST(test_decimator_factor_255);
+    return UNITY_END();
+}
