@@ -1,0 +1,104 @@
+#include <string.h>
+
+#include "Compensation.h"
+
+#ifdef __AVR__
+#include <util/crc16.h>
+#endif
+
+namespace {
+
+const uint8_t MAGIC_OFFSET = 0;
+const uint8_t VERSION_OFFSET = 1;
+const uint8_t FLOATS_OFFSET = 2;
+const uint8_t CRC_OFFSET = COEFFICIENT_BLOCK_SIZE - 2;
+
+uint16_t crcXmodemUpdate(uint16_t crc, uint8_t data)
+{
+#ifdef __AVR__
+    return _crc_xmodem_update(crc, data);
+#else
+    // avr-libc's optimised routine exists only for AVR; this is the equivalent
+    // C it documents, so host and device compute the same CRC.
+    crc = (uint16_t)(crc ^ ((uint16_t)data << 8));
+    for (uint8_t bit = 0; bit < 8; ++bit) {
+        crc = (crc & 0x8000u) ? (uint16_t)((crc << 1) ^ 0x1021u) : (uint16_t)(crc << 1);
+    }
+    return crc;
+#endif
+}
+
+// Byte by byte rather than copying the struct, so the block does not depend
+// on the compiler's padding or the host's byte order.
+void putFloat(uint8_t* out, float value)
+{
+    uint32_t bits;
+    memcpy(&bits, &value, sizeof(bits));
+    for (uint8_t i = 0; i < 4; ++i) {
+        out[i] = (uint8_t)(bits >> (8 * i));
+    }
+}
+
+float getFloat(const uint8_t* in)
+{
+    uint32_t bits = 0;
+    for (uint8_t i = 0; i < 4; ++i) {
+        bits |= (uint32_t)in[i] << (8 * i);
+    }
+    float value;
+    memcpy(&value, &bits, sizeof(value));
+    return value;
+}
+
+}  // namespace
+
+uint16_t crc16Xmodem(const uint8_t* data, uint16_t length)
+{
+    uint16_t crc = 0;
+    for (uint16_t i = 0; i < length; ++i) {
+        crc = crcXmodemUpdate(crc, data[i]);
+    }
+    return crc;
+}
+
+void encodeCoefficients(const Coefficients& in, uint8_t out[COEFFICIENT_BLOCK_SIZE])
+{
+    out[MAGIC_OFFSET] = COEFFICIENT_BLOCK_MAGIC;
+    out[VERSION_OFFSET] = COEFFICIENT_BLOCK_VERSION;
+    uint8_t* cursor = out + FLOATS_OFFSET;
+    for (uint8_t s = 0; s < COMP_SET_COUNT; ++s) {
+        for (uint8_t a = 0; a < COMP_AXIS_COUNT; ++a) {
+            for (uint8_t k = 0; k < COMP_COEFFICIENT_COUNT; ++k) {
+                putFloat(cursor, in.set[s].axis[a].p[k]);
+                cursor += 4;
+            }
+        }
+    }
+    uint16_t crc = crc16Xmodem(out, CRC_OFFSET);
+    out[CRC_OFFSET] = (uint8_t)crc;
+    out[CRC_OFFSET + 1] = (uint8_t)(crc >> 8);
+}
+
+BlockStatus decodeCoefficients(const uint8_t in[COEFFICIENT_BLOCK_SIZE], Coefficients& out)
+{
+    if (in[MAGIC_OFFSET] != COEFFICIENT_BLOCK_MAGIC) {
+        return BlockStatus::BadMagic;
+    }
+    if (in[VERSION_OFFSET] != COEFFICIENT_BLOCK_VERSION) {
+        return BlockStatus::BadVersion;
+    }
+    uint16_t storedCrc = (uint16_t)(in[CRC_OFFSET] | ((uint16_t)in[CRC_OFFSET + 1] << 8));
+    if (crc16Xmodem(in, CRC_OFFSET) != storedCrc) {
+        return BlockStatus::BadCrc;
+    }
+    const uint8_t* cursor = in + FLOATS_OFFSET;
+    for (uint8_t s = 0; s < COMP_SET_COUNT; ++s) {
+        for (uint8_t a = 0; a < COMP_AXIS_COUNT; ++a) {
+            for (uint8_t k = 0; k < COMP_COEFFICIENT_COUNT; ++k) {
+                out.set[s].axis[a].p[k] = getFloat(cursor);
+                cursor += 4;
+            }
+        }
+    }
+    return BlockStatus::Ok;
+}

@@ -1,0 +1,100 @@
+#include "Compensation.h"
+
+#ifdef __AVR__
+#include <avr/pgmspace.h>
+#else
+#define PROGMEM
+#endif
+
+namespace {
+
+const uint8_t DEFAULT_TERM_COUNT = COMP_SET_COUNT * COMP_AXIS_COUNT * COMP_COEFFICIENT_COUNT;
+
+// In flash on AVR: as a plain const table it would cost 144 bytes of RAM.
+const float DEFAULT_TERMS[DEFAULT_TERM_COUNT] PROGMEM = {
+    // Warming: Table 2 (X), Table 3 (Y), Z uncorrected.
+    571.5f, -20.23f, 1.569e-3f, -0.1044f, -6.936e-5f, 6.327e-9f,
+    354.0f, -13.96f, 5.747e-3f, -2.931e-3f, -1.915e-4f, -5.363e-8f,
+    0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f,
+    // Cooling. X p01 is as printed (7.23e-4) although its own 95 % bounds are
+    // (7.535e-4, 7.91e-4), likely a dropped digit of 7.723e-4; the difference
+    // is under 0.6 LSB across +-45 degrees.
+    582.9f, -21.29f, 7.23e-4f, -7.898e-2f, -6.362e-5f, -7.354e-8f,
+    338.1f, -12.82f, 4.439e-3f, -3.299e-2f, -1.579e-4f, -1.455e-8f,
+    0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f,
+};
+
+float defaultTerm(uint8_t index)
+{
+#ifdef __AVR__
+    return pgm_read_float(&DEFAULT_TERMS[index]);
+#else
+    return DEFAULT_TERMS[index];
+#endif
+}
+
+}  // namespace
+
+void loadDefaultCoefficients(Coefficients& out)
+{
+    uint8_t index = 0;
+    for (uint8_t s = 0; s < COMP_SET_COUNT; ++s) {
+        for (uint8_t a = 0; a < COMP_AXIS_COUNT; ++a) {
+            for (uint8_t k = 0; k < COMP_COEFFICIENT_COUNT; ++k) {
+                out.set[s].axis[a].p[k] = defaultTerm(index++);
+            }
+        }
+    }
+}
+
+float surfaceCorrection(const AxisSurface& surface, float tempC, float accelLsb)
+{
+    const float* p = surface.p;
+    // Grouped so a^2 (up to 2.7e8 LSB^2) is never formed on its own: each
+    // product stays near the size of its contribution, which keeps float's
+    // 24-bit mantissa well below 0.01 LSB of error.
+    float temperaturePart = tempC * (p[P10] + p[P20] * tempC + p[P11] * accelLsb);
+    float accelPart = accelLsb * (p[P01] + p[P02] * accelLsb);
+    return p[P00] + temperaturePart + accelPart;
+}
+
+float compensate(const AxisSurface& surface, float tempC, float rawLsb)
+{
+    return rawLsb - surfaceCorrection(surface, tempC, rawLsb);
+}
+
+TrendDetector::TrendDetector(float hysteresisC, CompSet initial)
+    : hysteresisC_(hysteresisC), extremeC_(0.0f), state_(initial), haveSample_(false)
+{
+}
+
+void TrendDetector::reset(CompSet initial)
+{
+    state_ = initial;
+    haveSample_ = false;
+}
+
+CompSet TrendDetector::update(float tempC)
+{
+    if (!haveSample_) {
+        extremeC_ = tempC;
+        haveSample_ = true;
+        return state_;
+    }
+    if (state_ == CompSet::Warming) {
+        if (tempC > extremeC_) {
+            extremeC_ = tempC;
+        } else if (extremeC_ - tempC > hysteresisC_) {
+            state_ = CompSet::Cooling;
+            extremeC_ = tempC;
+        }
+    } else {
+        if (tempC < extremeC_) {
+            extremeC_ = tempC;
+        } else if (tempC - extremeC_ > hysteresisC_) {
+            state_ = CompSet::Warming;
+            extremeC_ = tempC;
+        }
+    }
+    return state_;
+}

@@ -1,0 +1,260 @@
+#include <string.h>
+#include <unity.h>
+
+#include "Compensation.h"
+
+// Expected numbers below come from a Python (double precision) evaluation of
+// the paper's equation (3) with the Table 2/3 coefficients, and from
+// binascii.crc_hqx(data, 0) for CRCs; none are copied from this code's output.
+
+static Coefficients coefficients;
+static uint8_t block[COEFFICIENT_BLOCK_SIZE];
+
+void setUp(void)
+{
+    loadDefaultCoefficients(coefficients);
+}
+
+void tearDown(void) {}
+
+static const AxisSurface& surface(CompSet set, uint8_t axis)
+{
+    return coefficients.forTrend(set).axis[axis];
+}
+
+static float absolute(float value)
+{
+    return value < 0.0f ? -value : value;
+}
+
+static void test_surface_values(void)
+{
+    // Python: 571.5 - 20.23*9 + 1.569e-3*-2653 - 0.1044*81 ... = 378.5117
+    TEST_ASSERT_FLOAT_WITHIN(0.01f, 378.5117f, surfaceCorrection(surface(CompSet::Warming, 0), 9.0f, -2653.0f));
+    TEST_ASSERT_FLOAT_WITHIN(0.01f, -637.0686f, surfaceCorrection(surface(CompSet::Warming, 0), 48.0f, -1699.0f));
+}
+
+static void test_surface_large_accel(void)
+{
+    // a = +-16000 LSB (~1 g) makes a^2 ~ 2.6e8; Python double results.
+    TEST_ASSERT_FLOAT_WITHIN(0.01f, -573.4755f, surfaceCorrection(surface(CompSet::Warming, 0), 45.0f, 16000.0f));
+    TEST_ASSERT_FLOAT_WITHIN(0.01f, 356.9856f, surfaceCorrection(surface(CompSet::Warming, 1), -10.0f, -16000.0f));
+    TEST_ASSERT_FLOAT_WITHIN(0.01f, -588.1491f, surfaceCorrection(surface(CompSet::Cooling, 0), 45.0f, 16000.0f));
+}
+
+// Compensated spread between two field-test endpoints.
+static float compensatedSpread(CompSet set, uint8_t axis, float t1, float a1, float t2, float a2)
+{
+    const AxisSurface& s = surface(set, axis);
+    return absolute(compensate(s, t1, a1) - compensate(s, t2, a2));
+}
+
+static void test_sign_cooling_field(void)
+{
+    // Section 4.3, 26 -> 16 degC read in time order: X -1831 at 26, -1596 at
+    // 16 (spread 235). Python, raw - f: -1808.43 and -1818.32, spread 9.9;
+    // raw + f would give -1853.57 and -1373.68, spread 480.
+    const AxisSurface& x = surface(CompSet::Cooling, 0);
+    TEST_ASSERT_FLOAT_WITHIN(0.05f, -1808.4279f, compensate(x, 26.0f, -1831.0f));
+    TEST_ASSERT_FLOAT_WITHIN(0.05f, -1818.3245f, compensate(x, 16.0f, -1596.0f));
+    TEST_ASSERT_LESS_THAN(23, (long)compensatedSpread(CompSet::Cooling, 0, 26.0f, -1831.0f, 16.0f, -1596.0f));
+    float plusSpread = absolute((-1831.0f + surfaceCorrection(x, 26.0f, -1831.0f)) -
+                                (-1596.0f + surfaceCorrection(x, 16.0f, -1596.0f)));
+    TEST_ASSERT_GREATER_THAN(235, (long)plusSpread);
+    // Y -424 at 26, -286 at 16 (spread 138): Python spread 3.7.
+    TEST_ASSERT_LESS_THAN(13, (long)compensatedSpread(CompSet::Cooling, 1, 26.0f, -424.0f, 16.0f, -286.0f));
+}
+
+static void test_sign_warming_field(void)
+{
+    // Section 4.3, 9 -> 48 degC, paired as the cooling test implies (raw falls
+    // as temperature rises): X -1699 at 9, -2653 at 48 (spread 954). Python,
+    // raw - f: -2078.39 and -2017.64, spread 60.7 (6.4 %).
+    const AxisSurface& x = surface(CompSet::Warming, 0);
+    TEST_ASSERT_FLOAT_WITHIN(0.05f, -2078.3867f, compensate(x, 9.0f, -1699.0f));
+    TEST_ASSERT_FLOAT_WITHIN(0.05f, -2017.6370f, compensate(x, 48.0f, -2653.0f));
+    TEST_ASSERT_LESS_THAN(95, (long)compensatedSpread(CompSet::Warming, 0, 9.0f, -1699.0f, 48.0f, -2653.0f));
+    // Y -431 at 9, -937 at 48 (spread 506): Python spread 40.0 (7.9 %).
+    TEST_ASSERT_LESS_THAN(50, (long)compensatedSpread(CompSet::Warming, 1, 9.0f, -431.0f, 48.0f, -937.0f));
+}
+
+static void test_zero_at_reference(void)
+{
+    // Residuals are taken against 25 degC (section 3.3). Python f(25, 0):
+    // X warm 0.50, Y warm 3.17, X cool 1.29, Y cool -3.02: all within 5 LSB.
+    for (uint8_t s = 0; s < COMP_SET_COUNT; ++s) {
+        for (uint8_t axis = 0; axis < 2; ++axis) {
+            TEST_ASSERT_FLOAT_WITHIN(5.0f, 0.0f, surfaceCorrection(surface((CompSet)s, axis), 25.0f, 0.0f));
+        }
+    }
+}
+
+static void test_drift_span(void)
+{
+    // Section 4.1: drift over -10..45 degC is about 1300 LSB on X and 850 on
+    // Y, read off a figure. Python f(-10,0) - f(45,0): X 1313.6 / 1323.0,
+    // Y 773.4 / 768.6 (warming / cooling). Tolerance: 50 LSB on X, 100 on Y.
+    for (uint8_t s = 0; s < COMP_SET_COUNT; ++s) {
+        const AxisSurface& x = surface((CompSet)s, 0);
+        const AxisSurface& y = surface((CompSet)s, 1);
+        TEST_ASSERT_FLOAT_WITHIN(50.0f, 1300.0f, surfaceCorrection(x, -10.0f, 0.0f) - surfaceCorrection(x, 45.0f, 0.0f));
+        TEST_ASSERT_FLOAT_WITHIN(100.0f, 850.0f, surfaceCorrection(y, -10.0f, 0.0f) - surfaceCorrection(y, 45.0f, 0.0f));
+    }
+}
+
+static void test_z_uncorrected(void)
+{
+    TEST_ASSERT_FLOAT_WITHIN(0.001f, 16393.0f, compensate(surface(CompSet::Warming, 2), 40.0f, 16393.0f));
+    TEST_ASSERT_FLOAT_WITHIN(0.001f, -16393.0f, compensate(surface(CompSet::Cooling, 2), -5.0f, -16393.0f));
+}
+
+static float eighths(int16_t n)
+{
+    return (float)n / 8.0f;
+}
+
+static void test_trend_ramps(void)
+{
+    TrendDetector trend;
+    TEST_ASSERT(trend.current() == CompSet::Warming);
+    uint8_t switches = 0;
+    CompSet last = CompSet::Warming;
+    int16_t firstCoolingAt = 0;
+    int16_t firstWarmingAt = 0;
+    // 10 -> 40 -> 10 -> 20 degC in 1/8 degC steps.
+    int16_t n = 80;
+    int16_t step = 1;
+    for (uint16_t i = 0; i < 560; ++i) {
+        CompSet now = trend.update(eighths(n));
+        if (now != last) {
+            ++switches;
+            if (now == CompSet::Cooling) {
+                firstCoolingAt = n;
+            } else {
+                firstWarmingAt = n;
+            }
+            last = now;
+        }
+        if (n == 320) {
+            step = -1;
+        } else if (n == 80 && step < 0) {
+            step = 1;
+        }
+        n = (int16_t)(n + step);
+    }
+    TEST_ASSERT_EQUAL(2, switches);
+    TEST_ASSERT_EQUAL(315, firstCoolingAt);  // 40 - 0.625 = 39.375 degC
+    TEST_ASSERT_EQUAL(85, firstWarmingAt);   // 10 + 0.625 = 10.625 degC
+}
+
+static void test_trend_plateau(void)
+{
+    // +-0.25 degC of noise in 1/8 degC steps around 30 degC, from a pseudo
+    // random sequence (Numerical Recipes LCG).
+    for (uint8_t s = 0; s < COMP_SET_COUNT; ++s) {
+        TrendDetector trend(0.5f, (CompSet)s);
+        uint32_t seed = 12345u;
+        for (uint16_t i = 0; i < 500; ++i) {
+            seed = seed * 1664525u + 1013904223u;
+            int16_t noise = (int16_t)((seed >> 24) % 5u) - 2;
+            TEST_ASSERT(trend.update(eighths((int16_t)(240 + noise))) == (CompSet)s);
+        }
+    }
+}
+
+static void test_trend_threshold(void)
+{
+    TrendDetector trend;
+    trend.update(30.0f);
+    TEST_ASSERT(trend.update(29.5f) == CompSet::Warming);    // 0.5 below: not more than
+    TEST_ASSERT(trend.update(29.375f) == CompSet::Cooling);  // 0.625 below
+    TEST_ASSERT(trend.update(29.875f) == CompSet::Cooling);  // 0.5 above the new minimum
+    TEST_ASSERT(trend.update(30.0f) == CompSet::Warming);
+
+    TrendDetector wide(1.0f);
+    wide.update(20.0f);
+    TEST_ASSERT(wide.update(19.0f) == CompSet::Warming);
+    TEST_ASSERT(wide.update(18.875f) == CompSet::Cooling);
+}
+
+static void test_crc_vector(void)
+{
+    const uint8_t check[] = {'1', '2', '3', '4', '5', '6', '7', '8', '9'};
+    TEST_ASSERT_EQUAL_HEX16(0x31C3, crc16Xmodem(check, sizeof(check)));
+}
+
+static void test_block_default_bytes(void)
+{
+    encodeCoefficients(coefficients, block);
+    TEST_ASSERT_EQUAL_HEX8(0x54, block[0]);
+    TEST_ASSERT_EQUAL_HEX8(0x01, block[1]);
+    // Python struct.pack('<f', 571.5) and ('<f', -20.23)
+    const uint8_t p00p10[] = {0x00, 0xE0, 0x0E, 0x44, 0x0A, 0xD7, 0xA1, 0xC1};
+    TEST_ASSERT_EQUAL_MEMORY(p00p10, &block[2], 8);
+    // Python binascii.crc_hqx of bytes 0..145 of the default block: 0xD9E0
+    TEST_ASSERT_EQUAL_HEX8(0xE0, block[146]);
+    TEST_ASSERT_EQUAL_HEX8(0xD9, block[147]);
+}
+
+static void test_block_round_trip(void)
+{
+    Coefficients original;
+    for (uint8_t s = 0; s < COMP_SET_COUNT; ++s) {
+        for (uint8_t a = 0; a < COMP_AXIS_COUNT; ++a) {
+            for (uint8_t k = 0; k < COMP_COEFFICIENT_COUNT; ++k) {
+                original.set[s].axis[a].p[k] = (float)(s * 100 + a * 10 + k) * -1.25e-3f + 7.0f;
+            }
+        }
+    }
+    encodeCoefficients(original, block);
+    TEST_ASSERT(decodeCoefficients(block, coefficients) == BlockStatus::Ok);
+    TEST_ASSERT_EQUAL_MEMORY(&original, &coefficients, sizeof(Coefficients));
+}
+
+static void test_block_rejects(void)
+{
+    encodeCoefficients(coefficients, block);
+    Coefficients untouched;
+    memset(&untouched, 0, sizeof(untouched));
+
+    block[77] ^= 0x04;
+    TEST_ASSERT(decodeCoefficients(block, untouched) == BlockStatus::BadCrc);
+    block[77] ^= 0x04;
+    block[147] ^= 0x80;
+    TEST_ASSERT(decodeCoefficients(block, untouched) == BlockStatus::BadCrc);
+    block[147] ^= 0x80;
+
+    block[0] = 'X';
+    TEST_ASSERT(decodeCoefficients(block, untouched) == BlockStatus::BadMagic);
+    block[0] = 0x54;
+
+    // A well-formed block of another version, CRC recomputed.
+    block[1] = 2;
+    uint16_t crc = crc16Xmodem(block, 146);
+    block[146] = (uint8_t)crc;
+    block[147] = (uint8_t)(crc >> 8);
+    TEST_ASSERT(decodeCoefficients(block, untouched) == BlockStatus::BadVersion);
+
+    TEST_ASSERT_FLOAT_WITHIN(1e-6f, 0.0f, untouched.set[0].axis[0].p[0]);
+    TEST_ASSERT_FLOAT_WITHIN(1e-6f, 0.0f, untouched.set[1].axis[1].p[0]);
+}
+
+int runUnityTests(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_surface_values);
+    RUN_TEST(test_surface_large_accel);
+    RUN_TEST(test_sign_cooling_field);
+    RUN_TEST(test_sign_warming_field);
+    RUN_TEST(test_zero_at_reference);
+    RUN_TEST(test_drift_span);
+    RUN_TEST(test_z_uncorrected);
+    RUN_TEST(test_trend_ramps);
+    RUN_TEST(test_trend_plateau);
+    RUN_TEST(test_trend_threshold);
+    RUN_TEST(test_crc_vector);
+    RUN_TEST(test_block_default_bytes);
+    RUN_TEST(test_block_round_trip);
+    RUN_TEST(test_block_rejects);
+    return UNITY_END();
+}
