@@ -1,0 +1,146 @@
+#ifndef THERMOTILT_PROTOCOL_H
+#define THERMOTILT_PROTOCOL_H
+
+// ThermoTilt serial frames: $TYPE,SEQ,field,...*HH\r\n (see docs/protocol.md).
+// Frame types and fields are defined once, in ProtocolFrames.def.
+
+#include <stdint.h>
+
+#define THERMOTILT_FRAME(tag, direction, fields)
+#include "ProtocolFrames.def"
+#undef THERMOTILT_FRAME
+
+namespace Protocol {
+
+const uint8_t VERSION = THERMOTILT_PROTOCOL_VERSION;
+// Longest line, from '$' to the checksum digits, without CR LF.
+const uint8_t MAX_LINE = THERMOTILT_PROTOCOL_MAX_LINE;
+// Most fields after TYPE and SEQ that a parser keeps.
+const uint8_t MAX_FIELDS = THERMOTILT_PROTOCOL_MAX_FIELDS;
+// A writer buffer of this size holds any legal line plus CR LF and NUL.
+const uint8_t LINE_BUFFER_SIZE = MAX_LINE + 3;
+const uint8_t MAX_TYPE_LENGTH = 7;
+
+constexpr uint8_t countCommas(const char *text)
+{
+    return *text == '\0' ? 0 : (uint8_t)((*text == ',' ? 1 : 0) + countCommas(text + 1));
+}
+
+constexpr uint8_t countFields(const char *fields)
+{
+    return *fields == '\0' ? 0 : (uint8_t)(countCommas(fields) + 1);
+}
+
+// Type tags, e.g. Protocol::Tag::IMU == "IMU".
+namespace Tag {
+#define THERMOTILT_FRAME(tag, direction, fields) constexpr char tag[] = #tag;
+#include "ProtocolFrames.def"
+#undef THERMOTILT_FRAME
+}
+
+// Fields after TYPE and SEQ, e.g. Protocol::FieldCount::SETPRG == 6.
+namespace FieldCount {
+#define THERMOTILT_FRAME(tag, direction, fields) constexpr uint8_t tag = countFields(fields);
+#include "ProtocolFrames.def"
+#undef THERMOTILT_FRAME
+}
+
+enum MalformedReason : uint8_t {
+    MALFORMED_NONE = 0,
+    MALFORMED_TRUNCATED,        // a new '$' arrived before the line ended
+    MALFORMED_TOO_LONG,         // more than MAX_LINE characters
+    MALFORMED_BAD_CHAR,         // a control or non-ASCII byte inside the line
+    MALFORMED_NO_CHECKSUM,      // no '*' followed by exactly two characters
+    MALFORMED_BAD_CHECKSUM,     // checksum digits not hex or not matching
+    MALFORMED_BAD_TYPE,         // TYPE is not 2..7 upper-case letters
+    MALFORMED_BAD_SEQ,          // SEQ missing, not decimal or above 65535
+    MALFORMED_TOO_MANY_FIELDS,  // more than MAX_FIELDS fields after SEQ
+};
+
+// XOR of `length` bytes: the checksum of the text between '$' and '*'.
+uint8_t checksum(const char *text, uint8_t length);
+
+}  // namespace Protocol
+
+// Builds one frame in a caller-supplied buffer. Any error (overflow, bad
+// type, forbidden character in text) is remembered and makes finish() fail,
+// so a sketch can add all fields and check once.
+class FrameWriter {
+public:
+    FrameWriter(char *buffer, uint16_t capacity);
+
+    void begin(const char *type, uint16_t seq);
+    void addInt(int32_t value);
+    void addUnsigned(uint32_t value);
+    // Fixed point, e.g. addFixed(-12.345f, 2) -> "-12.35". Magnitudes of 1e9
+    // and above are written in scientific notation instead.
+    void addFixed(float value, uint8_t decimals);
+    // Scientific, e.g. addScientific(-20.23f) -> "-2.0230e+01"; 1..8 digits.
+    void addScientific(float value, uint8_t significantDigits = 5);
+    void addText(const char *text);
+    void addChar(char value);
+
+    // Appends "*HH\r\n" and returns the NUL-terminated line, or 0 on error.
+    const char *finish();
+    // Characters of the finished line including CR LF.
+    uint8_t length() const { return length_; }
+    bool ok() const { return ok_; }
+
+private:
+    bool startField();
+    void append(const char *text);
+    bool addNonFinite(float value);
+
+    char *buffer_;
+    uint8_t contentLimit_;
+    uint8_t length_;
+    bool ok_;
+    bool finished_;
+};
+
+// Assembles frames from a byte stream. feed() returns true when a valid
+// frame is complete; its type, seq and fields stay readable until the next
+// feed(). Invalid lines are counted and skipped without losing the next frame.
+class FrameParser {
+public:
+    FrameParser();
+
+    bool feed(char c);
+
+    const char *type() const { return line_; }
+    bool typeIs(const char *tag) const;
+    uint16_t seq() const { return seq_; }
+    uint8_t fieldCount() const { return fieldCount_; }
+    // Field i after TYPE and SEQ, or 0 when i is out of range.
+    const char *field(uint8_t index) const;
+    // False (value unchanged) unless the whole field is a number in range.
+    bool fieldInt(uint8_t index, int32_t &value) const;
+    bool fieldFloat(uint8_t index, float &value) const;
+
+    // Wraps at 65535.
+    uint16_t malformedCount() const { return malformedCount_; }
+    Protocol::MalformedReason lastMalformedReason() const
+    {
+        return (Protocol::MalformedReason)lastMalformed_;
+    }
+
+private:
+    enum State : uint8_t { WAITING_FOR_START, IN_LINE, DISCARDING };
+
+    bool endLine();
+    Protocol::MalformedReason splitLine(uint8_t checksumPosition);
+    void reject(Protocol::MalformedReason reason);
+
+    // Characters after '$' of a line up to MAX_LINE long, plus NUL.
+    char line_[Protocol::MAX_LINE];
+    uint8_t fieldStart_[Protocol::MAX_FIELDS];
+    uint8_t length_;
+    uint8_t fieldCount_;
+    uint16_t seq_;
+    uint16_t malformedCount_;
+    uint8_t state_;
+    uint8_t lastMalformed_;
+    uint8_t discardReason_;
+};
+
+#endif
