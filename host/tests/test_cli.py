@@ -1,0 +1,108 @@
+import subprocess
+import sys
+
+import pytest
+
+from thermotilt import __version__
+from thermotilt.cli import main
+from thermotilt.coefficients import PAPER_DEFAULTS, decode_block, encode_block
+from thermotilt.protocol import build_frame
+
+
+def run(*args, stdin=None):
+    return subprocess.run(
+        [sys.executable, "-m", "thermotilt", *args],
+        input=stdin,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+
+
+def assert_one_line_error(result, code):
+    assert result.returncode == code
+    assert result.stdout == ""
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1, result.stderr
+    assert lines[0].startswith("thermotilt: error: ")
+    assert "Traceback" not in result.stderr
+
+
+def test_version():
+    result = run("--version")
+    assert result.returncode == 0
+    assert result.stdout.strip() == f"thermotilt {__version__} (protocol 1)"
+
+
+def test_frames_counts(tmp_path, capsys):
+    capture = tmp_path / "capture.txt"
+    capture.write_bytes(
+        b"boot noise\r\n"
+        + build_frame("ACK", 0, [0, "START"]).encode()
+        + build_frame(
+            "IMU", 1, [10, 1, 2, 3, 1.5, 2.5, 3.5, 1.0, 2.0, 3.0, 21.5, "W", "D"]
+        ).encode()
+        + b"$ACK,2,0,STOP*00\r\n"
+        + build_frame(
+            "IMU", 4, [20, 1, 2, 3, 1.5, 2.5, 3.5, 1.0, 2.0, 3.0, 21.5, "W", "D"]
+        ).encode()
+        + build_frame("IMU", 5, [30, 1, 2, 3, 1.5, 2.5, 3.5, 1.0, 2.0, 3.0, 21.5, "W", "D"])
+        .encode()
+        .rstrip(b"\r\n")
+    )
+    assert main(["frames", str(capture)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out == [
+        "frames: 4",
+        "  ACK: 1",
+        "  IMU: 3",
+        "malformed: 1",
+        "  BAD_CHECKSUM: 1",
+        "gaps: 1 (lost frames: 2)",
+    ]
+
+
+def test_frames_from_stdin():
+    result = run("frames", "-", stdin="$START,1*5D\r\n")
+    assert result.returncode == 0
+    assert "  START: 1" in result.stdout.splitlines()
+
+
+def test_frames_missing_file(tmp_path):
+    result = run("frames", str(tmp_path / "absent.txt"))
+    assert_one_line_error(result, 1)
+    assert "cannot read" in result.stderr and "No such file" in result.stderr
+
+
+def test_frames_without_valid_frames(tmp_path):
+    capture = tmp_path / "junk.bin"
+    capture.write_bytes(b"$ACK,0,13,STOP*4E\r\nhello\r\n")
+    result = run("frames", str(capture))
+    assert_one_line_error(result, 1)
+    assert "no valid frames (1 malformed)" in result.stderr
+
+
+@pytest.mark.parametrize("args", [[], ["bogus"], ["frames"], ["frames", "a", "b"]])
+def test_usage_errors_are_one_line(args):
+    assert_one_line_error(run(*args), 2)
+
+
+def test_coefficients_defaults_and_block(tmp_path):
+    block = tmp_path / "coef.bin"
+    result = run("coefficients", "--write-block", str(block))
+    assert result.returncode == 0
+    lines = result.stdout.splitlines()
+    assert len(lines) == 6 and all(line.startswith("$SETCOE,") for line in lines)
+    assert decode_block(block.read_bytes()) == PAPER_DEFAULTS.to_float32()
+    again = run("coefficients", "--block", str(block))
+    assert again.returncode == 0 and len(again.stdout.splitlines()) == 6
+
+
+def test_coefficients_corrupted_block(tmp_path):
+    block = tmp_path / "bad.bin"
+    data = bytearray(encode_block(PAPER_DEFAULTS))
+    data[10] ^= 0xFF
+    block.write_bytes(bytes(data))
+    result = run("coefficients", "--block", str(block))
+    assert_one_line_error(result, 1)
+    assert "CRC" in result.stderr

@@ -1,0 +1,355 @@
+import importlib.util
+import math
+import re
+from pathlib import Path
+
+import pytest
+
+from thermotilt import protocol, protocol_spec
+from thermotilt.protocol import (
+    FRAMES,
+    FrameReader,
+    MalformedFrame,
+    SequenceCounter,
+    build_frame,
+    checksum,
+    parse_line,
+)
+
+HOST_DIR = Path(__file__).resolve().parents[1]
+REPO_DIR = HOST_DIR.parent
+DEFINITION = REPO_DIR / "lib" / "Protocol" / "src" / "ProtocolFrames.def"
+
+# The same vectors as test/test_protocol/test_protocol.cpp. Checksums were
+# computed independently (functools.reduce over the body with XOR); by hand for
+# "START,1": 53 ^ 54 ^ 41 ^ 52 ^ 54 ^ 2C ^ 31 = 5D.
+VECTORS = [
+    "$START,1*5D",
+    "$VER,0,imu_reader,0.1.0,1*5A",
+    "$ACK,0,13,STOP*4F",
+    "$ACK,65535,12,SETPRG*51",
+    "$ERR,8,-1,BAD_CHECKSUM,CMD*3E",
+    "$SETPRG,9,-10.00,45.00,2.00,60,1200,1*17",
+    "$GETCOE,3,C,Y*1A",
+    "$IMU,42,123456,-1650,-388,16012,-1649.75,-388.50,16012.25,-1078.25,-34.50,16011.00,23.50,W,E*5C",
+    "$COE,7,W,X,5.7150e+02,-2.0230e+01,1.5690e-03,-1.0440e-01,-6.9360e-05,6.3270e-09*78",
+]
+LONGEST = "$LONG,0," + "A" * 109 + "*7B"  # 120 characters; 0x3A ^ 0x41 = 0x7B
+
+
+def read_all(data, chunk=None):
+    reader = FrameReader()
+    if chunk is None:
+        frames = reader.feed(data)
+    else:
+        frames = [f for i in range(0, len(data), chunk) for f in reader.feed(data[i : i + chunk])]
+    return reader, frames
+
+
+@pytest.mark.parametrize("line", VECTORS + [LONGEST])
+def test_checksum_vectors(line):
+    body, digits = line[1:].split("*")
+    assert checksum(body) == int(digits, 16)
+    assert parse_line(line + "\r\n").line == line
+
+
+def test_checksum_by_hand():
+    assert checksum("START,1") == 0x5D
+    assert checksum("ERR,1,-0.1") == 0x76
+    assert checksum(b"START,1") == 0x5D
+
+
+def test_table_matches_brief():
+    # Field lists typed from the project brief, independently of the .def file.
+    assert FRAMES["IMU"].field_names == (
+        "t_ms",
+        "ax_raw",
+        "ay_raw",
+        "az_raw",
+        "ax_filt",
+        "ay_filt",
+        "az_filt",
+        "ax_comp",
+        "ay_comp",
+        "az_comp",
+        "temp_c",
+        "comp_set",
+        "coef_source",
+    )
+    assert FRAMES["CHS"].field_names == (
+        "t_ms",
+        "phase",
+        "step",
+        "setpoint_c",
+        "inner_c",
+        "outer_c",
+        "pwm",
+        "dir",
+        "fault",
+    )
+    assert FRAMES["PRG"].field_names == (
+        "start_c",
+        "max_c",
+        "step_c",
+        "hold_s",
+        "rest_s",
+        "cycles",
+        "mode",
+        "kp",
+        "ki",
+    )
+    assert FRAMES["SETPRG"].field_names == FRAMES["PRG"].field_names[:6]
+    assert FRAMES["SETCOE"].field_names == FRAMES["COE"].field_names
+    assert FRAMES["ERR"].field_names == ("cmd_seq", "code", "detail")
+    board = {tag for tag, spec in FRAMES.items() if spec.direction == "board"}
+    assert board == {"IMU", "CHS", "VER", "ICF", "PRG", "COE", "ACK", "ERR"}
+    host = {tag for tag, spec in FRAMES.items() if spec.direction == "host"}
+    assert host == {
+        "START",
+        "STOP",
+        "VERSION",
+        "STATUS",
+        "SETPRG",
+        "SETCTL",
+        "SETDEC",
+        "GETCOE",
+        "SETCOE",
+        "SAVECOE",
+        "DEFCOE",
+    }
+
+
+def test_generated_spec_is_fresh():
+    if not DEFINITION.exists():
+        pytest.skip("not in the ThermoTilt repository: no ProtocolFrames.def")
+    spec = importlib.util.spec_from_file_location(
+        "generator", HOST_DIR / "tools" / "generate_protocol_spec.py"
+    )
+    generator = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(generator)
+    expected = generator.render(DEFINITION.read_text())
+    assert Path(protocol_spec.__file__).read_text() == expected, (
+        "thermotilt/protocol_spec.py is stale: run host/tools/generate_protocol_spec.py"
+    )
+
+
+def test_docs_show_every_frame():
+    docs = REPO_DIR / "docs" / "protocol.md"
+    if not docs.exists():
+        pytest.skip("not in the ThermoTilt repository: no docs/protocol.md")
+    text = docs.read_text()
+    for tag, spec in FRAMES.items():
+        signature = ",".join(("$" + tag, "seq") + spec.field_names) + "*HH"
+        assert f"`{signature}`" in text, f"docs/protocol.md lacks {signature}"
+    examples = re.findall(r"`(\$[A-Z]+,[0-9][^`]*\*[0-9A-F]{2})`", text)
+    assert len(examples) >= len(FRAMES)
+    for example in examples:
+        parse_line(example)  # raises on a wrong checksum or field count
+
+
+def test_imu_round_trip():
+    values = [
+        123456,
+        -1650,
+        -388,
+        16012,
+        -1649.75,
+        -388.5,
+        16012.25,
+        -1078.25,
+        -34.5,
+        16011.0,
+        23.5,
+        "W",
+        "E",
+    ]
+    line = build_frame("IMU", 42, values)
+    assert line.endswith("\r\n")
+    assert len(line) - 2 <= protocol.MAX_LINE
+    frame = parse_line(line)
+    assert frame.type == "IMU" and frame.seq == 42
+    assert frame["t_ms"] == 123456 and frame["ax_raw"] == -1650
+    assert frame["az_filt"] == 16012.25
+    assert frame["comp_set"] == "W" and frame["coef_source"] == "E"
+    assert list(frame.fields.values()) == values
+
+
+def test_parse_board_imu_line():
+    frame = parse_line(VECTORS[7])
+    assert frame.seq == 42
+    assert frame["ay_filt"] == -388.5
+    assert frame["temp_c"] == 23.5
+
+
+def test_tiny_coefficients_scientific_and_fixed():
+    frame = parse_line(VECTORS[8])
+    assert frame["p02"] == pytest.approx(6.327e-9, rel=1e-12)
+    assert frame["p10"] == pytest.approx(-20.23)
+    line = build_frame(
+        "SETCOE",
+        65535,
+        ["C", "Y", -1.23456789e-38, -12.82, 4.439e-3, -3.299e-2, -1.579e-4, -1.455e-8],
+    )
+    assert len(line) - 2 <= protocol.MAX_LINE
+    assert parse_line(line)["p00"] == -1.23456789e-38
+
+
+def test_build_from_mapping_and_errors():
+    line = build_frame("SETCTL", 3, {"mode": "PI", "kp": 350, "ki": 0.5})
+    assert parse_line(line).fields == {"mode": "PI", "kp": 350.0, "ki": 0.5}
+    with pytest.raises(ValueError, match="takes 3 fields"):
+        build_frame("SETCTL", 3, ["P", 350])
+    with pytest.raises(ValueError, match="missing"):
+        build_frame("SETCTL", 3, {"mode": "P"})
+    with pytest.raises(ValueError, match="not allowed"):
+        build_frame("ERR", 1, [-1, "A,B", "x"])
+    with pytest.raises(ValueError, match="upper-case"):
+        build_frame("imu", 1)
+    with pytest.raises(ValueError, match="0..65535"):
+        build_frame("START", 65536)
+    with pytest.raises(ValueError, match="characters"):
+        build_frame("LONG", 0, ["A" * 110])
+    assert build_frame("LONG", 0, ["A" * 109]) == LONGEST + "\r\n"
+
+
+def test_non_finite_values():
+    frame = parse_line(build_frame("ICF", 1, [10, 1, "E", math.nan]))
+    assert math.isnan(frame["hysteresis_c"])
+
+
+@pytest.mark.parametrize(
+    "text, reason",
+    [
+        ("$ACK,0,13,STOP*4E", protocol.BAD_CHECKSUM),
+        ("$ACK,0,13,STOP*G0", protocol.BAD_CHECKSUM),
+        ("$ACK,0,13,STOP", protocol.NO_CHECKSUM),
+        ("$ACK,0,13,STOP*4", protocol.NO_CHECKSUM),
+        ("$LONG,0," + "A" * 110 + "*3A", protocol.TOO_LONG),
+        ("$ACK,65536,1,X*3F", protocol.BAD_SEQ),
+        ("$ACK,x,1*" + "%02X" % checksum("ACK,x,1"), protocol.BAD_SEQ),
+        ("$A,1*" + "%02X" % checksum("A,1"), protocol.BAD_TYPE),
+        ("$ACKNOWLE,1*" + "%02X" % checksum("ACKNOWLE,1"), protocol.BAD_TYPE),
+        ("$X1,1*" + "%02X" % checksum("X1,1"), protocol.BAD_TYPE),
+        ("$ACK,1,\x01*" + "%02X" % checksum("ACK,1,\x01"), protocol.BAD_CHAR),
+        (
+            "$ACK,1," + ",".join("1" * 17) + "*" + "%02X" % checksum("ACK,1," + ",".join("1" * 17)),
+            protocol.TOO_MANY_FIELDS,
+        ),
+        ("$ACK,1,5*" + "%02X" % checksum("ACK,1,5"), protocol.FIELD_COUNT),
+        ("$ACK,1,five,X*" + "%02X" % checksum("ACK,1,five,X"), protocol.BAD_FIELD),
+    ],
+)
+def test_malformed_lines(text, reason):
+    with pytest.raises(MalformedFrame) as error:
+        parse_line(text)
+    assert error.value.reason == reason
+    reader, frames = read_all(text + "\r\n$START,1*5D\r\n")
+    assert [f.type for f in frames] == ["START"]
+    assert reader.malformed == 1
+    assert reader.malformed_by_reason == {reason: 1}
+
+
+def test_reader_garbage_crlf_lf_lowercase():
+    data = (
+        b"\x00\xffnoise*12,\r\n$START,1*5D\r\n$GETCOE,3,C,Y*1a\n\n$STOP,4*"
+        + b"%02X\r\n" % checksum("STOP,4")
+    )
+    reader, frames = read_all(data)
+    assert [f.type for f in frames] == ["START", "GETCOE", "STOP"]
+    assert frames[1]["axis"] == "Y"
+    assert reader.malformed == 0
+    assert (reader.gaps, reader.lost_frames) == (1, 1)  # host seq 1, 3, 4
+
+
+def test_reader_over_long_line_then_good_frame():
+    data = b"$" + b"A" * 300 + b"\r\n$START,1*5D\r\n" + b"$ACK,0,1$START,2*5E\r\n"
+    reader, frames = read_all(data)
+    assert [f.seq for f in frames] == [1, 2]
+    assert reader.malformed_by_reason == {protocol.TOO_LONG: 1, protocol.TRUNCATED: 1}
+
+
+def test_reader_same_result_in_any_chunking():
+    data = (
+        "\r\n".join(VECTORS + [LONGEST, "$ACK,0,13,STOP*4E", "$" + "B" * 200]) + "\r\n"
+    ).encode()
+    whole, whole_frames = read_all(data)
+    for chunk in (1, 7, 64):
+        reader, frames = read_all(data, chunk)
+        assert frames == whole_frames
+        assert reader.malformed_by_reason == whole.malformed_by_reason
+    assert whole.frames == len(VECTORS) + 1
+    assert whole.malformed_by_reason == {protocol.BAD_CHECKSUM: 1, protocol.TOO_LONG: 1}
+
+
+def lines(*frames):
+    return "".join(build_frame(tag, seq, values) for tag, seq, values in frames)
+
+
+def test_gap_detection_and_wrap():
+    ack = ["7", "STOP"]
+    data = lines(
+        ("ACK", 65534, ack),
+        ("ACK", 65535, ack),
+        ("ACK", 0, ack),
+        ("ACK", 1, ack),
+        ("ACK", 4, ack),
+        ("ACK", 5, ack),
+    )
+    reader, frames = read_all(data)
+    assert len(frames) == 6
+    assert reader.gaps == 1
+    assert reader.lost_frames == 2
+
+
+def test_corrupted_frame_shows_as_gap():
+    good = build_frame("ACK", 10, [1, "START"]) + build_frame("ACK", 12, [2, "STOP"])
+    bad = build_frame("ACK", 11, [1, "STOP"]).replace("STOP", "STOQ")
+    reader, frames = read_all(good[: len(good) // 2] + bad + good[len(good) // 2 :])
+    assert [f.seq for f in frames] == [10, 12]
+    assert reader.malformed_by_reason == {protocol.BAD_CHECKSUM: 1}
+    assert (reader.gaps, reader.lost_frames) == (1, 1)
+
+
+def test_restart_is_a_gap_without_lost_frames():
+    ack = [1, "X"]
+    reader, _ = read_all(lines(("ACK", 500, ack), ("ACK", 0, ack), ("ACK", 1, ack)))
+    assert (reader.gaps, reader.lost_frames) == (1, 0)
+
+
+def test_directions_tracked_separately():
+    data = lines(
+        ("SETDEC", 0, [10]),
+        ("ACK", 100, [0, "SETDEC"]),
+        ("STATUS", 1, []),
+        ("ICF", 101, [10, 1, "E", 0.5]),
+        ("ACK", 102, [1, "STATUS"]),
+    )
+    reader, frames = read_all(data)
+    assert len(frames) == 5
+    assert reader.gaps == 0
+
+
+def test_unknown_type_is_kept_raw():
+    frame = parse_line(build_frame("NEWONE", 5, [1, "x"]))
+    assert frame.fields == {} and frame.raw_fields == ("1", "x")
+
+
+def test_appended_fields_are_tolerated():
+    body = "ACK,5,1,STOP,9"
+    frame = parse_line(f"${body}*{checksum(body):02X}")
+    assert frame.fields == {"cmd_seq": 1, "cmd_type": "STOP"}
+    assert frame.raw_fields[-1] == "9"
+
+
+def test_sequence_counter_wraps():
+    counter = SequenceCounter(65535)
+    assert [counter.next() for _ in range(3)] == [65535, 0, 1]
+
+
+def test_read_from_stream(tmp_path):
+    path = tmp_path / "capture.bin"
+    path.write_bytes(("\r\n".join(VECTORS) + "\r\n").encode())
+    reader = FrameReader()
+    with open(path, "rb") as stream:
+        frames = list(reader.read_from(stream, chunk_size=5))
+    assert len(frames) == len(VECTORS)
