@@ -1,0 +1,88 @@
+#include "SerialLink.h"
+
+#include <Arduino.h>
+#include <avr/sleep.h>
+
+static const char* malformedName(Protocol::MalformedReason reason)
+{
+    switch (reason) {
+    case Protocol::MALFORMED_TRUNCATED: return "TRUNCATED";
+    case Protocol::MALFORMED_TOO_LONG: return "TOO_LONG";
+    case Protocol::MALFORMED_BAD_CHAR: return "BAD_CHAR";
+    case Protocol::MALFORMED_NO_CHECKSUM: return "NO_CHECKSUM";
+    case Protocol::MALFORMED_BAD_CHECKSUM: return "BAD_CHECKSUM";
+    case Protocol::MALFORMED_BAD_TYPE: return "BAD_TYPE";
+    case Protocol::MALFORMED_BAD_SEQ: return "BAD_SEQ";
+    case Protocol::MALFORMED_TOO_MANY_FIELDS: return "TOO_MANY_FIELDS";
+    default: return "UNKNOWN";
+    }
+}
+
+SerialLink::SerialLink() : writer_(line_, sizeof line_), nextSeq_(0), malformedSeen_(0) {}
+
+void SerialLink::begin(unsigned long baud)
+{
+    Serial.begin(baud);
+}
+
+bool SerialLink::poll()
+{
+    while (Serial.available() > 0) {
+        bool complete = parser_.feed((char)Serial.read());
+        if (parser_.malformedCount() != malformedSeen_) {
+            malformedSeen_ = parser_.malformedCount();
+            report("BAD_FRAME", malformedName(parser_.lastMalformedReason()));
+        }
+        if (complete) {
+            return true;
+        }
+    }
+    return false;
+}
+
+FrameWriter& SerialLink::start(const char* type)
+{
+    writer_.begin(type, nextSeq_++);
+    return writer_;
+}
+
+void SerialLink::send()
+{
+    const char* text = writer_.finish();
+    if (text) {
+        Serial.write(text);
+    }
+}
+
+void SerialLink::acknowledge()
+{
+    FrameWriter& frame = start(Protocol::Tag::ACK);
+    frame.addUnsigned(parser_.seq());
+    frame.addText(parser_.type());
+    send();
+}
+
+void SerialLink::reject(const char* code, const char* detail)
+{
+    sendError(parser_.seq(), code, detail);
+}
+
+void SerialLink::report(const char* code, const char* detail)
+{
+    sendError(-1, code, detail);
+}
+
+void SerialLink::sendError(int32_t commandSeq, const char* code, const char* detail)
+{
+    FrameWriter& frame = start(Protocol::Tag::ERR);
+    frame.addInt(commandSeq);
+    frame.addText(code);
+    frame.addText(detail);
+    send();
+}
+
+void idleUntilInterrupt()
+{
+    set_sleep_mode(SLEEP_MODE_IDLE);
+    sleep_mode();
+}

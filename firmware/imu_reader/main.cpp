@@ -1,0 +1,328 @@
+// IMU reader (Arduino Nano): LSM9DS0 accelerometer and temperature at 100 Hz,
+// a Kalman filter per channel, decimation, on-device drift compensation and
+// IMU frames on the serial port (docs/protocol.md).
+#include <Arduino.h>
+#include <EEPROM.h>
+#include <Wire.h>
+
+#include <Compensation.h>
+#include <Kalman.h>
+#include <LSM9DS0.h>
+#include <Protocol.h>
+
+#include "SerialLink.h"
+
+namespace {
+
+const char FIRMWARE_VERSION[] = "0.1.0";
+const unsigned long BAUD = 115200;
+// CTRL_REG1_XM runs the accelerometer at 100 Hz; data-ready is polled only
+// near the end of each period, so sampling follows the sensor's own clock.
+const uint32_t SAMPLE_PERIOD_MS = 10;
+const uint32_t DATA_READY_WINDOW_MS = 2;
+const uint32_t SENSOR_RETRY_MS = 1000;
+// Ten periods without data-ready means the sensor stopped, even if it answers.
+const uint32_t SENSOR_SILENT_MS = 100;
+// Longer than a 100 Hz period: a held bus is given up on, never waited for.
+const uint32_t WIRE_TIMEOUT_US = 25000;
+const uint8_t DEFAULT_DECIMATION = 10;
+const int COEFFICIENTS_EEPROM_ADDRESS = 0;
+const uint8_t AXES = 3;
+
+class WireBus : public I2cBus {
+public:
+    bool writeRegister(uint8_t address7, uint8_t reg, uint8_t value) override
+    {
+        Wire.beginTransmission(address7);
+        Wire.write(reg);
+        Wire.write(value);
+        return Wire.endTransmission() == 0;
+    }
+
+    bool readRegisters(uint8_t address7, uint8_t firstReg, uint8_t* out, uint8_t count) override
+    {
+        Wire.beginTransmission(address7);
+        Wire.write(firstReg);
+        if (Wire.endTransmission(false) != 0) {
+            return false;
+        }
+        if (Wire.requestFrom(address7, count) != count) {
+            return false;
+        }
+        for (uint8_t i = 0; i < count; ++i) {
+            out[i] = (uint8_t)Wire.read();
+        }
+        return true;
+    }
+};
+
+// Where the active coefficients came from, as the IMU frame reports it.
+enum CoefficientSource : char { FROM_EEPROM = 'E', FROM_DEFAULTS = 'D', UPLOADED = 'U' };
+
+WireBus bus;
+Lsm9ds0Accel sensor(bus);
+SerialLink link;
+KalmanFilter accelFilters[AXES];
+KalmanFilter temperatureFilter;
+Decimator decimator(DEFAULT_DECIMATION);
+TrendDetector trend;
+Coefficients coefficients;
+char coefficientSource = FROM_DEFAULTS;
+bool sensorReady = false;
+bool streaming = true;
+uint32_t lastSampleMs = 0;
+uint32_t lastSensorAttemptMs = 0;
+
+const char* sensorStatusName(Lsm9ds0Accel::Status status)
+{
+    switch (status) {
+    case Lsm9ds0Accel::Status::NoAnswer: return "NO_ANSWER";
+    case Lsm9ds0Accel::Status::WrongId: return "WRONG_ID";
+    case Lsm9ds0Accel::Status::WriteFailed: return "WRITE_FAILED";
+    default: return "OK";
+    }
+}
+
+void resetFilters()
+{
+    for (uint8_t axis = 0; axis < AXES; ++axis) {
+        accelFilters[axis].reset();
+    }
+    temperatureFilter.reset();
+    decimator.restart();
+}
+
+void connectSensor()
+{
+    lastSensorAttemptMs = millis();
+    Lsm9ds0Accel::Status status = sensor.begin();
+    sensorReady = status == Lsm9ds0Accel::Status::Ok;
+    if (sensorReady) {
+        resetFilters();
+        lastSampleMs = lastSensorAttemptMs;
+    } else {
+        link.report("SENSOR_MISSING", sensorStatusName(status));
+    }
+}
+
+void sensorLost(const char* why)
+{
+    sensorReady = false;
+    lastSensorAttemptMs = millis();
+    link.report("SENSOR_MISSING", why);
+}
+
+void loadCoefficients()
+{
+    uint8_t block[COEFFICIENT_BLOCK_SIZE];
+    for (uint8_t i = 0; i < COEFFICIENT_BLOCK_SIZE; ++i) {
+        block[i] = EEPROM.read(COEFFICIENTS_EEPROM_ADDRESS + i);
+    }
+    BlockStatus status = decodeCoefficients(block, coefficients);
+    if (status == BlockStatus::Ok) {
+        coefficientSource = FROM_EEPROM;
+        return;
+    }
+    loadDefaultCoefficients(coefficients);
+    coefficientSource = FROM_DEFAULTS;
+    // A blank EEPROM (never saved) is normal; a damaged block is worth saying.
+    if (status == BlockStatus::BadCrc) {
+        link.report("EEPROM_CRC", "DEFAULTS");
+    } else if (status == BlockStatus::BadVersion) {
+        link.report("EEPROM_VERSION", "DEFAULTS");
+    }
+}
+
+void saveCoefficients()
+{
+    uint8_t block[COEFFICIENT_BLOCK_SIZE];
+    encodeCoefficients(coefficients, block);
+    for (uint8_t i = 0; i < COEFFICIENT_BLOCK_SIZE; ++i) {
+        EEPROM.update(COEFFICIENTS_EEPROM_ADDRESS + i, block[i]);
+    }
+    coefficientSource = FROM_EEPROM;
+}
+
+void sendImuFrame(const int16_t raw[AXES], const float filtered[AXES], const float compensated[AXES],
+                  float temperatureC, CompSet set)
+{
+    FrameWriter& frame = link.start(Protocol::Tag::IMU);
+    frame.addUnsigned(millis());
+    for (uint8_t axis = 0; axis < AXES; ++axis) {
+        frame.addInt(raw[axis]);
+    }
+    for (uint8_t axis = 0; axis < AXES; ++axis) {
+        frame.addFixed(filtered[axis], 1);
+    }
+    for (uint8_t axis = 0; axis < AXES; ++axis) {
+        frame.addFixed(compensated[axis], 1);
+    }
+    frame.addFixed(temperatureC, 3);
+    frame.addChar(set == CompSet::Warming ? 'W' : 'C');
+    frame.addChar(coefficientSource);
+    link.send();
+}
+
+void sample()
+{
+    int16_t raw[AXES];
+    int16_t temperatureRaw;
+    if (!sensor.readAcceleration(raw) || !sensor.readTemperatureRaw(temperatureRaw)) {
+        sensorLost("READ_FAILED");
+        return;
+    }
+    // Temperature goes through the same filter as acceleration, so f(T, a)
+    // sees the two with the same lag.
+    float temperatureC = temperatureFilter.update(temperatureRawToC(temperatureRaw));
+    float filtered[AXES];
+    for (uint8_t axis = 0; axis < AXES; ++axis) {
+        filtered[axis] = accelFilters[axis].update(raw[axis]);
+    }
+    CompSet set = trend.update(temperatureC);
+    if (!streaming || !decimator.push()) {
+        return;
+    }
+    const CoefficientSet& surfaces = coefficients.forTrend(set);
+    float compensated[AXES];
+    for (uint8_t axis = 0; axis < AXES; ++axis) {
+        compensated[axis] = compensate(surfaces.axis[axis], temperatureC, filtered[axis]);
+    }
+    sendImuFrame(raw, filtered, compensated, temperatureC, set);
+}
+
+bool parseSetAndAxis(const FrameParser& command, uint8_t& set, uint8_t& axis)
+{
+    const char* setText = command.field(0);
+    const char* axisText = command.field(1);
+    if (!setText || !axisText || setText[1] != '\0' || axisText[1] != '\0') {
+        return false;
+    }
+    if (setText[0] != 'W' && setText[0] != 'C') {
+        return false;
+    }
+    if (axisText[0] < 'X' || axisText[0] > 'Z') {
+        return false;
+    }
+    set = setText[0] == 'W' ? 0 : 1;
+    axis = (uint8_t)(axisText[0] - 'X');
+    return true;
+}
+
+void sendCoefficients(uint8_t set, uint8_t axis)
+{
+    FrameWriter& frame = link.start(Protocol::Tag::COE);
+    frame.addChar(set == 0 ? 'W' : 'C');
+    frame.addChar((char)('X' + axis));
+    for (uint8_t term = 0; term < COMP_COEFFICIENT_COUNT; ++term) {
+        frame.addScientific(coefficients.set[set].axis[axis].p[term]);
+    }
+    link.send();
+}
+
+void sendConfiguration()
+{
+    FrameWriter& frame = link.start(Protocol::Tag::ICF);
+    frame.addUnsigned(decimator.factor());
+    frame.addUnsigned(streaming ? 1 : 0);
+    frame.addChar(coefficientSource);
+    frame.addFixed(trend.hysteresisC(), 3);
+    link.send();
+}
+
+void sendVersion()
+{
+    FrameWriter& frame = link.start(Protocol::Tag::VER);
+    frame.addText("imu_reader");
+    frame.addText(FIRMWARE_VERSION);
+    frame.addUnsigned(Protocol::VERSION);
+    link.send();
+}
+
+void handleCommand()
+{
+    const FrameParser& command = link.command();
+    uint8_t set = 0;
+    uint8_t axis = 0;
+    if (link.commandIs(Protocol::Tag::START) || link.commandIs(Protocol::Tag::STOP)) {
+        streaming = link.commandIs(Protocol::Tag::START);
+        decimator.restart();
+        link.acknowledge();
+    } else if (link.commandIs(Protocol::Tag::VERSION)) {
+        sendVersion();
+        link.acknowledge();
+    } else if (link.commandIs(Protocol::Tag::STATUS)) {
+        sendConfiguration();
+        link.acknowledge();
+    } else if (link.commandIs(Protocol::Tag::SETDEC)) {
+        int32_t factor = 0;
+        if (command.fieldCount() != Protocol::FieldCount::SETDEC || !command.fieldInt(0, factor) ||
+            factor < 1 || factor > 255) {
+            link.reject("BAD_ARG", "FACTOR_1_255");
+            return;
+        }
+        decimator.setFactor((uint8_t)factor);
+        link.acknowledge();
+    } else if (link.commandIs(Protocol::Tag::GETCOE)) {
+        if (command.fieldCount() != Protocol::FieldCount::GETCOE || !parseSetAndAxis(command, set, axis)) {
+            link.reject("BAD_ARG", "SET_AXIS");
+            return;
+        }
+        sendCoefficients(set, axis);
+        link.acknowledge();
+    } else if (link.commandIs(Protocol::Tag::SETCOE)) {
+        AxisSurface surface;
+        bool valid = command.fieldCount() == Protocol::FieldCount::SETCOE && parseSetAndAxis(command, set, axis);
+        for (uint8_t term = 0; valid && term < COMP_COEFFICIENT_COUNT; ++term) {
+            valid = command.fieldFloat((uint8_t)(2 + term), surface.p[term]) && isfinite(surface.p[term]);
+        }
+        if (!valid) {
+            link.reject("BAD_ARG", "COEFFICIENTS");
+            return;
+        }
+        coefficients.set[set].axis[axis] = surface;
+        coefficientSource = UPLOADED;
+        link.acknowledge();
+    } else if (link.commandIs(Protocol::Tag::SAVECOE)) {
+        saveCoefficients();
+        link.acknowledge();
+    } else if (link.commandIs(Protocol::Tag::DEFCOE)) {
+        loadDefaultCoefficients(coefficients);
+        coefficientSource = FROM_DEFAULTS;
+        link.acknowledge();
+    } else {
+        link.reject("UNKNOWN_CMD", command.type());
+    }
+}
+
+}  // namespace
+
+void setup()
+{
+    link.begin(BAUD);
+    Wire.begin();
+    Wire.setWireTimeout(WIRE_TIMEOUT_US, true);
+    sendVersion();
+    loadCoefficients();
+    connectSensor();
+}
+
+void loop()
+{
+    if (link.poll()) {
+        handleCommand();
+    }
+    uint32_t now = millis();
+    if (!sensorReady) {
+        if (now - lastSensorAttemptMs >= SENSOR_RETRY_MS) {
+            connectSensor();
+        }
+    } else if (now - lastSampleMs >= SAMPLE_PERIOD_MS - DATA_READY_WINDOW_MS) {
+        if (sensor.dataReady()) {
+            lastSampleMs = now;
+            sample();
+        } else if (now - lastSampleMs >= SENSOR_SILENT_MS) {
+            sensorLost("NO_DATA");
+        }
+    }
+    idleUntilInterrupt();
+}
