@@ -1,0 +1,67 @@
+# ThermoTilt offline build: Debian's gcc-avr, Arduino core and simavr instead
+# of the PlatformIO registry. `make test` works on a fresh Debian machine: it
+# installs what is missing, builds everything and runs every test.
+
+BUILD ?= build
+VENV ?= .venv
+PYTHON ?= python3
+JOBS ?= $(shell nproc)
+APT_PACKAGES := cmake make gcc g++ gcc-avr avr-libc binutils-avr arduino-core-avr simavr libsimavr-dev
+AVR_MCUS := atmega328p atmega2560
+
+NATIVE := $(BUILD)/native
+VENV_READY := $(VENV)/.installed
+
+.PHONY: all firmware test deps system-deps python-deps build native avr bench clean
+
+all: firmware
+
+deps: system-deps python-deps
+
+# Installs only the Debian packages that are missing; needs root or sudo then.
+system-deps:
+	@missing=""; for package in $(APT_PACKAGES); do \
+	  dpkg-query -W -f='$${Status}' $$package 2>/dev/null | grep -q "install ok installed" || missing="$$missing $$package"; \
+	done; \
+	if [ -n "$$missing" ]; then \
+	  if [ "$$(id -u)" = 0 ]; then sudo=""; \
+	  elif command -v sudo >/dev/null; then sudo=sudo; \
+	  else echo "error: missing Debian packages:$$missing (run as root or install them)" >&2; exit 1; fi; \
+	  echo "Installing Debian packages:$$missing"; \
+	  $$sudo apt-get update -q && $$sudo env DEBIAN_FRONTEND=noninteractive apt-get install -y -q $$missing; \
+	fi
+
+python-deps: $(VENV_READY)
+
+$(VENV_READY): host/requirements.txt host/pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(VENV)/bin/pip install --quiet --upgrade pip
+	$(VENV)/bin/pip install --quiet -r host/requirements.txt -e host
+	touch $@
+
+native: system-deps
+	cmake -S . -B $(NATIVE) -DCMAKE_BUILD_TYPE=Release
+	cmake --build $(NATIVE) -j $(JOBS)
+
+avr: native
+	@for mcu in $(AVR_MCUS); do \
+	  cmake -S . -B $(BUILD)/$$mcu -DCMAKE_TOOLCHAIN_FILE=cmake/avr-gcc.cmake -DAVR_MCU=$$mcu \
+	    -DAVR_RUN=$(abspath $(NATIVE))/avr_run && \
+	  cmake --build $(BUILD)/$$mcu -j $(JOBS) || exit 1; \
+	done
+
+build: native avr
+
+# The main job until the host tools exist: both firmware images and their sizes.
+firmware: avr
+	@echo; for image in atmega328p/imu_reader atmega2560/thermal_chamber; do \
+	  mcu=$${image%%/*}; \
+	  echo "== $(BUILD)/$$image.hex"; \
+	  avr-size --format=avr --mcu=$$mcu $(BUILD)/$$image.elf | grep -E "Program|Data"; \
+	done
+
+test: build python-deps
+	@BUILD=$(BUILD) VENV=$(VENV) bash cmake/run-tests.sh $(AVR_MCUS)
+
+clean:
+	rm -rf $(BUILD)
