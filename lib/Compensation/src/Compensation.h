@@ -62,6 +62,7 @@ public:
 
     CompSet update(float tempC);
     CompSet current() const { return state_; }
+    float hysteresisC() const { return hysteresisC_; }
     void reset(CompSet initial = CompSet::Warming);
 
 private:
