@@ -20,9 +20,9 @@ static const char* malformedName(Protocol::MalformedReason reason)
 
 SerialLink::SerialLink() : writer_(line_, sizeof line_), nextSeq_(0), malformedSeen_(0) {}
 
-void SerialLink::begin(unsigned long baud)
+void SerialLink::begin()
 {
-    Serial.begin(baud);
+    Serial.begin(SERIAL_BAUD);
 }
 
 bool SerialLink::poll()
@@ -52,6 +52,15 @@ void SerialLink::send()
     if (text) {
         Serial.write(text);
     }
+}
+
+void SerialLink::sendVersion(const char* device, const char* firmwareVersion)
+{
+    FrameWriter& frame = start(Protocol::Tag::VER);
+    frame.addText(device);
+    frame.addText(firmwareVersion);
+    frame.addUnsigned(Protocol::VERSION);
+    send();
 }
 
 void SerialLink::acknowledge()

@@ -7,11 +7,14 @@
 
 #include <Protocol.h>
 
+// Both boards and the host use one speed; see docs/protocol.md.
+const unsigned long SERIAL_BAUD = 115200;
+
 class SerialLink {
 public:
     SerialLink();
 
-    void begin(unsigned long baud);
+    void begin();
 
     // Reads what Serial holds; true when a command frame is ready in command().
     // A malformed line is answered with an unsolicited ERR.
@@ -22,6 +25,9 @@ public:
     // Starts a frame with the next sequence number; add fields, then send().
     FrameWriter& start(const char* type);
     void send();
+
+    // The VER frame: which firmware this is and which protocol it speaks.
+    void sendVersion(const char* device, const char* firmwareVersion);
 
     void acknowledge();
     void reject(const char* code, const char* detail);

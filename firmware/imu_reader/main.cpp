@@ -15,7 +15,6 @@
 namespace {
 
 const char FIRMWARE_VERSION[] = "0.1.0";
-const unsigned long BAUD = 115200;
 // CTRL_REG1_XM runs the accelerometer at 100 Hz; data-ready is polled only
 // near the end of each period, so sampling follows the sensor's own clock.
 const uint32_t SAMPLE_PERIOD_MS = 10;
@@ -229,15 +228,6 @@ void sendConfiguration()
     link.send();
 }
 
-void sendVersion()
-{
-    FrameWriter& frame = link.start(Protocol::Tag::VER);
-    frame.addText("imu_reader");
-    frame.addText(FIRMWARE_VERSION);
-    frame.addUnsigned(Protocol::VERSION);
-    link.send();
-}
-
 void handleCommand()
 {
     const FrameParser& command = link.command();
@@ -248,7 +238,7 @@ void handleCommand()
         decimator.restart();
         link.acknowledge();
     } else if (link.commandIs(Protocol::Tag::VERSION)) {
-        sendVersion();
+        link.sendVersion("imu_reader", FIRMWARE_VERSION);
         link.acknowledge();
     } else if (link.commandIs(Protocol::Tag::STATUS)) {
         sendConfiguration();
@@ -298,10 +288,10 @@ void handleCommand()
 
 void setup()
 {
-    link.begin(BAUD);
+    link.begin();
     Wire.begin();
     Wire.setWireTimeout(WIRE_TIMEOUT_US, true);
-    sendVersion();
+    link.sendVersion("imu_reader", FIRMWARE_VERSION);
     loadCoefficients();
     connectSensor();
 }

@@ -13,7 +13,6 @@
 namespace {
 
 const char FIRMWARE_VERSION[] = "0.1.0";
-const unsigned long BAUD = 115200;
 // The reference (inner) face is the controlled one; the outer face is the
 // heatsink side, watched because each face's temperature depends on the other.
 const uint8_t INNER_THERMISTOR_PIN = A0;
@@ -172,15 +171,6 @@ void sendProgram()
     link.send();
 }
 
-void sendVersion()
-{
-    FrameWriter& frame = link.start(Protocol::Tag::VER);
-    frame.addText("thermal_chamber");
-    frame.addText(FIRMWARE_VERSION);
-    frame.addUnsigned(Protocol::VERSION);
-    link.send();
-}
-
 const char* programErrorName(ProgramError error)
 {
     switch (error) {
@@ -261,7 +251,7 @@ void handleCommand(uint32_t now)
         stopProgram();
         link.acknowledge();
     } else if (link.commandIs(Protocol::Tag::VERSION)) {
-        sendVersion();
+        link.sendVersion("thermal_chamber", FIRMWARE_VERSION);
         link.acknowledge();
     } else if (link.commandIs(Protocol::Tag::STATUS)) {
         sendProgram();
@@ -283,8 +273,8 @@ void setup()
     pinMode(kL298nIn2Pin, OUTPUT);
     pinMode(kL298nEnaPin, OUTPUT);
     applyDrive({0, Direction::Off});
-    link.begin(BAUD);
-    sendVersion();
+    link.begin();
+    link.sendVersion("thermal_chamber", FIRMWARE_VERSION);
     lastControlMs = millis();
 }
 
