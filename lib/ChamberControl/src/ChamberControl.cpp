@@ -1,5 +1,7 @@
 #include "ChamberControl.h"
 
+#include <math.h>
+
 const float ChamberController::kPaperProportionalGain = 350.0f;
 const uint8_t ChamberController::kMaxPwm;
 
@@ -12,12 +14,6 @@ static float clampOutput(float value)
     if (value < -kMaxOutput)
         return -kMaxOutput;
     return value;
-}
-
-static bool isFinite(float value)
-{
-    // NaN fails every comparison; +-infinity fails the bounds.
-    return value > -3.0e38f && value < 3.0e38f;
 }
 
 ChamberController::ChamberController(float proportionalGain, float integralGain)
@@ -37,7 +33,7 @@ DriveCommand ChamberController::update(float setpointCelsius, float measuredCels
 {
     DriveCommand off = {0, Direction::Off};
     float error = setpointCelsius - measuredCelsius;
-    if (!isFinite(error))
+    if (!isfinite(error))
         return off;
 
     float proportional = proportionalGain_ * error;
