@@ -1,0 +1,38 @@
+/*
+ * LSM9DS0 accelerometer/magnetometer (XM) die as an I2C slave: the register
+ * file the firmware sees, data produced at the rate CTRL_REG1_XM selects,
+ * STATUS_REG_A data-ready flags, and auto-increment reads. Acceleration and
+ * temperature come from whoever drives the model (lsm9ds0_set_*).
+ */
+#ifndef THERMOTILT_SIM_LSM9DS0_H
+#define THERMOTILT_SIM_LSM9DS0_H
+
+#include <stdint.h>
+
+#include <simavr/sim_avr.h>
+#include <simavr/sim_irq.h>
+
+typedef struct lsm9ds0 {
+    avr_t *avr;
+    avr_irq_t *irq; /* [TWI_IRQ_INPUT] to the AVR, [TWI_IRQ_OUTPUT] from it */
+    uint8_t address;
+    uint8_t registers[128];
+    uint8_t selected;
+    uint8_t pointer;
+    uint8_t auto_increment;
+    uint8_t expecting_pointer;
+    int16_t acceleration[3];
+    int16_t temperature_raw;
+    uint8_t absent; /* fault hook: no ACK, as an unplugged sensor */
+} lsm9ds0_t;
+
+enum { LSM9DS0_ADDRESS_SDO_HIGH = 0x1D };
+
+void lsm9ds0_init(avr_t *avr, lsm9ds0_t *sensor, uint8_t address7);
+void lsm9ds0_attach(lsm9ds0_t *sensor);
+
+void lsm9ds0_set_acceleration(lsm9ds0_t *sensor, int16_t x, int16_t y, int16_t z);
+/* 12-bit two's complement, 8 LSB/degC, as OUT_TEMP_L/H_XM report it. */
+void lsm9ds0_set_temperature_raw(lsm9ds0_t *sensor, int16_t raw);
+
+#endif
