@@ -12,7 +12,7 @@ endforeach()
 
 find_library(SIMAVR_LIBRARY simavr REQUIRED)
 find_path(SIMAVR_INCLUDE_DIR simavr/sim_avr.h REQUIRED)
-add_library(sim_board STATIC sim/board.c)
+add_library(sim_board STATIC sim/board.c sim/lsm9ds0.c)
 target_include_directories(sim_board PUBLIC sim ${SIMAVR_INCLUDE_DIR})
 target_compile_options(sim_board PRIVATE ${PROJECT_WARNINGS})
 target_link_libraries(sim_board PUBLIC ${SIMAVR_LIBRARY})

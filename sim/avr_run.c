@@ -1,7 +1,13 @@
 /*
  * Runs one firmware image in simavr and copies its USART0 output to stdout.
  *
- *   avr_run -m atmega328p -f 16000000 [-t SECONDS] [--unity] firmware.elf
+ *   avr_run -m atmega328p -f 16000000 [-t SECONDS] [--unity]
+ *           [--lsm9ds0 AX,AY,AZ,TEMP_RAW] [--adc CHANNEL=MILLIVOLTS]...
+ *           [--input FILE] firmware.elf
+ *
+ * --lsm9ds0 attaches a simulated LSM9DS0 at 0x1D holding a constant
+ * acceleration (LSB) and raw temperature; --adc holds an analog input at a
+ * voltage; --input sends a file's bytes to USART0 from 200 ms on.
  *
  * The simavr command line always exits 0; this runner exits with a status a
  * build can trust. With --unity it reads Unity's summary ("N Tests N Failures
@@ -14,6 +20,7 @@
 #include <string.h>
 
 #include "board.h"
+#include "lsm9ds0.h"
 
 enum {
     EXIT_PASSED = 0,
@@ -22,7 +29,21 @@ enum {
     EXIT_CRASHED = 3,
     EXIT_TIMED_OUT = 4,
     LINE_CAPACITY = 256,
+    MAX_ADC_INPUTS = 16,
+    INPUT_CAPACITY = 64 * 1024,
+    INPUT_START_MS = 200,
 };
+
+typedef struct {
+    int attached;
+    int values[4];
+} sensor_option_t;
+
+typedef struct {
+    int count;
+    int channel[MAX_ADC_INPUTS];
+    int millivolts[MAX_ADC_INPUTS];
+} adc_options_t;
 
 typedef struct {
     char line[LINE_CAPACITY];
@@ -63,8 +84,50 @@ static void on_uart_byte(void *context, uint8_t byte)
 
 static int usage(void)
 {
-    fprintf(stderr, "usage: avr_run -m MCU -f HZ [-t SECONDS] [--unity] firmware.elf\n");
+    fprintf(stderr, "usage: avr_run -m MCU -f HZ [-t SECONDS] [--unity] [--lsm9ds0 AX,AY,AZ,TEMP_RAW]"
+                    " [--adc CHANNEL=MILLIVOLTS]... [--input FILE] firmware.elf\n");
     return EXIT_USAGE;
+}
+
+static int parse_sensor(const char *text, sensor_option_t *sensor)
+{
+    int consumed = 0;
+    if (sscanf(text, "%d,%d,%d,%d%n", &sensor->values[0], &sensor->values[1], &sensor->values[2],
+               &sensor->values[3], &consumed) != 4 || text[consumed] != '\0') {
+        return -1;
+    }
+    sensor->attached = 1;
+    return 0;
+}
+
+static int parse_adc(const char *text, adc_options_t *adc)
+{
+    int channel = 0, millivolts = 0, consumed = 0;
+    if (adc->count >= MAX_ADC_INPUTS || sscanf(text, "%d=%d%n", &channel, &millivolts, &consumed) != 2 ||
+        text[consumed] != '\0' || channel < 0 || channel > 15 || millivolts < 0) {
+        return -1;
+    }
+    adc->channel[adc->count] = channel;
+    adc->millivolts[adc->count] = millivolts;
+    adc->count++;
+    return 0;
+}
+
+static long read_input(const char *path, uint8_t *buffer)
+{
+    FILE *file = fopen(path, "rb");
+    if (!file) {
+        fprintf(stderr, "avr_run: cannot read input '%s'\n", path);
+        return -1;
+    }
+    size_t length = fread(buffer, 1, INPUT_CAPACITY, file);
+    int too_long = fgetc(file) != EOF;
+    fclose(file);
+    if (too_long) {
+        fprintf(stderr, "avr_run: input '%s' is over %d bytes\n", path, INPUT_CAPACITY);
+        return -1;
+    }
+    return (long)length;
 }
 
 static int parse_positive(const char *text, double *out)
@@ -81,7 +144,10 @@ static int parse_positive(const char *text, double *out)
 
 int main(int argc, char **argv)
 {
-    const char *mcu = NULL, *elf_path = NULL;
+    const char *mcu = NULL, *elf_path = NULL, *input_path = NULL;
+    sensor_option_t sensor_option = {0};
+    adc_options_t adc = {0};
+    static uint8_t input[INPUT_CAPACITY];
     double frequency = 0, timeout_s = 60;
     int unity_mode = 0;
     for (int i = 1; i < argc; i++) {
@@ -93,6 +159,12 @@ int main(int argc, char **argv)
             if (parse_positive(argv[++i], &frequency) != 0) return usage();
         } else if (strcmp(arg, "-t") == 0 && has_value) {
             if (parse_positive(argv[++i], &timeout_s) != 0) return usage();
+        } else if (strcmp(arg, "--lsm9ds0") == 0 && has_value) {
+            if (parse_sensor(argv[++i], &sensor_option) != 0) return usage();
+        } else if (strcmp(arg, "--adc") == 0 && has_value) {
+            if (parse_adc(argv[++i], &adc) != 0) return usage();
+        } else if (strcmp(arg, "--input") == 0 && has_value) {
+            input_path = argv[++i];
         } else if (strcmp(arg, "--unity") == 0) {
             unity_mode = 1;
         } else if (arg[0] != '-' && !elf_path) {
@@ -112,6 +184,25 @@ int main(int argc, char **argv)
     unity_watch_t watch;
     memset(&watch, 0, sizeof watch);
     board_capture_uart0(&board, on_uart_byte, &watch);
+
+    lsm9ds0_t sensor;
+    if (sensor_option.attached) {
+        lsm9ds0_init(board.avr, &sensor, LSM9DS0_ADDRESS_SDO_HIGH);
+        lsm9ds0_set_acceleration(&sensor, (int16_t)sensor_option.values[0], (int16_t)sensor_option.values[1],
+                                 (int16_t)sensor_option.values[2]);
+        lsm9ds0_set_temperature_raw(&sensor, (int16_t)sensor_option.values[3]);
+        lsm9ds0_attach(&sensor);
+    }
+    for (int i = 0; i < adc.count; i++) {
+        board_set_adc_millivolts(&board, (uint8_t)adc.channel[i], (uint32_t)adc.millivolts[i]);
+    }
+    if (input_path) {
+        long length = read_input(input_path, input);
+        if (length < 0) {
+            return EXIT_USAGE;
+        }
+        board_feed_uart0(&board, input, (size_t)length, INPUT_START_MS);
+    }
 
     uint64_t max_cycles = (uint64_t)(timeout_s * frequency);
     int state = cpu_Running;

@@ -3,7 +3,9 @@
 #include <stdio.h>
 #include <string.h>
 
+#include <simavr/avr_adc.h>
 #include <simavr/avr_uart.h>
+#include <simavr/sim_cycle_timers.h>
 #include <simavr/sim_elf.h>
 
 enum { SUPPLY_MILLIVOLTS = 5000 };
@@ -65,6 +67,31 @@ void board_capture_uart0(board_t *board, board_uart_byte_fn on_byte, void *conte
     board->uart_context = context;
     avr_irq_register_notify(avr_io_getirq(board->avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUTPUT),
                             uart0_output, board);
+}
+
+void board_set_adc_millivolts(board_t *board, uint8_t channel, uint32_t millivolts)
+{
+    avr_raise_irq(avr_io_getirq(board->avr, AVR_IOCTL_ADC_GETIRQ, ADC_IRQ_ADC0 + channel), millivolts);
+}
+
+static avr_cycle_count_t send_next_byte(avr_t *avr, avr_cycle_count_t when, void *param)
+{
+    board_t *board = (board_t *)param;
+    if (board->uart_input_sent >= board->uart_input_length) {
+        return 0;
+    }
+    avr_raise_irq(avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_INPUT),
+                  board->uart_input[board->uart_input_sent++]);
+    return when + avr->frequency / 1000;
+}
+
+void board_feed_uart0(board_t *board, const uint8_t *bytes, size_t length, uint32_t start_ms)
+{
+    board->uart_input = bytes;
+    board->uart_input_length = length;
+    board->uart_input_sent = 0;
+    avr_cycle_timer_register(board->avr, (avr_cycle_count_t)board->avr->frequency / 1000 * start_ms,
+                             send_next_byte, board);
 }
 
 int board_run(board_t *board, uint64_t max_cycles)

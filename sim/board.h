@@ -5,6 +5,7 @@
 #ifndef THERMOTILT_SIM_BOARD_H
 #define THERMOTILT_SIM_BOARD_H
 
+#include <stddef.h>
 #include <stdint.h>
 
 #include <simavr/sim_avr.h>
@@ -15,6 +16,9 @@ typedef struct board {
     avr_t *avr;
     board_uart_byte_fn on_uart_byte;
     void *uart_context;
+    const uint8_t *uart_input;
+    size_t uart_input_length;
+    size_t uart_input_sent;
 } board_t;
 
 /*
@@ -26,6 +30,16 @@ int board_load(board_t *board, const char *elf_path, const char *mcu, uint32_t f
 
 /* Raw bytes the firmware writes on USART0 go to this callback instead of stdout. */
 void board_capture_uart0(board_t *board, board_uart_byte_fn on_byte, void *context);
+
+/* Holds an analog input at a voltage, as a divider with a fixed resistance would. */
+void board_set_adc_millivolts(board_t *board, uint8_t channel, uint32_t millivolts);
+
+/*
+ * Sends bytes to the firmware's USART0 from start_ms of simulated time on,
+ * one per millisecond (well below 115200 baud, so the receive buffer never
+ * overflows). The bytes must stay valid while the board runs.
+ */
+void board_feed_uart0(board_t *board, const uint8_t *bytes, size_t length, uint32_t start_ms);
 
 /* Runs until the firmware stops, crashes or max_cycles pass; returns the final state. */
 int board_run(board_t *board, uint64_t max_cycles);
