@@ -72,7 +72,7 @@ static void test_begin_writes_table1(void)
 {
     Lsm9ds0Accel accel(bus);
     TEST_ASSERT_EQUAL(Lsm9ds0Accel::Ok, accel.begin());
-    TEST_ASSERT_EQUAL(3, bus.writeCount);
+    TEST_ASSERT_EQUAL(4, bus.writeCount);
     // CTRL_REG1_XM: AODR 0110 (100 Hz), BDU 1, Z/Y/X 111 -> 0110 1111 = 0x6F
     TEST_ASSERT_EQUAL_HEX8(0x20, bus.writtenReg[0]);
     TEST_ASSERT_EQUAL_HEX8(0x6F, bus.writtenValue[0]);
@@ -82,6 +82,9 @@ static void test_begin_writes_table1(void)
     // CTRL_REG5_XM: TEMP_EN 1, M_RES 00, M_ODR 100, LIR 00 -> 1001 0000 = 0x90
     TEST_ASSERT_EQUAL_HEX8(0x24, bus.writtenReg[2]);
     TEST_ASSERT_EQUAL_HEX8(0x90, bus.writtenValue[2]);
+    // CTRL_REG7_XM: MD 00, magnetometer running, so the temperature updates.
+    TEST_ASSERT_EQUAL_HEX8(0x26, bus.writtenReg[3]);
+    TEST_ASSERT_EQUAL_HEX8(0x00, bus.writtenValue[3]);
 }
 
 static void test_begin_wrong_id(void)

@@ -13,7 +13,8 @@ Lsm9ds0Accel::Status Lsm9ds0Accel::begin()
     }
     if (!bus_.writeRegister(address7_, Lsm9ds0::CTRL_REG1_XM, Lsm9ds0::CTRL_REG1_XM_100HZ_BDU_XYZ) ||
         !bus_.writeRegister(address7_, Lsm9ds0::CTRL_REG2_XM, Lsm9ds0::CTRL_REG2_XM_ABW50_2G) ||
-        !bus_.writeRegister(address7_, Lsm9ds0::CTRL_REG5_XM, Lsm9ds0::CTRL_REG5_XM_TEMP_EN)) {
+        !bus_.writeRegister(address7_, Lsm9ds0::CTRL_REG5_XM, Lsm9ds0::CTRL_REG5_XM_TEMP_EN) ||
+        !bus_.writeRegister(address7_, Lsm9ds0::CTRL_REG7_XM, Lsm9ds0::CTRL_REG7_XM_MAG_CONTINUOUS)) {
         return WriteFailed;
     }
     return Ok;

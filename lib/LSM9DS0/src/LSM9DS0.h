@@ -33,6 +33,7 @@ const uint8_t WHO_AM_I_XM = 0x0F;
 const uint8_t CTRL_REG1_XM = 0x20;
 const uint8_t CTRL_REG2_XM = 0x21;
 const uint8_t CTRL_REG5_XM = 0x24;
+const uint8_t CTRL_REG7_XM = 0x26;
 const uint8_t STATUS_REG_A = 0x27;
 const uint8_t OUT_X_L_A = 0x28;  // X, Y, Z little-endian pairs up to OUT_Z_H_A (0x2D)
 
@@ -47,9 +48,12 @@ const uint8_t CTRL_REG1_XM_100HZ_BDU_XYZ = (0x6 << 4) | (1 << 3) | 0x07;
 // CTRL_REG2_XM: ABW[1:0] = 11 (50 Hz anti-alias) in bits 7:6, AFS[2:0] = 000
 // (+-2 g) in bits 5:3, self-test off, 4-wire SPI (unused on I2C).
 const uint8_t CTRL_REG2_XM_ABW50_2G = (0x3 << 6) | (0x0 << 3);
-// CTRL_REG5_XM: TEMP_EN (bit 7); M_RES = 00 and M_ODR[2:0] = 100 (50 Hz) since
-// the magnetometer is unused and stays in its reset power-down mode.
+// CTRL_REG5_XM: TEMP_EN (bit 7); M_RES = 00 and M_ODR[2:0] = 100 (50 Hz).
 const uint8_t CTRL_REG5_XM_TEMP_EN = (1 << 7) | (0x4 << 2);
+// CTRL_REG7_XM: MD[1:0] = 00, magnetometer in continuous conversion. It
+// resets to power-down (10), and the temperature output is refreshed at the
+// magnetometer's data rate, so without this the temperature would freeze.
+const uint8_t CTRL_REG7_XM_MAG_CONTINUOUS = 0x00;
 
 const uint8_t STATUS_REG_A_ZYXADA = 1 << 3;
 
