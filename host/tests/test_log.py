@@ -1,0 +1,130 @@
+"""`thermotilt log` against a pseudo-terminal fed by the test: rows follow the
+run.csv schema, chamber columns come from CHS frames, malformed lines are
+counted and skipped, and bad use ends with one readable line."""
+
+import os
+import threading
+import time
+
+import pytest
+
+from thermotilt.cli import main
+from thermotilt.protocol import build_frame
+from thermotilt.runlog import COLUMNS, read_run_log
+
+
+def imu_frame(seq, t_ms, ax=-1650):
+    return build_frame("IMU", seq, [t_ms, ax, 12, 16390, ax + 0.5, 12.25, 16389.9,
+                                    ax - 3.5, 10.0, 16389.9, 24.125, "W", "D"])
+
+
+def chs_frame(seq, t_ms, setpoint, inner):
+    return build_frame("CHS", seq, [t_ms, "W", 3, setpoint, inner, 23.5, 175, "H", "OK"])
+
+
+@pytest.fixture
+def pty_pair():
+    opened = []
+
+    def make():
+        master, slave = os.openpty()
+        opened.extend((master, slave))
+        return master, os.ttyname(slave)
+
+    yield make
+    for descriptor in opened:
+        try:
+            os.close(descriptor)
+        except OSError:
+            pass
+
+
+def feed_later(descriptor, chunks, delay_s=0.2):
+    def feed():
+        for chunk in chunks:
+            os.write(descriptor, chunk.encode("ascii"))
+
+    timer = threading.Timer(delay_s, feed)
+    timer.start()
+    return timer
+
+
+def test_log_writes_one_row_per_imu_frame_with_chamber_state(pty_pair, tmp_path, capsys):
+    imu_master, imu_port = pty_pair()
+    chamber_master, chamber_port = pty_pair()
+    out = tmp_path / "run.csv"
+    # Opening a port discards what arrived before (pyserial flushes input).
+    chamber_timer = feed_later(chamber_master, [chs_frame(0, 900, 18.0, 17.62)], delay_s=0.1)
+    imu_lines = [imu_frame(0, 1000), "$IMU,1,garbage*00\r\n", imu_frame(2, 1100), imu_frame(3, 1200)]
+    timer = feed_later(imu_master, imu_lines, delay_s=0.3)
+    status = main(["log", "--port", imu_port, "--chamber-port", chamber_port, "--out", str(out),
+                   "--rows", "3", "--incl-x", "30", "--raw-dir", str(tmp_path / "raw")])
+    timer.join()
+    chamber_timer.join()
+    assert status == 0
+    rows = read_run_log(str(out))
+    assert list(rows[0]) == list(COLUMNS)
+    assert [row["time_s"] for row in rows] == ["1.000", "1.100", "1.200"]
+    assert rows[0]["ax_raw"] == "-1650" and rows[0]["ax_comp"] == "-1653.5"
+    assert rows[0]["chamber_c"] == "17.62" and rows[0]["setpoint_c"] == "18"
+    assert rows[0]["direction"] == "H" and rows[0]["pwm"] == "175"
+    assert rows[0]["incl_x_deg"] == "30.00" and rows[0]["incl_y_deg"] == ""
+    assert rows[0]["ambient_c"] == ""
+    summary = capsys.readouterr().out
+    assert "rows: 3" in summary and "rejected: 1" in summary
+    assert (tmp_path / "raw" / "imu_reader.txt").read_bytes().count(b"$IMU") == 4
+
+
+def test_log_stops_after_board_time(pty_pair, tmp_path):
+    master, port = pty_pair()
+    timer = feed_later(master, [imu_frame(seq, 5000 + 100 * seq) for seq in range(40)])
+    out = tmp_path / "run.csv"
+    assert main(["log", "--port", port, "--out", str(out), "--duration", "2"]) == 0
+    timer.join()
+    rows = read_run_log(str(out))
+    # 5.0 s to 7.0 s of board time at 10 Hz: 21 frames.
+    assert len(rows) == 21 and rows[-1]["time_s"] == "7.000"
+
+
+def test_log_ends_cleanly_when_the_port_closes(pty_pair, tmp_path, capsys):
+    master, port = pty_pair()
+    out = tmp_path / "run.csv"
+
+    def feed_then_close():
+        os.write(master, (imu_frame(0, 0) + imu_frame(1, 100)).encode())
+        # Closing the master discards what the slave has not read yet.
+        time.sleep(0.5)
+        os.close(master)
+
+    timer = threading.Timer(0.2, feed_then_close)
+    timer.start()
+    assert main(["log", "--port", port, "--out", str(out)]) == 0
+    timer.join()
+    assert len(read_run_log(str(out))) == 2
+    assert "port closed" in capsys.readouterr().out
+
+
+def test_log_refuses_a_missing_port_and_an_existing_output(tmp_path, capsys):
+    assert main(["log", "--port", str(tmp_path / "ttyNONE"), "--out", str(tmp_path / "a.csv")]) == 1
+    error = capsys.readouterr().err.strip()
+    assert error.startswith("thermotilt: error: cannot open") and "\n" not in error
+    existing = tmp_path / "b.csv"
+    existing.write_text("keep me\n")
+    assert main(["log", "--port", "loop://", "--out", str(existing)]) == 1
+    assert "exists" in capsys.readouterr().err
+    assert existing.read_text() == "keep me\n"
+
+
+def test_log_without_any_frame_fails(pty_pair, tmp_path, capsys):
+    master, port = pty_pair()
+
+    def garbage_then_close():
+        os.write(master, b"hello\r\n$IMU,0*00\r\n")
+        time.sleep(0.5)
+        os.close(master)
+
+    timer = threading.Timer(0.2, garbage_then_close)
+    timer.start()
+    assert main(["log", "--port", port, "--out", str(tmp_path / "run.csv")]) == 1
+    timer.join()
+    assert "no IMU frames received" in capsys.readouterr().err

@@ -1,0 +1,162 @@
+"""The run log, ``run.csv``: one row per IMU output frame (docs/run-log.md).
+
+The same schema comes from the twin (``thermotilt simulate``) and from real
+boards (``thermotilt log``), so every later tool reads both. Columns the
+source cannot know stay empty: a real rig knows no ``true_*`` value, and the
+chamber columns are empty when no chamber board is logged. Values that came
+from a frame are written as the board sent them, so nothing is rounded twice.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass
+from typing import IO, Any, Mapping
+
+from .protocol import Frame
+
+COLUMNS: tuple[str, ...] = (
+    "time_s",
+    "ambient_c",
+    "setpoint_c",
+    "chamber_c",
+    "outer_c",
+    "pwm",
+    "direction",
+    "phase",
+    "imu_temp_c",
+    "incl_x_deg",
+    "incl_y_deg",
+    "ax_raw",
+    "ay_raw",
+    "az_raw",
+    "ax_filt",
+    "ay_filt",
+    "az_filt",
+    "ax_comp",
+    "ay_comp",
+    "az_comp",
+    "comp_set",
+    "coef_source",
+    "imu_seq",
+)
+
+# Ground truth only a simulation has, sampled in the 10 ms step in which the
+# IMU frame reached the host.
+TRUE_COLUMNS: tuple[str, ...] = (
+    "true_inner_c",
+    "true_outer_c",
+    "true_die_c",
+    "true_reported_c",
+    "true_rate_c_per_s",
+    "true_drift_set",
+    "true_ax",
+    "true_ay",
+    "true_az",
+    "true_drift_x",
+    "true_drift_y",
+    "true_drift_z",
+    "true_duty",
+    "true_direction",
+)
+
+ALL_COLUMNS: tuple[str, ...] = COLUMNS + TRUE_COLUMNS
+
+# (IMU frame field, run.csv column): copied as the board wrote them.
+_IMU_FIELDS = (
+    ("temp_c", "imu_temp_c"),
+    ("ax_raw", "ax_raw"),
+    ("ay_raw", "ay_raw"),
+    ("az_raw", "az_raw"),
+    ("ax_filt", "ax_filt"),
+    ("ay_filt", "ay_filt"),
+    ("az_filt", "az_filt"),
+    ("ax_comp", "ax_comp"),
+    ("ay_comp", "ay_comp"),
+    ("az_comp", "az_comp"),
+    ("comp_set", "comp_set"),
+    ("coef_source", "coef_source"),
+)
+
+_CHS_FIELDS = (
+    ("setpoint_c", "setpoint_c"),
+    ("inner_c", "chamber_c"),
+    ("outer_c", "outer_c"),
+    ("pwm", "pwm"),
+    ("dir", "direction"),
+    ("phase", "phase"),
+)
+
+
+def format_number(value: float | None, decimals: int) -> str:
+    """Fixed decimals, so the same run always writes the same bytes; NaN and
+    None (unknown) are empty cells."""
+    if value is None or math.isnan(value):
+        return ""
+    text = f"{value:.{decimals}f}"
+    # "-0.000" and "0.000" are the same number; write it one way.
+    return text[1:] if text.startswith("-") and float(text) == 0 else text
+
+
+def _raw_field(frame: Frame, name: str) -> str:
+    text = frame.raw_fields[list(frame.fields).index(name)]
+    return "" if text.lower() == "nan" else text
+
+
+@dataclass
+class ChamberState:
+    """The chamber's latest CHS frame, as text cells."""
+
+    cells: dict[str, str]
+
+    @classmethod
+    def unknown(cls) -> ChamberState:
+        return cls({column: "" for _, column in _CHS_FIELDS})
+
+    def update(self, frame: Frame) -> None:
+        for field_name, column in _CHS_FIELDS:
+            self.cells[column] = _raw_field(frame, field_name)
+
+
+class RunLogWriter:
+    """Writes run.csv rows. Logging real boards flushes each row, so a crash
+    or Ctrl-C loses nothing already received; the twin can rerun instead."""
+
+    def __init__(self, stream: IO[str], with_truth: bool, flush_each_row: bool = True):
+        self.columns = ALL_COLUMNS if with_truth else COLUMNS
+        self._stream = stream
+        self._flush_each_row = flush_each_row
+        self._writer = csv.DictWriter(stream, fieldnames=self.columns, lineterminator="\n")
+        self._writer.writeheader()
+        self.rows = 0
+
+    def write_imu_frame(
+        self,
+        frame: Frame,
+        chamber: ChamberState,
+        context: Mapping[str, str],
+        truth: Mapping[str, str] | None = None,
+    ) -> None:
+        """One row for an IMU frame. ``context`` holds ``ambient_c``,
+        ``incl_x_deg`` and ``incl_y_deg`` as text (empty when unknown)."""
+        row: dict[str, Any] = {column: "" for column in self.columns}
+        row["time_s"] = format_number(frame["t_ms"] / 1000.0, 3)
+        row["imu_seq"] = str(frame.seq)
+        for field_name, column in _IMU_FIELDS:
+            row[column] = _raw_field(frame, field_name)
+        row.update(chamber.cells)
+        for column in ("ambient_c", "incl_x_deg", "incl_y_deg"):
+            row[column] = context.get(column, "")
+        if truth is not None:
+            row.update(truth)
+        self._writer.writerow(row)
+        if self._flush_each_row:
+            self._stream.flush()
+        self.rows += 1
+
+
+def read_run_log(path: str) -> list[dict[str, str]]:
+    """Rows of a run.csv as text cells (for tools and tests)."""
+    with open(path, newline="") as stream:
+        return list(csv.DictReader(stream))
