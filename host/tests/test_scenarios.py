@@ -1,0 +1,88 @@
+"""Scenario timelines: the paper's experiments as commands, positions and
+ambient profiles (no simulation runs here)."""
+
+import pytest
+
+from thermotilt.protocol import build_frame, parse_line
+from thermotilt.scenarios import (
+    ScenarioError,
+    ScenarioOptions,
+    build,
+    campaign_positions,
+    program_steps,
+)
+
+
+def test_program_steps_match_the_firmware_staircase():
+    # lib/Program's header: -10..45 degC in 2 degC steps is 29 warming + 28 cooling.
+    assert program_steps(-10.0, 45.0, 2.0) == 57
+    # 16..22: 16, 18, 20, 22 up, 20, 18, 16 down.
+    assert program_steps(16.0, 22.0, 2.0) == 7
+
+
+def test_fig8_programs_four_one_minute_steps_from_16_degC():
+    scenario = build("fig8", ScenarioOptions())
+    setprg, start = scenario.commands
+    assert setprg.frame_type == "SETPRG" and start.frame_type == "START"
+    assert setprg.values[:4] == (16.0, 22.0, 2.0, 60)
+    assert start.at_s > setprg.at_s
+    assert scenario.duration_s == pytest.approx(start.at_s + 4 * 60)
+    # The commands are valid frames for the chamber.
+    frame = parse_line(build_frame("SETPRG", 0, setprg.values))
+    assert frame["start_c"] == 16.0 and frame["hold_s"] == 60
+    # 19 degC lies between the 18 and 20 degC steps: the run crosses ambient.
+    assert 18.0 < scenario.ambient_c(100.0) < 20.0
+
+
+def test_cycle_lasts_57_holds_and_the_rest():
+    scenario = build("cycle", ScenarioOptions(hold_s=30, rest_s=100, incl_x_deg=30.0))
+    assert scenario.duration_s == pytest.approx(1.5 + 57 * 30 + 100)
+    assert scenario.positions[0].incl_x_deg == 30.0
+    assert scenario.positions[0].label == "X+30"
+
+
+def test_campaign_has_the_papers_37_positions():
+    labels = [label for label, _, _ in campaign_positions()]
+    assert len(labels) == 37 and len(set(labels)) == 37
+    assert labels[0] == "0"
+    assert {"X+5", "X-45", "Y+45", "Y-5"} <= set(labels)
+    angles = {label: (x, y) for label, x, y in campaign_positions()}
+    assert angles["Y-15"] == (0.0, -15.0) and angles["X+40"] == (40.0, 0.0)
+
+
+def test_campaign_subset_runs_each_position_through_a_cycle():
+    options = ScenarioOptions(hold_s=10, rest_s=20, positions=("0", "X+30"))
+    scenario = build("campaign", options)
+    cycle_s = build("cycle", options).duration_s
+    assert [p.label for p in scenario.positions] == ["0", "X+30"]
+    assert scenario.positions[1].at_s == pytest.approx(cycle_s)
+    assert [c.frame_type for c in scenario.commands] == ["SETPRG", "START", "START"]
+    assert scenario.duration_s == pytest.approx(2 * cycle_s)
+
+
+def test_field_scenarios_follow_the_papers_profiles():
+    warming = build("field-warming", ScenarioOptions())
+    assert not warming.uses_chamber and warming.duration_s == 3 * 3600
+    assert warming.ambient_c(0) == pytest.approx(9.0)
+    assert warming.ambient_c(warming.duration_s) == pytest.approx(48.0)
+    cooling = build("field-cooling", ScenarioOptions(duration_s=900))
+    assert cooling.duration_s == 900
+    assert cooling.ambient_c(0) == pytest.approx(26.0) and cooling.ambient_c(900) == pytest.approx(16.0)
+    alternating = build("field-alternating", ScenarioOptions())
+    samples = [alternating.ambient_c(t) for t in range(0, 12 * 3600, 600)]
+    rises = sum(1 for a, b in zip(samples, samples[1:]) if b > a)
+    assert 0.3 < rises / (len(samples) - 1) < 0.7
+
+
+@pytest.mark.parametrize(
+    "name, options, message",
+    [
+        ("fig9", ScenarioOptions(), "unknown scenario"),
+        ("campaign", ScenarioOptions(positions=("X+7",)), "unknown position"),
+        ("cycle", ScenarioOptions(hold_s=0), "--hold-seconds"),
+        ("cycle", ScenarioOptions(incl_x_deg=120.0), "outside -90..90"),
+    ],
+)
+def test_bad_options_are_refused_with_a_reason(name, options, message):
+    with pytest.raises(ScenarioError, match=message):
+        build(name, options)
