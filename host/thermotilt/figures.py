@@ -1,0 +1,127 @@
+"""Figures of a run log compared with the paper: the chamber's step response
+(Figure 8) and the accelerometer's drift and its compensation (section 4.1).
+
+Everything here reads run.csv columns the firmware produced, so the same
+figures come from the twin and from a real rig.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+# Figure 8 is read over the last third of a one-minute step: the settled value.
+SETTLED_WINDOW_S = 20.0
+# A step is complete once 90 % of the change between two settled holds is done.
+COMPLETION_FRACTION = 0.9
+
+# What the paper reports and how far the twin may be from it (asserted in
+# host/tests/test_simulate.py, stated in the README).
+PAPER_STEP_TIME_S = 13.0
+STEP_TIME_TOLERANCE_S = 3.0
+PAPER_OFFSET_C = 0.5
+OFFSET_TOLERANCE_C = 0.3
+MIN_CROSSING_OVERSHOOT_C = 0.2
+
+
+@dataclass(frozen=True)
+class Hold:
+    setpoint_c: float
+    start_s: float
+    end_s: float
+    settled_c: float
+
+    @property
+    def offset_c(self) -> float:
+        """Measured minus programmed, once settled."""
+        return self.settled_c - self.setpoint_c
+
+
+@dataclass(frozen=True)
+class StepResponse:
+    from_c: float
+    to_c: float
+    completion_s: float
+    overshoot_c: float
+
+
+def _column(rows: list[dict[str, str]], name: str) -> np.ndarray:
+    return np.array([float(row[name]) if row[name] != "" else np.nan for row in rows])
+
+
+def holds(rows: list[dict[str, str]]) -> list[Hold]:
+    """Consecutive rows with the same programmed temperature; the last one
+    counts only if it lasted long enough to settle."""
+    time_s = _column(rows, "time_s")
+    setpoint = _column(rows, "setpoint_c")
+    chamber = _column(rows, "chamber_c")
+    found: list[Hold] = []
+    start = 0
+    for index in range(1, len(rows) + 1):
+        if index < len(rows) and setpoint[index] == setpoint[start]:
+            continue
+        if not np.isnan(setpoint[start]):
+            window = (time_s >= time_s[index - 1] - SETTLED_WINDOW_S) & (time_s <= time_s[index - 1])
+            window[:start] = False
+            found.append(Hold(float(setpoint[start]), float(time_s[start]), float(time_s[index - 1]),
+                              float(np.nanmean(chamber[window]))))
+        start = index
+    return [hold for hold in found if hold.end_s - hold.start_s >= 2 * SETTLED_WINDOW_S]
+
+
+def step_responses(rows: list[dict[str, str]]) -> list[StepResponse]:
+    """How long each change between two settled holds took, and how far the
+    chamber went past its new settled value."""
+    time_s = _column(rows, "time_s")
+    chamber = _column(rows, "chamber_c")
+    found = []
+    settled = holds(rows)
+    for before, after in zip(settled, settled[1:]):
+        in_step = (time_s >= after.start_s) & (time_s <= after.end_s)
+        change = after.settled_c - before.settled_c
+        progress = (chamber[in_step] - before.settled_c) / change
+        done = np.nonzero(progress >= COMPLETION_FRACTION)[0]
+        completion = float(time_s[in_step][done[0]] - after.start_s) if done.size else float("nan")
+        beyond = np.sign(change) * (chamber[in_step] - after.settled_c)
+        found.append(StepResponse(before.setpoint_c, after.setpoint_c, completion,
+                                  float(max(0.0, np.nanmax(beyond)))))
+    return found
+
+
+def fig8_figures(rows: list[dict[str, str]]) -> dict:
+    """Figure 8's numbers: step times, settled offsets and overshoots."""
+    return {
+        "holds": [
+            {"setpoint_c": hold.setpoint_c, "settled_c": round(hold.settled_c, 3),
+             "offset_c": round(hold.offset_c, 3)}
+            for hold in holds(rows)
+        ],
+        "steps": [
+            {"from_c": step.from_c, "to_c": step.to_c, "completion_s": round(step.completion_s, 2),
+             "overshoot_c": round(step.overshoot_c, 3)}
+            for step in step_responses(rows)
+        ],
+    }
+
+
+def drift_figures(rows: list[dict[str, str]], settled_fraction: float = 0.5) -> dict:
+    """Per axis, over the settled part of every hold: how far the filtered
+    raw output and the compensated output move (max - min, LSB)."""
+    time_s = _column(rows, "time_s")
+    settled = np.zeros(len(rows), dtype=bool)
+    for hold in holds(rows):
+        begin = hold.end_s - (hold.end_s - hold.start_s) * settled_fraction
+        settled |= (time_s >= begin) & (time_s <= hold.end_s)
+    temperature = _column(rows, "imu_temp_c")[settled]
+    figures = {"samples": int(settled.sum()),
+               "imu_temp_range_c": [round(float(np.nanmin(temperature)), 2),
+                                    round(float(np.nanmax(temperature)), 2)]}
+    for axis in ("x", "y"):
+        raw = _column(rows, f"a{axis}_filt")[settled]
+        compensated = _column(rows, f"a{axis}_comp")[settled]
+        figures[axis] = {
+            "raw_span_lsb": round(float(np.nanmax(raw) - np.nanmin(raw)), 1),
+            "compensated_span_lsb": round(float(np.nanmax(compensated) - np.nanmin(compensated)), 1),
+        }
+    return figures

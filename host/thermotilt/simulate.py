@@ -1,0 +1,250 @@
+"""The digital twin: the real firmware images in simavr, coupled every 10 ms
+of simulated time to the physics model (``thermotilt.physics``).
+
+Per step: the chamber physics advances with the drive the L298N observer saw
+during the last step, the thermistor voltages and the LSM9DS0 registers are
+set from the new physical state, both boards run to the end of the step, and
+every byte they sent is saved, parsed and logged. The host side is the same
+code path as with real boards: commands go out as frames, run.csv rows come
+from IMU frames and the chamber's latest CHS frame.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+from .physics import Chamber, Fault, Model, Sensor, SensorSample
+from .protocol import Frame, FrameReader, SequenceCounter, build_frame
+from .runlog import ChamberState, RunLogWriter, format_number
+from .scenarios import Scenario
+from .twin import Board, Drive
+
+STEP_S = 0.01
+INNER_THERMISTOR_CHANNEL = 0
+OUTER_THERMISTOR_CHANNEL = 1
+IMU = "imu_reader"
+CHAMBER = "thermal_chamber"
+CHAMBER_FAULTS = {"inner_open", "inner_short", "outer_open", "outer_short",
+                  "peltier_disconnected", "chamber_uart_corrupt"}
+
+
+class SimulationError(RuntimeError):
+    """A run that cannot start or continue; one readable line."""
+
+
+@dataclass
+class BoardLink:
+    """One board with the host's end of its serial line."""
+
+    name: str
+    board: Board
+    capture: object
+    reader: FrameReader = field(default_factory=FrameReader)
+    host_seq: SequenceCounter = field(default_factory=SequenceCounter)
+    pending: dict[int, str] = field(default_factory=dict)
+    refused: list[str] = field(default_factory=list)
+
+    def receive(self) -> list[Frame]:
+        data = self.board.read_uart()
+        if not data:
+            return []
+        self.capture.write(data)
+        frames = self.reader.feed(data)
+        for frame in frames:
+            if frame.type in ("ACK", "ERR"):
+                command = self.pending.pop(frame["cmd_seq"], None)
+                if frame.type == "ERR" and command is not None:
+                    self.refused.append(f"{command}: {frame['code']} {frame['detail']}")
+        return frames
+
+    def send(self, frame_type: str, values: tuple) -> None:
+        seq = self.host_seq.next()
+        self.pending[seq] = frame_type
+        self.board.write_uart(build_frame(frame_type, seq, values).encode("ascii"))
+
+    def report(self) -> dict:
+        return {
+            "cycles": self.board.cycles,
+            "frames": self.reader.frames,
+            "frames_by_type": dict(sorted(self.reader.frames_by_type.items())),
+            "rejected": self.reader.malformed,
+            "rejected_by_reason": dict(sorted(self.reader.malformed_by_reason.items())),
+            "sequence_gaps": self.reader.gaps,
+            "corrupted_bytes": self.board.uart_corrupted_bytes,
+            "unanswered_commands": sorted(self.pending.values()),
+            "refused_commands": self.refused,
+        }
+
+
+@dataclass(frozen=True)
+class RunResult:
+    out_dir: Path
+    summary: dict
+
+
+class _FaultSchedule:
+    """Switches each fault on and off at its times."""
+
+    def __init__(self, faults: tuple[Fault, ...], apply: Callable[[Fault, bool], None]):
+        self._faults = faults
+        self._apply = apply
+        self._active = [False] * len(faults)
+
+    def update(self, t: float) -> None:
+        for index, fault in enumerate(self._faults):
+            active = fault.start_s <= t and (fault.end_s is None or t < fault.end_s)
+            if active != self._active[index]:
+                self._active[index] = active
+                self._apply(fault, active)
+
+
+def _truth(sample: SensorSample, chamber: Chamber | None, drive: Drive | None) -> dict[str, str]:
+    return {
+        "true_inner_c": format_number(chamber.inner_c if chamber else None, 4),
+        "true_outer_c": format_number(chamber.outer_c if chamber else None, 4),
+        "true_die_c": format_number(sample.die_c, 4),
+        "true_reported_c": format_number(sample.reported_c, 4),
+        "true_rate_c_per_s": format_number(sample.rate_c_per_s, 5),
+        "true_drift_set": sample.drift_set,
+        "true_ax": format_number(sample.ideal_ax, 2),
+        "true_ay": format_number(sample.ideal_ay, 2),
+        "true_az": format_number(sample.ideal_az, 2),
+        "true_drift_x": format_number(sample.drift_x, 2),
+        "true_drift_y": format_number(sample.drift_y, 2),
+        "true_drift_z": format_number(sample.drift_z, 2),
+        "true_duty": format_number(drive.duty if drive else None, 4),
+        "true_direction": str(drive.direction) if drive else "",
+    }
+
+
+def run(
+    scenario: Scenario,
+    model: Model,
+    out_dir: Path,
+    seed: int = 1,
+    pty: bool = False,
+    on_pty: Callable[[str, str], None] | None = None,
+    progress: Callable[[float], None] | None = None,
+) -> RunResult:
+    """Plays a scenario; writes run.csv, serial/ and summary.json in out_dir."""
+    for fault in model.faults:
+        if fault.name in CHAMBER_FAULTS and not scenario.uses_chamber:
+            raise SimulationError(
+                f"fault {fault.name} needs the chamber, but {scenario.name} runs the IMU alone"
+            )
+    serial_dir = out_dir / "serial"
+    serial_dir.mkdir(parents=True, exist_ok=True)
+    wall_start = time.perf_counter()
+    links: dict[str, BoardLink] = {}
+    with open(out_dir / "run.csv", "w", newline="") as csv_stream:
+        try:
+            links[IMU] = BoardLink(IMU, Board.imu_reader(), open(serial_dir / f"{IMU}.txt", "wb"))
+            if scenario.uses_chamber:
+                links[CHAMBER] = BoardLink(
+                    CHAMBER, Board.thermal_chamber(), open(serial_dir / f"{CHAMBER}.txt", "wb")
+                )
+            writer = RunLogWriter(csv_stream, with_truth=True, flush_each_row=False)
+            _play(scenario, model, seed, links, writer, pty, on_pty, progress)
+        finally:
+            for link in links.values():
+                link.capture.close()
+                link.board.close()
+    wall = time.perf_counter() - wall_start
+    summary = {
+        "scenario": scenario.name,
+        "description": scenario.description,
+        "seed": seed,
+        "model": model.source,
+        "terms": {name: model.enabled(name) for name in model.terms},
+        "faults": [vars(fault) for fault in model.faults],
+        "sim_seconds": round(scenario.duration_s, 3),
+        "wall_seconds": round(wall, 3),
+        "speed_x_real_time": round(scenario.duration_s / wall, 2) if wall > 0 else None,
+        "rows": writer.rows,
+        "marks": scenario.marks,
+        "positions": [vars(position) for position in scenario.positions],
+        "boards": {name: link.report() for name, link in links.items()},
+    }
+    (out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    return RunResult(out_dir, summary)
+
+
+def _play(scenario, model, seed, links, writer, pty, on_pty, progress) -> None:
+    imu = links[IMU]
+    chamber_link = links.get(CHAMBER)
+    imu.board.attach_lsm9ds0()
+    chamber = None
+    if chamber_link is not None:
+        chamber_link.board.attach_l298n()
+        chamber = Chamber(model, scenario.ambient_c(0.0))
+    if pty:
+        for link in links.values():
+            path = link.board.open_pty()
+            if on_pty:
+                on_pty(link.name, path)
+    sensor = Sensor(model, seed, scenario.ambient_c(0.0))
+
+    def apply_fault(fault: Fault, active: bool) -> None:
+        name = fault.name
+        if name in ("sensor_absent", "sensor_stuck"):
+            imu.board.set_lsm9ds0_fault(name.split("_")[1] if active else "none")
+        elif name.endswith(("_open", "_short")):
+            face, kind = name.split("_")
+            channel = INNER_THERMISTOR_CHANNEL if face == "inner" else OUTER_THERMISTOR_CHANNEL
+            chamber_link.board.set_adc_fault(channel, kind if active else "none")
+        elif name == "peltier_disconnected":
+            chamber_link.board.set_l298n_disconnected(active)
+        else:
+            link = imu if name == "imu_uart_corrupt" else chamber_link
+            link.board.set_uart_corruption(fault.rate if active else 0.0, seed)
+
+    faults = _FaultSchedule(model.faults, apply_fault)
+    commands = list(scenario.commands)
+    positions = list(scenario.positions)
+    position = positions.pop(0)
+    chamber_state = ChamberState.unknown()
+    drive = None
+    steps = round(scenario.duration_s / STEP_S)
+    for step in range(steps):
+        t = step * STEP_S
+        faults.update(t)
+        while positions and positions[0].at_s <= t:
+            position = positions.pop(0)
+        while commands and commands[0].at_s <= t and chamber_link is not None:
+            command = commands.pop(0)
+            chamber_link.send(command.frame_type, command.values)
+        ambient = scenario.ambient_c(t)
+        environment = ambient
+        if chamber is not None:
+            drive = chamber_link.board.read_l298n()
+            chamber.step(STEP_S, drive.duty, drive.direction, ambient)
+            inner_mv, outer_mv = chamber.thermistor_millivolts()
+            chamber_link.board.set_adc_millivolts(INNER_THERMISTOR_CHANNEL, inner_mv)
+            chamber_link.board.set_adc_millivolts(OUTER_THERMISTOR_CHANNEL, outer_mv)
+            environment = chamber.inner_c
+        sample = sensor.step(STEP_S, environment, position.incl_x_deg, position.incl_y_deg)
+        imu.board.set_lsm9ds0(sample.ax, sample.ay, sample.az, sample.temperature_raw)
+
+        end = (step + 1) * STEP_S
+        for link in links.values():
+            link.board.run_until(end)
+        if chamber_link is not None:
+            for frame in chamber_link.receive():
+                if frame.type == "CHS":
+                    chamber_state.update(frame)
+        imu_frames = [frame for frame in imu.receive() if frame.type == "IMU"]
+        if imu_frames:
+            context = {
+                "ambient_c": format_number(ambient, 3),
+                "incl_x_deg": format_number(position.incl_x_deg, 2),
+                "incl_y_deg": format_number(position.incl_y_deg, 2),
+            }
+            truth = _truth(sample, chamber, drive)
+            for frame in imu_frames:
+                writer.write_imu_frame(frame, chamber_state, context, truth)
+        if progress is not None and step % 100 == 99:
+            progress(end)
