@@ -1,4 +1,5 @@
-# Host build: every Unity test as a native executable, and the simavr runner.
+# Host build: every Unity test as a native executable, the simavr runner and
+# the digital twin's shared library.
 set(PROJECT_WARNINGS -Wall -Wextra -Werror)
 include(cmake/unity.cmake)
 
@@ -12,7 +13,9 @@ endforeach()
 
 find_library(SIMAVR_LIBRARY simavr REQUIRED)
 find_path(SIMAVR_INCLUDE_DIR simavr/sim_avr.h REQUIRED)
-add_library(sim_board STATIC sim/board.c sim/lsm9ds0.c)
+# Position-independent, because libthermotilt_twin.so links it as well.
+add_library(sim_board STATIC sim/board.c sim/byte_queue.c sim/l298n.c sim/lsm9ds0.c sim/uart_bridge.c)
+set_target_properties(sim_board PROPERTIES POSITION_INDEPENDENT_CODE ON)
 target_include_directories(sim_board PUBLIC sim ${SIMAVR_INCLUDE_DIR})
 target_compile_options(sim_board PRIVATE ${PROJECT_WARNINGS})
 target_link_libraries(sim_board PUBLIC ${SIMAVR_LIBRARY})
@@ -20,3 +23,8 @@ target_link_libraries(sim_board PUBLIC ${SIMAVR_LIBRARY})
 add_executable(avr_run sim/avr_run.c)
 target_compile_options(avr_run PRIVATE ${PROJECT_WARNINGS})
 target_link_libraries(avr_run PRIVATE sim_board)
+
+# Loaded by host/thermotilt/twin.py through ctypes.
+add_library(thermotilt_twin SHARED sim/twin.c)
+target_compile_options(thermotilt_twin PRIVATE ${PROJECT_WARNINGS})
+target_link_libraries(thermotilt_twin PRIVATE sim_board)

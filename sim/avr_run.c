@@ -178,7 +178,9 @@ int main(int argc, char **argv)
     }
 
     board_t board;
-    if (board_load(&board, elf_path, mcu, (uint32_t)frequency) != 0) {
+    char error[256];
+    if (board_load(&board, elf_path, mcu, (uint32_t)frequency, error, sizeof error) != 0) {
+        fprintf(stderr, "%s\n", error);
         return EXIT_USAGE;
     }
     unity_watch_t watch;

@@ -1,14 +1,18 @@
 #include "board.h"
 
+#include <stdarg.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include <simavr/avr_adc.h>
+#include <simavr/avr_timer.h>
 #include <simavr/avr_uart.h>
 #include <simavr/sim_cycle_timers.h>
 #include <simavr/sim_elf.h>
+#include <simavr/sim_io.h>
 
-enum { SUPPLY_MILLIVOLTS = 5000 };
+enum { SUPPLY_MILLIVOLTS = 5000, WGM_PHASE_CORRECT_8BIT = 1 };
 
 /*
  * simavr's default sleep callback waits in real time. Our firmware sleeps
@@ -21,6 +25,31 @@ static void skip_sleep(avr_t *avr, avr_cycle_count_t how_long)
     (void)how_long;
 }
 
+/*
+ * simavr 1.6 has no entry for waveform mode 1 (PWM, phase correct, TOP 0xFF),
+ * which Arduino's init() selects for every timer except Timer0. An unknown
+ * mode leaves TOP at 0, so each such timer "overflows" on every prescaler tick
+ * (64 cycles): over a million events per simulated second on a Mega, which
+ * made thermal_chamber simulate at 9x real time instead of 120x. simavr's
+ * 8-bit "fc_pwm" kind counts to 0xFF instead. The firmware enables none of
+ * these timers' interrupts and sim/l298n.c reads the PWM duty from the
+ * registers, so simavr's single-slope count is good enough here.
+ */
+static void count_phase_correct_pwm_to_top(avr_t *avr)
+{
+    for (avr_io_t *io = avr->io_port; io; io = io->next) {
+        if (strcmp(io->kind, "timer") != 0) {
+            continue;
+        }
+        /* avr_io_t is the first member of simavr's timer module. */
+        avr_timer_t *timer = (avr_timer_t *)io;
+        if (timer->wgm_op[WGM_PHASE_CORRECT_8BIT].kind == avr_timer_wgm_none) {
+            avr_timer_wgm_t phase_correct = AVR_TIMER_WGM_FCPWM8();
+            timer->wgm_op[WGM_PHASE_CORRECT_8BIT] = phase_correct;
+        }
+    }
+}
+
 static void uart0_output(struct avr_irq_t *irq, uint32_t value, void *param)
 {
     (void)irq;
@@ -30,20 +59,45 @@ static void uart0_output(struct avr_irq_t *irq, uint32_t value, void *param)
     }
 }
 
-int board_load(board_t *board, const char *elf_path, const char *mcu, uint32_t frequency_hz)
+__attribute__((format(printf, 3, 4))) static void report(char *error, size_t error_capacity,
+                                                        const char *format, ...)
+{
+    if (error_capacity == 0) {
+        return;
+    }
+    va_list arguments;
+    va_start(arguments, format);
+    vsnprintf(error, error_capacity, format, arguments);
+    va_end(arguments);
+}
+
+/* avr_load_firmware copies the flash image into the MCU's own memory. */
+static void free_flash_image(elf_firmware_t *firmware)
+{
+    free(firmware->flash);
+    firmware->flash = NULL;
+}
+
+int board_load(board_t *board, const char *elf_path, const char *mcu, uint32_t frequency_hz, char *error,
+               size_t error_capacity)
 {
     elf_firmware_t firmware;
     memset(&firmware, 0, sizeof firmware);
     memset(board, 0, sizeof *board);
+    if (frequency_hz == 0) {
+        report(error, error_capacity, "board: the clock frequency must be positive");
+        return -1;
+    }
     if (elf_read_firmware(elf_path, &firmware) != 0) {
-        fprintf(stderr, "board: cannot read firmware '%s'\n", elf_path);
+        report(error, error_capacity, "board: cannot read firmware '%s'", elf_path);
         return -1;
     }
     snprintf(firmware.mmcu, sizeof firmware.mmcu, "%s", mcu);
     firmware.frequency = frequency_hz;
     board->avr = avr_make_mcu_by_name(mcu);
     if (!board->avr) {
-        fprintf(stderr, "board: simavr does not know MCU '%s'\n", mcu);
+        free_flash_image(&firmware);
+        report(error, error_capacity, "board: simavr does not know MCU '%s'", mcu);
         return -1;
     }
     avr_init(board->avr);
@@ -52,8 +106,20 @@ int board_load(board_t *board, const char *elf_path, const char *mcu, uint32_t f
     board->avr->avcc = SUPPLY_MILLIVOLTS;
     board->avr->aref = SUPPLY_MILLIVOLTS;
     avr_load_firmware(board->avr, &firmware);
+    free_flash_image(&firmware);
     board->avr->sleep = skip_sleep;
+    count_phase_correct_pwm_to_top(board->avr);
     return 0;
+}
+
+void board_free(board_t *board)
+{
+    if (board->avr) {
+        avr_terminate(board->avr);
+        /* avr_make_mcu_by_name allocated the MCU with avr_t at its start. */
+        free(board->avr);
+    }
+    memset(board, 0, sizeof *board);
 }
 
 void board_capture_uart0(board_t *board, board_uart_byte_fn on_byte, void *context)
@@ -69,9 +135,23 @@ void board_capture_uart0(board_t *board, board_uart_byte_fn on_byte, void *conte
                             uart0_output, board);
 }
 
-void board_set_adc_millivolts(board_t *board, uint8_t channel, uint32_t millivolts)
+/*
+ * simavr 1.6 converts whole millivolts as Vin * 1023 / Vref, one code below
+ * the datasheet's Vin * 1024 / Vref over most of the range (0.1 degC on a
+ * thermistor). It gets the smallest whole millivolt value that it converts
+ * to the datasheet's code instead, so the firmware reads what a real ATmega
+ * would, for any fraction of a millivolt.
+ */
+void board_set_adc_millivolts(board_t *board, uint8_t channel, double millivolts)
 {
-    avr_raise_irq(avr_io_getirq(board->avr, AVR_IOCTL_ADC_GETIRQ, ADC_IRQ_ADC0 + channel), millivolts);
+    enum { ADC_STEPS = 1024, ADC_MAX_CODE = 1023 };
+    uint32_t code = 0;
+    if (millivolts > 0) {
+        double exact = millivolts * ADC_STEPS / SUPPLY_MILLIVOLTS;
+        code = exact >= ADC_MAX_CODE ? ADC_MAX_CODE : (uint32_t)exact;
+    }
+    uint32_t simavr_millivolts = (code * SUPPLY_MILLIVOLTS + ADC_MAX_CODE - 1) / ADC_MAX_CODE;
+    avr_raise_irq(avr_io_getirq(board->avr, AVR_IOCTL_ADC_GETIRQ, ADC_IRQ_ADC0 + channel), simavr_millivolts);
 }
 
 static avr_cycle_count_t send_next_byte(avr_t *avr, avr_cycle_count_t when, void *param)
@@ -94,14 +174,29 @@ void board_feed_uart0(board_t *board, const uint8_t *bytes, size_t length, uint3
                              send_next_byte, board);
 }
 
-int board_run(board_t *board, uint64_t max_cycles)
+static avr_cycle_count_t stop_here(avr_t *avr, avr_cycle_count_t when, void *param)
 {
-    int state = cpu_Running;
-    while (board->avr->cycle < max_cycles) {
-        state = avr_run(board->avr);
+    (void)avr;
+    (void)when;
+    (void)param;
+    return 0;
+}
+
+int board_run(board_t *board, uint64_t until_cycle)
+{
+    avr_t *avr = board->avr;
+    int state = avr->state;
+    if (avr->cycle >= until_cycle) {
+        return state;
+    }
+    /* A sleeping CPU skips ahead to the next cycle timer; this one is it. */
+    avr_cycle_timer_register(avr, until_cycle - avr->cycle, stop_here, board);
+    while (avr->cycle < until_cycle) {
+        state = avr_run(avr);
         if (state == cpu_Done || state == cpu_Crashed) {
             break;
         }
     }
+    avr_cycle_timer_cancel(avr, stop_here, board);
     return state;
 }

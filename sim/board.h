@@ -23,16 +23,24 @@ typedef struct board {
 
 /*
  * Loads an ELF onto a new MCU. Arduino-built ELFs carry no .mmcu section, so
- * the MCU name and clock are given here. Returns 0 on success, else prints
- * one line to stderr and returns -1.
+ * the MCU name and clock are given here. Returns 0 on success, else writes
+ * one line into error (when error_capacity > 0) and returns -1.
  */
-int board_load(board_t *board, const char *elf_path, const char *mcu, uint32_t frequency_hz);
+int board_load(board_t *board, const char *elf_path, const char *mcu, uint32_t frequency_hz, char *error,
+               size_t error_capacity);
+
+/* Releases the MCU; the board can be loaded again afterwards. */
+void board_free(board_t *board);
 
 /* Raw bytes the firmware writes on USART0 go to this callback instead of stdout. */
 void board_capture_uart0(board_t *board, board_uart_byte_fn on_byte, void *context);
 
-/* Holds an analog input at a voltage, as a divider with a fixed resistance would. */
-void board_set_adc_millivolts(board_t *board, uint8_t channel, uint32_t millivolts);
+/*
+ * Holds an analog input (ADC0..ADC7: simavr 1.6 models no more) at a
+ * voltage, as a divider with a fixed resistance would. The firmware reads
+ * the datasheet's code, Vin * 1024 / 5 V truncated to 0..1023.
+ */
+void board_set_adc_millivolts(board_t *board, uint8_t channel, double millivolts);
 
 /*
  * Sends bytes to the firmware's USART0 from start_ms of simulated time on,
@@ -41,7 +49,11 @@ void board_set_adc_millivolts(board_t *board, uint8_t channel, uint32_t millivol
  */
 void board_feed_uart0(board_t *board, const uint8_t *bytes, size_t length, uint32_t start_ms);
 
-/* Runs until the firmware stops, crashes or max_cycles pass; returns the final state. */
-int board_run(board_t *board, uint64_t max_cycles);
+/*
+ * Runs until the firmware stops, crashes or the cycle count reaches
+ * until_cycle (a sleeping CPU stops there too, not at its next wake-up);
+ * returns the final state.
+ */
+int board_run(board_t *board, uint64_t until_cycle);
 
 #endif

@@ -61,7 +61,9 @@ static avr_cycle_count_t produce_sample(avr_t *avr, avr_cycle_count_t when, void
     if (rate_mhz == 0) {
         return when + avr->frequency / 1000;
     }
-    store_sample(sensor);
+    if (!sensor->stuck) {
+        store_sample(sensor);
+    }
     return when + (avr_cycle_count_t)((uint64_t)avr->frequency * 1000u / rate_mhz);
 }
 
@@ -87,12 +89,16 @@ static void on_twi_message(struct avr_irq_t *irq, uint32_t value, void *param)
     avr_twi_msg_irq_t message;
     message.u.v = value;
 
+    if (sensor->absent) {
+        sensor->selected = 0;
+        return;
+    }
     if (message.u.twi.msg & TWI_COND_STOP) {
         sensor->selected = 0;
     }
     if (message.u.twi.msg & TWI_COND_START) {
         sensor->selected = 0;
-        if (!sensor->absent && (message.u.twi.addr >> 1) == sensor->address) {
+        if ((message.u.twi.addr >> 1) == sensor->address) {
             sensor->selected = message.u.twi.addr;
             /* A write starts with the register pointer; a repeated-start read keeps it. */
             sensor->expecting_pointer = (message.u.twi.addr & 1) == 0;
@@ -160,4 +166,10 @@ void lsm9ds0_set_acceleration(lsm9ds0_t *sensor, int16_t x, int16_t y, int16_t z
 void lsm9ds0_set_temperature_raw(lsm9ds0_t *sensor, int16_t raw)
 {
     sensor->temperature_raw = raw;
+}
+
+void lsm9ds0_set_fault(lsm9ds0_t *sensor, lsm9ds0_fault_t fault)
+{
+    sensor->absent = fault == LSM9DS0_FAULT_ABSENT;
+    sensor->stuck = fault == LSM9DS0_FAULT_STUCK;
 }

@@ -2,7 +2,8 @@
  * LSM9DS0 accelerometer/magnetometer (XM) die as an I2C slave: the register
  * file the firmware sees, data produced at the rate CTRL_REG1_XM selects,
  * STATUS_REG_A data-ready flags, and auto-increment reads. Acceleration and
- * temperature come from whoever drives the model (lsm9ds0_set_*).
+ * temperature come from whoever drives the model (lsm9ds0_set_*), faults
+ * from lsm9ds0_set_fault.
  */
 #ifndef THERMOTILT_SIM_LSM9DS0_H
 #define THERMOTILT_SIM_LSM9DS0_H
@@ -23,8 +24,15 @@ typedef struct lsm9ds0 {
     uint8_t expecting_pointer;
     int16_t acceleration[3];
     int16_t temperature_raw;
-    uint8_t absent; /* fault hook: no ACK, as an unplugged sensor */
+    uint8_t absent; /* no ACK, as an unplugged sensor */
+    uint8_t stuck;  /* answers, but its sample clock has stopped */
 } lsm9ds0_t;
+
+typedef enum lsm9ds0_fault {
+    LSM9DS0_FAULT_NONE = 0,
+    LSM9DS0_FAULT_ABSENT = 1,
+    LSM9DS0_FAULT_STUCK = 2,
+} lsm9ds0_fault_t;
 
 enum { LSM9DS0_ADDRESS_SDO_HIGH = 0x1D };
 
@@ -34,5 +42,13 @@ void lsm9ds0_attach(lsm9ds0_t *sensor);
 void lsm9ds0_set_acceleration(lsm9ds0_t *sensor, int16_t x, int16_t y, int16_t z);
 /* 12-bit two's complement, 8 LSB/degC, as OUT_TEMP_L/H_XM report it. */
 void lsm9ds0_set_temperature_raw(lsm9ds0_t *sensor, int16_t raw);
+
+/*
+ * ABSENT: no address or data byte is acknowledged from now on.
+ * STUCK: registers still read and write, but the outputs stay frozen and
+ * STATUS_REG_A reports no new data once the last sample was read.
+ * NONE: back to normal; the sample clock resumes at the configured rate.
+ */
+void lsm9ds0_set_fault(lsm9ds0_t *sensor, lsm9ds0_fault_t fault);
 
 #endif
