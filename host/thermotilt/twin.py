@@ -1,0 +1,298 @@
+"""The digital twin's boards: the real firmware images running in simavr.
+
+Each :class:`Board` is one MCU from ``build/native/libthermotilt_twin.so``
+(``sim/twin.h``), reached through ctypes. Python supplies what the sensors
+would see (thermistor voltages, the LSM9DS0's raw outputs) and reads back
+what the firmware does (serial bytes, the L298N drive), stepping the board to
+a simulated time with :meth:`Board.run_until`. The same calls give the same
+bytes; only the optional pseudo-terminal depends on who talks to it.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+import operator
+import os
+from dataclasses import dataclass
+from functools import cache
+from pathlib import Path
+from types import TracebackType
+
+DEFAULT_FREQUENCY_HZ = 16_000_000
+SUPPLY_MILLIVOLTS = 5000.0
+INT16_RANGE = range(-32768, 32768)
+# OUT_TEMP_XM is 12-bit two's complement.
+TEMPERATURE_RAW_RANGE = range(-2048, 2048)
+
+_FIRMWARE_MCU = {"imu_reader": "atmega328p", "thermal_chamber": "atmega2560"}
+# simavr 1.6 models ADC0..ADC7 only, also on the Mega.
+ADC_CHANNELS = 8
+_ADC_FAULTS = {"none": 0, "open": 1, "short": 2}
+_SENSOR_FAULTS = {"none": 0, "absent": 1, "stuck": 2}
+_RUNNING, _DONE, _CRASHED = 0, 1, 2
+_ERROR_CAPACITY = 512
+_MAX_SEED = 2**64
+
+
+class TwinError(RuntimeError):
+    """The twin cannot do what was asked: a missing build, a crashed firmware, a closed board."""
+
+
+@dataclass(frozen=True)
+class Drive:
+    """What the L298N delivered to the Peltier since the previous read."""
+
+    duty: float  # mean fraction of the time current flowed, 0..1
+    direction: int  # +1 heating, -1 cooling, 0 no current
+    pwm: int  # the last analogWrite value the firmware gave ENA, 0..255
+
+
+def build_dir() -> Path:
+    """The offline build tree: $THERMOTILT_BUILD_DIR, else <repo>/build."""
+    override = os.environ.get("THERMOTILT_BUILD_DIR")
+    if override:
+        return Path(override)
+    return Path(__file__).resolve().parents[2] / "build"
+
+
+def firmware_elf(name: str) -> Path:
+    """The built image of "imu_reader" or "thermal_chamber"."""
+    if name not in _FIRMWARE_MCU:
+        raise ValueError(f"unknown firmware {name!r}: expected one of {sorted(_FIRMWARE_MCU)}")
+    return _existing(build_dir() / _FIRMWARE_MCU[name] / f"{name}.elf")
+
+
+def library_path() -> Path:
+    return build_dir() / "native" / "libthermotilt_twin.so"
+
+
+def _existing(path: Path) -> Path:
+    if not path.exists():
+        raise TwinError(f"{path} is missing: run `make build` first")
+    return path
+
+
+@cache
+def _load_library(path: Path) -> ctypes.CDLL:
+    library = ctypes.CDLL(str(path), use_errno=True)
+    handle = ctypes.c_void_p
+    prototypes: dict[str, tuple[type | None, list[type]]] = {
+        "twin_create": (
+            handle,
+            [ctypes.c_char_p, ctypes.c_char_p, ctypes.c_uint32, ctypes.c_char_p, ctypes.c_size_t],
+        ),
+        "twin_free": (None, [handle]),
+        "twin_run_until": (ctypes.c_int, [handle, ctypes.c_uint64]),
+        "twin_cycles": (ctypes.c_uint64, [handle]),
+        "twin_uart_pending": (ctypes.c_size_t, [handle]),
+        "twin_uart_read": (ctypes.c_size_t, [handle, ctypes.c_char_p, ctypes.c_size_t]),
+        "twin_uart_write": (ctypes.c_int, [handle, ctypes.c_char_p, ctypes.c_size_t]),
+        "twin_uart_open_pty": (ctypes.c_char_p, [handle]),
+        "twin_uart_set_corruption": (None, [handle, ctypes.c_double, ctypes.c_uint64]),
+        "twin_uart_corrupted_bytes": (ctypes.c_uint64, [handle]),
+        "twin_pty_dropped_bytes": (ctypes.c_uint64, [handle]),
+        "twin_adc_set_millivolts": (ctypes.c_int, [handle, ctypes.c_uint, ctypes.c_double]),
+        "twin_adc_set_fault": (ctypes.c_int, [handle, ctypes.c_uint, ctypes.c_int]),
+        "twin_lsm9ds0_attach": (None, [handle]),
+        "twin_lsm9ds0_set": (
+            ctypes.c_int,
+            [handle, ctypes.c_int16, ctypes.c_int16, ctypes.c_int16, ctypes.c_int16],
+        ),
+        "twin_lsm9ds0_set_fault": (ctypes.c_int, [handle, ctypes.c_int]),
+        "twin_l298n_attach": (ctypes.c_int, [handle]),
+        "twin_l298n_read": (
+            ctypes.c_int,
+            [handle, ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_int), ctypes.POINTER(ctypes.c_int)],
+        ),
+        "twin_l298n_set_disconnected": (ctypes.c_int, [handle, ctypes.c_int]),
+    }
+    for name, (result, arguments) in prototypes.items():
+        function = getattr(library, name)
+        function.restype = result
+        function.argtypes = arguments
+    return library
+
+
+def _library() -> ctypes.CDLL:
+    return _load_library(_existing(library_path()))
+
+
+def _choice(value: str, choices: dict[str, int], what: str) -> int:
+    if value not in choices:
+        raise ValueError(f"{what} must be one of {list(choices)}, not {value!r}")
+    return choices[value]
+
+
+def _integer_in(value: int, allowed: range, what: str) -> int:
+    """value as an int (numpy integers too) if it lies in allowed."""
+    try:
+        number = None if isinstance(value, bool) else operator.index(value)
+    except TypeError:
+        number = None
+    if number is None or number not in allowed:
+        raise ValueError(f"{what} must be an integer in {allowed.start}..{allowed.stop - 1}, not {value!r}")
+    return number
+
+
+class Board:
+    """One MCU running a firmware image. Use as a context manager, or close()."""
+
+    def __init__(self, elf: Path | str, mcu: str, frequency_hz: int = DEFAULT_FREQUENCY_HZ) -> None:
+        self._handle: int | None = None
+        frequency_hz = _integer_in(frequency_hz, range(1, 2**32), "frequency_hz")
+        elf = _existing(Path(elf))
+        self._lib = _library()
+        error = ctypes.create_string_buffer(_ERROR_CAPACITY)
+        handle = self._lib.twin_create(str(elf).encode(), mcu.encode(), frequency_hz, error, _ERROR_CAPACITY)
+        if not handle:
+            raise TwinError(error.value.decode(errors="replace"))
+        self._handle = handle
+        self.elf = elf
+        self.mcu = mcu
+        self.frequency_hz = frequency_hz
+
+    @classmethod
+    def imu_reader(cls) -> Board:
+        """The Nano's image with the LSM9DS0 reader (attach_lsm9ds0 to give it a sensor)."""
+        return cls(firmware_elf("imu_reader"), _FIRMWARE_MCU["imu_reader"])
+
+    @classmethod
+    def thermal_chamber(cls) -> Board:
+        """The Mega's image driving the Peltier (attach_l298n to watch it)."""
+        return cls(firmware_elf("thermal_chamber"), _FIRMWARE_MCU["thermal_chamber"])
+
+    def close(self) -> None:
+        if self._handle is not None:
+            self._lib.twin_free(self._handle)
+            self._handle = None
+
+    def __enter__(self) -> Board:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        traceback: TracebackType | None,
+    ) -> None:
+        self.close()
+
+    def __del__(self) -> None:
+        self.close()
+
+    def _live(self) -> int:
+        if self._handle is None:
+            raise TwinError("the board is closed")
+        return self._handle
+
+    @property
+    def cycles(self) -> int:
+        return int(self._lib.twin_cycles(self._live()))
+
+    @property
+    def seconds(self) -> float:
+        return self.cycles / self.frequency_hz
+
+    def run_until(self, seconds: float) -> None:
+        """Runs the firmware until this much simulated time has passed since start."""
+        if not math.isfinite(seconds) or seconds < 0:
+            raise ValueError(f"seconds must be a finite time >= 0, not {seconds!r}")
+        state = self._lib.twin_run_until(self._live(), round(seconds * self.frequency_hz))
+        if state == _CRASHED:
+            raise TwinError(f"{self.elf.name} crashed at {self.seconds:.6f} s simulated")
+        if state == _DONE:
+            raise TwinError(f"{self.elf.name} stopped (slept with interrupts off) at {self.seconds:.6f} s simulated")
+
+    def read_uart(self) -> bytes:
+        """Every byte the firmware sent on USART0 since the previous read."""
+        handle = self._live()
+        pending = self._lib.twin_uart_pending(handle)
+        if pending == 0:
+            return b""
+        buffer = ctypes.create_string_buffer(pending)
+        count = self._lib.twin_uart_read(handle, buffer, pending)
+        return buffer.raw[:count]
+
+    def write_uart(self, data: bytes | bytearray | memoryview) -> None:
+        """Queues bytes for the firmware's USART0; they arrive at 115200 baud."""
+        if not isinstance(data, bytes | bytearray | memoryview):
+            raise TypeError(f"write_uart takes bytes, not {type(data).__name__}")
+        payload = bytes(data)
+        if self._lib.twin_uart_write(self._live(), payload, len(payload)) != 0:
+            raise MemoryError("the twin could not queue the bytes")
+
+    def open_pty(self) -> str:
+        """A pseudo-terminal wired to USART0 (raw mode); returns its path, e.g. /dev/pts/3."""
+        path = self._lib.twin_uart_open_pty(self._live())
+        if path is None:
+            raise TwinError(f"cannot open a pseudo-terminal: {os.strerror(ctypes.get_errno())}")
+        return path.decode()
+
+    def set_uart_corruption(self, probability: float, seed: int) -> None:
+        """Flips one random bit of a byte with this probability, both directions."""
+        if not math.isfinite(probability) or not 0.0 <= probability <= 1.0:
+            raise ValueError(f"probability must be in 0..1, not {probability!r}")
+        seed = _integer_in(seed, range(_MAX_SEED), "seed")
+        self._lib.twin_uart_set_corruption(self._live(), float(probability), seed)
+
+    @property
+    def uart_corrupted_bytes(self) -> int:
+        return int(self._lib.twin_uart_corrupted_bytes(self._live()))
+
+    @property
+    def pty_dropped_bytes(self) -> int:
+        return int(self._lib.twin_pty_dropped_bytes(self._live()))
+
+    def _adc_channel(self, channel: int) -> int:
+        return _integer_in(channel, range(ADC_CHANNELS), "ADC channel")
+
+    def set_adc_millivolts(self, channel: int, millivolts: float) -> None:
+        """Holds analog input A0..A7 at a voltage; the firmware reads the
+        datasheet's code, millivolts * 1024 / 5000 truncated to 0..1023."""
+        channel = self._adc_channel(channel)
+        if not math.isfinite(millivolts) or not 0.0 <= millivolts <= SUPPLY_MILLIVOLTS:
+            raise ValueError(f"millivolts must be in 0..{SUPPLY_MILLIVOLTS:g}, not {millivolts!r}")
+        self._lib.twin_adc_set_millivolts(self._live(), channel, float(millivolts))
+
+    def set_adc_fault(self, channel: int, fault: str) -> None:
+        """Fault "open" (pin pulled to 5 V), "short" (0 V) or "none" (the set voltage again)."""
+        channel = self._adc_channel(channel)
+        self._lib.twin_adc_set_fault(self._live(), channel, _choice(fault, _ADC_FAULTS, "ADC fault"))
+
+    def attach_lsm9ds0(self) -> None:
+        """Puts the LSM9DS0 model on the TWI bus at 0x1D; once is enough."""
+        self._lib.twin_lsm9ds0_attach(self._live())
+
+    def set_lsm9ds0(self, ax: int, ay: int, az: int, temperature_raw: int) -> None:
+        """The sensor's next samples: accelerations in LSB, OUT_TEMP_XM raw (8 LSB/degC)."""
+        ax = _integer_in(ax, INT16_RANGE, "ax")
+        ay = _integer_in(ay, INT16_RANGE, "ay")
+        az = _integer_in(az, INT16_RANGE, "az")
+        temperature_raw = _integer_in(temperature_raw, TEMPERATURE_RAW_RANGE, "temperature_raw")
+        if self._lib.twin_lsm9ds0_set(self._live(), ax, ay, az, temperature_raw) != 0:
+            raise TwinError("attach_lsm9ds0() first")
+
+    def set_lsm9ds0_fault(self, fault: str) -> None:
+        """Fault "absent" (no ACK), "stuck" (answers, no new data) or "none"."""
+        code = _choice(fault, _SENSOR_FAULTS, "LSM9DS0 fault")
+        if self._lib.twin_lsm9ds0_set_fault(self._live(), code) != 0:
+            raise TwinError("attach_lsm9ds0() first")
+
+    def attach_l298n(self) -> None:
+        """Starts watching the L298N pins (ENA = D9, IN1 = D7, IN2 = D6 of a Mega)."""
+        if self._lib.twin_l298n_attach(self._live()) != 0:
+            raise TwinError(f"the L298N observer watches ATmega2560 pins; this board is {self.mcu}")
+
+    def read_l298n(self) -> Drive:
+        duty = ctypes.c_double()
+        direction = ctypes.c_int()
+        pwm = ctypes.c_int()
+        if self._lib.twin_l298n_read(self._live(), ctypes.byref(duty), ctypes.byref(direction), ctypes.byref(pwm)) != 0:
+            raise TwinError("attach_l298n() first")
+        return Drive(duty=duty.value, direction=direction.value, pwm=pwm.value)
+
+    def set_l298n_disconnected(self, disconnected: bool) -> None:
+        """A cut Peltier wire: the firmware still commands a PWM, nothing reaches the cell."""
+        if self._lib.twin_l298n_set_disconnected(self._live(), int(bool(disconnected))) != 0:
+            raise TwinError("attach_l298n() first")
