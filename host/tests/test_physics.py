@@ -1,0 +1,548 @@
+"""The twin's physics model against the paper, the datasheets and hand-worked
+numbers (Sensors 2018, 18, 2536: "the paper")."""
+
+import math
+import statistics
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from thermotilt.coefficients import PAPER_DEFAULTS
+from thermotilt.physics import (
+    FAULT_NAMES,
+    TERMS,
+    Chamber,
+    Fault,
+    Model,
+    ModelError,
+    Sensor,
+    parse_fault,
+)
+
+DEFAULT_TOML = Path(__file__).resolve().parents[1] / "thermotilt" / "models" / "default.toml"
+LSB_PER_G = 1 / 0.061e-3  # LSM9DS0 at +-2 g
+CONTROL_PERIOD_S = 0.25  # firmware/thermal_chamber: CONTROL_PERIOD_MS
+KP = 350.0  # paper section 3.1
+
+SENSOR_EFFECTS_OFF = {
+    "die_lag": False,
+    "drift": False,
+    "rate_sensitivity": False,
+    "temperature_offset": False,
+    "sensitivity_loss": False,
+    "noise": False,
+}
+
+
+@pytest.fixture(scope="module")
+def model():
+    return Model.load()
+
+
+def run_p_control(model, ambient_c, setpoints, hold_s, dt_s=0.01):
+    """The firmware's P law emulated: every 250 ms pwm = min(255, round(350 |e|))
+    on the inner thermistor, direction = sign(e), held until the next tick.
+    Returns (time_s, setpoint, inner thermistor, pwm * direction) per step."""
+    chamber = Chamber(model, ambient_c)
+    steps_per_tick = round(CONTROL_PERIOD_S / dt_s)
+    steps_per_hold = round(hold_s / dt_s)
+    trace = []
+    duty, direction, signed_pwm = 0.0, 0, 0
+    step = 0
+    for setpoint in setpoints:
+        for _ in range(steps_per_hold):
+            if step % steps_per_tick == 0:
+                error = setpoint - chamber.inner_thermistor_c
+                pwm = min(255, math.floor(KP * abs(error) + 0.5))
+                direction = (1 if error > 0 else -1) if pwm else 0
+                duty, signed_pwm = pwm / 255.0, pwm * direction
+            chamber.step(dt_s, duty, direction, ambient_c)
+            step += 1
+            trace.append((step * dt_s, setpoint, chamber.inner_thermistor_c, signed_pwm))
+    return trace
+
+
+def hold_mean(trace, start_s, end_s, column=2):
+    values = [row[column] for row in trace if start_s < row[0] <= end_s]
+    return sum(values) / len(values)
+
+
+# --- model file -------------------------------------------------------------
+
+
+def test_default_model_has_every_term(model):
+    assert model.source == "default"
+    assert set(model.terms) == set(TERMS)
+    assert all(model.enabled(term) for term in TERMS)
+    assert model.faults == ()
+
+
+def test_with_terms_switches_only_the_named_term(model):
+    changed = model.with_terms({"noise": False})
+    assert not changed.enabled("noise")
+    assert model.enabled("noise")
+    assert changed.terms["noise"]["sigma_lsb"] == model.terms["noise"]["sigma_lsb"]
+    with pytest.raises(ModelError, match="unknown term 'wind'"):
+        model.with_terms({"wind": True})
+
+
+def test_with_faults_appends(model):
+    first = Fault("inner_open", 120.0, 180.0)
+    second = Fault("imu_uart_corrupt", rate=0.001)
+    assert model.with_faults([first]).with_faults([second]).faults == (first, second)
+
+
+def write_model(tmp_path, text):
+    path = tmp_path / "model.toml"
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def default_text():
+    return DEFAULT_TOML.read_text(encoding="utf-8")
+
+
+def test_faults_are_read_from_the_file(tmp_path):
+    path = write_model(
+        tmp_path,
+        default_text()
+        + '\n[[faults]]\nname = "outer_short"\nstart_s = 10\nend_s = 20\n'
+        + '\n[[faults]]\nname = "chamber_uart_corrupt"\nrate = 0.01\n',
+    )
+    loaded = Model.load(path)
+    assert loaded.source == str(path)
+    assert loaded.faults == (
+        Fault("outer_short", 10.0, 20.0),
+        Fault("chamber_uart_corrupt", rate=0.01),
+    )
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (lambda t: t + "\n[wind]\nenabled = true\n", r"unknown section \[wind\]"),
+        (
+            lambda t: t.replace("offset_c = -1.0", "offset_c = -1.0\nslope = 2.0"),
+            r"\[temperature_offset\] unknown parameter 'slope'",
+        ),
+        (
+            lambda t: t.replace("schmitt_band_c = 0.5", ""),
+            r"\[drift\] missing parameter 'schmitt_band_c'",
+        ),
+        (
+            lambda t: t.replace("time_constant_s = 2.5", 'time_constant_s = "fast"'),
+            r"\[thermistor_lag\] time_constant_s: expected a number, got 'fast'",
+        ),
+        (
+            lambda t: t.replace("time_constant_s = 2.5", "time_constant_s = 0.0"),
+            r"\[thermistor_lag\] time_constant_s: must be > 0",
+        ),
+        (
+            lambda t: t.replace("[noise]\nenabled = true", "[noise]\nenabled = 1"),
+            r"\[noise\] enabled: expected true or false",
+        ),
+        (
+            lambda t: t.replace('coefficients = "paper"', 'coefficients = "table 9"'),
+            r"\[drift\] coefficients: expected \"paper\"",
+        ),
+        (
+            lambda t: t.replace("z = 1200.0 }", "w = 1200.0 }"),
+            r"\[rate_sensitivity\] lsb_per_c_per_s: expected a table",
+        ),
+        (
+            lambda t: t + '\n[[faults]]\nname = "meteor"\n',
+            r"\[\[faults\]\] #1: unknown fault 'meteor'",
+        ),
+        (lambda t: t + '\n[[faults]]\nname = "imu_uart_corrupt"\n', r"needs a rate"),
+        (lambda t: t + "\n[tilt\n", r"not valid TOML"),
+    ],
+)
+def test_bad_model_files_name_file_term_and_problem(tmp_path, edit, message):
+    path = write_model(tmp_path, edit(default_text()))
+    with pytest.raises(ModelError, match=message) as raised:
+        Model.load(path)
+    text = str(raised.value)
+    assert text.startswith(str(path))
+    assert "\n" not in text
+
+
+def test_missing_term_section_and_missing_file(tmp_path):
+    text = default_text().replace("[tilt]\nenabled = true\n", "")
+    with pytest.raises(ModelError, match=r"missing section \[tilt\]"):
+        Model.load(write_model(tmp_path, text))
+    with pytest.raises(ModelError, match="cannot read"):
+        Model.load(tmp_path / "absent.toml")
+
+
+def test_explicit_coefficients_replace_the_paper_tables(tmp_path):
+    surfaces = "{ X = [100.0, 0, 0, 0, 0, 0], Y = [0, 0, 0, 0, 0, 0], Z = [0, 0, 0, 0, 0, 0] }"
+    text = default_text().replace(
+        'coefficients = "paper"', f"coefficients = {{ W = {surfaces}, C = {surfaces} }}"
+    )
+    loaded = Model.load(write_model(tmp_path, text))
+    loaded = loaded.with_terms(SENSOR_EFFECTS_OFF | {"drift": True})
+    sample = Sensor(loaded, seed=1, environment_c=30.0).step(0.01, 30.0, 0.0, 0.0)
+    assert sample.drift_x == 100.0
+    assert sample.ax == 100
+
+
+# --- faults -----------------------------------------------------------------
+
+
+def test_parse_fault_syntax():
+    assert parse_fault("inner_open@120-180") == Fault("inner_open", 120.0, 180.0)
+    assert parse_fault("imu_uart_corrupt=0.001") == Fault("imu_uart_corrupt", 0.0, None, 0.001)
+    assert parse_fault("sensor_stuck@30") == Fault("sensor_stuck", 30.0)
+    assert parse_fault("chamber_uart_corrupt=0.5@2.5-7") == Fault(
+        "chamber_uart_corrupt", 2.5, 7.0, 0.5
+    )
+    assert parse_fault("peltier_disconnected") == Fault("peltier_disconnected")
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("meteor@10", "unknown fault 'meteor'"),
+        ("inner_open=0.1", "takes no rate"),
+        ("imu_uart_corrupt", "needs a rate"),
+        ("imu_uart_corrupt=1.5", "needs a rate"),
+        ("imu_uart_corrupt=lots", "must be numbers"),
+        ("inner_open@180-120", "must be after start"),
+        ("inner_open@", "expected NAME"),
+        ("Inner_Open", "expected NAME"),
+    ],
+)
+def test_parse_fault_rejects(text, message):
+    with pytest.raises(ModelError, match=message):
+        parse_fault(text)
+
+
+def test_every_fault_name_parses():
+    for name in FAULT_NAMES:
+        text = f"{name}=0.01@1-2" if name.endswith("_uart_corrupt") else f"{name}@1-2"
+        assert parse_fault(text).name == name
+
+
+# --- chamber ----------------------------------------------------------------
+
+
+def test_undriven_chamber_at_ambient_stays_at_ambient(model):
+    chamber = Chamber(model, 21.3)
+    for _ in range(60_000):
+        chamber.step(0.01, 0.0, 0, 21.3)
+    assert (chamber.inner_c, chamber.outer_c) == (21.3, 21.3)
+    assert (chamber.inner_thermistor_c, chamber.outer_thermistor_c) == (21.3, 21.3)
+
+
+def test_steady_state_matches_the_heat_balance(model):
+    # Inner and outer nodes at constant drive, solved as a linear system from
+    # the file's parameters:
+    #   inner: -P d + f J d^2 + K (To - Ti) + Ga (Ta - Ti) = 0
+    #   outer:  P d + (1 - f) J d^2 + K (Ti - To) + Gs (Ta - To) = 0
+    terms = model.terms
+    pumped = terms["peltier_pumping"]["full_duty_w"]
+    joule = terms["joule_heating"]["full_duty_w"]
+    share = terms["joule_heating"]["inner_fraction"]
+    cell = terms["heatsink"]["inner_conductance_w_per_k"]
+    sink = terms["heatsink"]["ambient_conductance_w_per_k"]
+    leak = terms["ambient_leak"]["conductance_w_per_k"]
+    ambient, duty = 20.0, 0.6
+    heat = joule * duty**2
+    matrix = np.array([[cell + leak, -cell], [-cell, cell + sink]])
+    rhs = np.array(
+        [
+            -pumped * duty + share * heat + leak * ambient,
+            pumped * duty + (1 - share) * heat + sink * ambient,
+        ]
+    )
+    inner_expected, outer_expected = np.linalg.solve(matrix, rhs)
+
+    chamber = Chamber(model, ambient)
+    for _ in range(120_000):
+        chamber.step(0.05, duty, -1, ambient)
+    assert chamber.inner_c == pytest.approx(inner_expected, abs=1e-3)
+    assert chamber.outer_c == pytest.approx(outer_expected, abs=1e-3)
+
+
+def drive(model, duty, direction, seconds=60.0, ambient=20.0):
+    chamber = Chamber(model, ambient)
+    for _ in range(round(seconds / 0.01)):
+        chamber.step(0.01, duty, direction, ambient)
+    return chamber
+
+
+def test_without_pumping_and_joule_the_drive_does_nothing(model):
+    chamber = drive(model.with_terms({"peltier_pumping": False, "joule_heating": False}), 1.0, -1)
+    assert (chamber.inner_c, chamber.outer_c) == (20.0, 20.0)
+    pumping_only = drive(model.with_terms({"joule_heating": False}), 1.0, -1)
+    assert pumping_only.inner_c < 19.0 and pumping_only.outer_c > 20.5
+
+
+def test_joule_heating_breaks_the_heat_cool_symmetry(model):
+    no_joule = model.with_terms({"joule_heating": False})
+    heated, cooled = drive(no_joule, 0.8, 1), drive(no_joule, 0.8, -1)
+    assert heated.inner_c - 20.0 == pytest.approx(20.0 - cooled.inner_c, abs=1e-9)
+    heated, cooled = drive(model, 0.8, 1), drive(model, 0.8, -1)
+    assert heated.inner_c - 20.0 > (20.0 - cooled.inner_c) + 0.1
+
+
+def test_ideal_heatsink_keeps_the_outer_face_at_ambient(model):
+    chamber = drive(model.with_terms({"heatsink": False}), 1.0, -1)
+    assert chamber.outer_c == 20.0 and chamber.outer_thermistor_c == 20.0
+    assert drive(model, 1.0, -1).outer_c > 21.0
+
+
+def test_ambient_leak_pulls_the_inner_face_to_ambient(model):
+    # Without the leak and with an ideal heatsink, a face started elsewhere only
+    # relaxes through the cell; the leak adds its own conductance.
+    def relax(m):
+        chamber = Chamber(m, 20.0)
+        chamber.inner_c = 30.0
+        for _ in range(1000):
+            chamber.step(0.01, 0.0, 0, 20.0)
+        return chamber.inner_c
+
+    capacity = model.constants["chamber"]["inner_heat_capacity_j_per_k"]
+    cell = model.terms["heatsink"]["inner_conductance_w_per_k"]
+    leak = model.terms["ambient_leak"]["conductance_w_per_k"]
+    sealed = model.with_terms({"heatsink": False, "ambient_leak": False})
+    leaky = model.with_terms({"heatsink": False})
+    sealed_expected = 20.0 + 10.0 * math.exp(-10.0 * cell / capacity)
+    leaky_expected = 20.0 + 10.0 * math.exp(-10.0 * (cell + leak) / capacity)
+    assert relax(sealed) == pytest.approx(sealed_expected, abs=1e-3)
+    assert relax(leaky) == pytest.approx(leaky_expected, abs=1e-3)
+
+
+def test_thermistor_lag_is_first_order(model):
+    tau = model.terms["thermistor_lag"]["time_constant_s"]
+    assert tau < 5.0  # paper section 3.1: thermal response below 5 s
+    chamber = Chamber(model.with_terms({"heatsink": False}), 20.0)
+    chamber.inner_c = 30.0
+    chamber.step(tau, 0.0, 0, 20.0)
+    # The face itself relaxes a little meanwhile; the reading follows it.
+    moved = chamber.inner_thermistor_c - 20.0
+    assert moved == pytest.approx((1 - math.exp(-1)) * (chamber.inner_c - 20.0), rel=0.02)
+    instant = Chamber(model.with_terms({"thermistor_lag": False}), 20.0)
+    instant.step(0.01, 1.0, 1, 20.0)
+    assert instant.inner_thermistor_c == instant.inner_c
+
+
+def test_divider_millivolts():
+    chamber = Chamber(Model.load(), 25.0)
+    assert chamber.thermistor_millivolts() == pytest.approx((2500.0, 2500.0), abs=1e-9)
+    # beta equation by hand: R(0 degC) = 100k exp(3950 (1/273.15 - 1/298.15)) = 336.2 kOhm
+    # -> 5000 * 336.2 / 436.2 = 3853.75 mV; R(45 degC) = 43.50 kOhm -> 1515.23 mV.
+    chamber.inner_thermistor_c, chamber.outer_thermistor_c = 0.0, 45.0
+    inner_mv, outer_mv = chamber.thermistor_millivolts()
+    assert inner_mv == pytest.approx(3853.75, abs=0.05)
+    assert outer_mv == pytest.approx(1515.23, abs=0.05)
+
+
+def test_chamber_rejects_impossible_drive(model):
+    chamber = Chamber(model, 20.0)
+    with pytest.raises(ValueError, match="duty"):
+        chamber.step(0.01, 1.5, 1, 20.0)
+    with pytest.raises(ValueError, match="direction"):
+        chamber.step(0.01, 0.5, 2, 20.0)
+
+
+# --- Figure 8 and the campaign range ----------------------------------------
+
+
+@pytest.fixture(scope="module")
+def figure8(model):
+    setpoints = (16.0, 18.0, 20.0, 22.0)
+    trace = run_p_control(model, 19.0, setpoints, 60.0)
+    settled = [hold_mean(trace, 60.0 * k + 40.0, 60.0 * (k + 1)) for k in range(4)]
+    return setpoints, trace, settled
+
+
+def test_figure8_two_degree_steps_take_about_13_s(figure8):
+    # Paper section 3.1: "completed in approximately 13 s". Time from the
+    # setpoint change to 90 % of the way between the two settled means.
+    _, trace, settled = figure8
+    for k in (1, 2, 3):
+        start = 60.0 * k
+        target = settled[k - 1] + 0.9 * (settled[k] - settled[k - 1])
+        reached = next(t for t, _, reading, _ in trace if t > start and reading >= target)
+        assert 10.0 <= reached - start <= 16.0
+
+
+def test_figure8_settled_offset_lies_on_the_ambient_side(figure8):
+    # Paper section 3.1: measured above programmed below the external
+    # temperature (19 degC here), below it above.
+    setpoints, _, settled = figure8
+    for setpoint, mean in zip(setpoints, settled):
+        offset = mean - setpoint
+        assert offset * (19.0 - setpoint) > 0
+        assert abs(offset) < 0.8
+
+
+@pytest.mark.parametrize(
+    ("ambient", "setpoint"), [(22.0, -10.0), (20.0, -10.0), (20.0, 45.0), (22.0, 45.0)]
+)
+def test_chamber_reaches_and_holds_the_campaign_range(model, ambient, setpoint):
+    trace = run_p_control(model, ambient, (setpoint,), 2400.0, dt_s=0.05)
+    settled = hold_mean(trace, 2340.0, 2400.0)
+    assert abs(settled - setpoint) < 1.5
+    assert (settled - setpoint) * (ambient - setpoint) > 0
+
+
+# --- sensor -----------------------------------------------------------------
+
+
+def test_tilt_of_30_degrees_on_x(model):
+    quiet = model.with_terms(SENSOR_EFFECTS_OFF)
+    sample = Sensor(quiet, seed=1, environment_c=25.0).step(0.01, 25.0, 30.0, 0.0)
+    # 1 g = 1 / 0.061 mg = 16393.44 LSB; sin 30 = 0.5, cos 30 = 0.8660
+    assert sample.ideal_ax == pytest.approx(8196.72, abs=0.01)
+    assert sample.ideal_ay == pytest.approx(0.0, abs=1e-9)
+    assert sample.ideal_az == pytest.approx(14197.14, abs=0.01)
+    assert (sample.ax, sample.ay, sample.az) == (8197, 0, 14197)
+
+
+def test_tilt_off_leaves_the_sensor_flat(model):
+    flat = model.with_terms(SENSOR_EFFECTS_OFF | {"tilt": False})
+    sample = Sensor(flat, seed=1, environment_c=25.0).step(0.01, 25.0, 30.0, -20.0)
+    assert (sample.ax, sample.ay, sample.az) == (0, 0, round(LSB_PER_G))
+
+
+def test_sensitivity_loss_shrinks_large_accelerations(model):
+    lossy = model.with_terms(SENSOR_EFFECTS_OFF | {"sensitivity_loss": True})
+    k = model.terms["sensitivity_loss"]["gain_loss_at_1g"]
+    sample = Sensor(lossy, seed=1, environment_c=25.0).step(0.01, 25.0, 30.0, 0.0)
+    assert sample.ideal_ax == pytest.approx(LSB_PER_G * 0.5 * (1 - k * 0.25), abs=1e-6)
+    assert sample.ideal_ax < 8196.72 - 10
+
+
+def sweep(model, temperatures, incl_x=0.0, incl_y=0.0):
+    sensor = Sensor(model, seed=3, environment_c=temperatures[0])
+    return [sensor.step(0.01, t, incl_x, incl_y) for t in temperatures]
+
+
+def test_paper_drift_over_the_calibration_range(model):
+    # Paper section 4.1: X drifts "around 1300 LSB", Y "about 850 LSB" over
+    # -10..45 degC. Tables 2 and 3 at 0 deg, by hand:
+    #   warming X: f(45) - f(-10) = -550.26 - 763.36 = -1313.62
+    #   warming Y:                  -280.14 - 493.31 =  -773.44
+    #   cooling X: f(45) - f(-10) = -535.08 - 787.90 = -1322.99
+    #   cooling Y:                  -305.60 - 463.00 =  -768.61
+    # (so Y's tables give ~770 LSB, not 850).
+    drift_only = model.with_terms(SENSOR_EFFECTS_OFF | {"drift": True})
+    rising = sweep(drift_only, [-10.0 + 0.05 * i for i in range(1101)])
+    assert {s.drift_set for s in rising} == {"W"}
+    assert rising[-1].ax - rising[0].ax == pytest.approx(-1313.62, abs=1.0)
+    assert rising[-1].ay - rising[0].ay == pytest.approx(-773.44, abs=1.0)
+    falling = sweep(drift_only, [46.0 - 0.05 * i for i in range(1121)])
+    at_45 = next(s for s in falling if s.die_c <= 45.0 + 1e-9)
+    assert at_45.drift_set == "C" and falling[-1].die_c == pytest.approx(-10.0)
+    assert falling[-1].ax - at_45.ax == pytest.approx(1322.99, abs=1.0)
+    assert falling[-1].ay - at_45.ay == pytest.approx(768.61, abs=1.0)
+
+
+def test_drift_set_follows_the_trend_with_a_schmitt_band(model):
+    drift_only = model.with_terms(SENSOR_EFFECTS_OFF | {"drift": True})
+    path = [20.0, 21.0, 22.0, 21.6, 21.4, 21.6, 21.0, 20.0, 20.4, 20.6]
+    sets = [s.drift_set for s in sweep(drift_only, path)]
+    # 22 -> 21.6 is 0.4 below the peak (inside the 0.5 band), 21.4 is 0.6 below;
+    # from the 20.0 trough, 20.6 is the first more than 0.5 above.
+    assert sets == ["W", "W", "W", "W", "C", "C", "C", "C", "C", "W"]
+
+
+def test_firmware_compensation_recovers_the_tilt(model):
+    # The firmware computes raw - f(T, raw) with T = raw_temperature / 8 + 21.
+    quiet = model.with_terms({"noise": False, "rate_sensitivity": False, "die_lag": False})
+    rising = [-10.0 + 0.05 * i for i in range(1101)]
+    for sample in sweep(quiet, rising, incl_x=20.0, incl_y=-15.0)[::50]:
+        reported = sample.temperature_raw / 8 + 21
+        for raw, ideal, axis in (
+            (sample.ax, sample.ideal_ax, "X"),
+            (sample.ay, sample.ideal_ay, "Y"),
+        ):
+            compensated = raw - PAPER_DEFAULTS.surface("W", axis).evaluate(reported, raw)
+            assert compensated == pytest.approx(ideal, abs=5.0)
+
+
+def test_drift_is_indexed_by_the_reported_temperature(model):
+    offset_only = model.with_terms(SENSOR_EFFECTS_OFF | {"drift": True, "temperature_offset": True})
+    sample = Sensor(offset_only, seed=1, environment_c=30.0).step(0.01, 30.0, 0.0, 0.0)
+    offset = model.terms["temperature_offset"]["offset_c"]
+    assert sample.reported_c == pytest.approx(30.0 + offset)
+    expected = PAPER_DEFAULTS.surface("W", "X").evaluate(30.0 + offset, 0.0)
+    assert sample.drift_x == pytest.approx(expected)
+    no_offset = Sensor(model.with_terms(SENSOR_EFFECTS_OFF), seed=1, environment_c=30.0)
+    assert no_offset.step(0.01, 30.0, 0.0, 0.0).reported_c == 30.0
+
+
+def test_temperature_register_has_eighth_degree_steps(model):
+    plain = model.with_terms(SENSOR_EFFECTS_OFF)
+    # raw = round((T - 21) * 8): 25.06 -> 32.48 -> 32; 25.07 -> 32.56 -> 33; 20.0 -> -8
+    cases = ((25.0, 32), (25.06, 32), (25.07, 33), (20.0, -8), (-10.0, -248), (45.0, 192))
+    for temperature, raw in cases:
+        sample = Sensor(plain, seed=1, environment_c=temperature).step(0.01, temperature, 0, 0)
+        assert sample.temperature_raw == raw
+        assert abs(raw / 8 + 21 - temperature) <= 1 / 16
+
+
+def test_without_quantisation_the_mean_code_carries_no_staircase(model):
+    def mean_decoded(m):
+        sensor = Sensor(m, seed=5, environment_c=21.05)
+        codes = [sensor.step(0.01, 21.05, 0, 0).temperature_raw for _ in range(20_000)]
+        return statistics.fmean(code / 8 + 21 for code in codes)
+
+    plain = model.with_terms(SENSOR_EFFECTS_OFF)
+    assert mean_decoded(plain) == 21.0  # 0.4 LSB always rounds down
+    dithered = plain.with_terms({"temperature_quantisation": False})
+    assert mean_decoded(dithered) == pytest.approx(21.05, abs=0.005)
+
+
+def test_die_lag_is_first_order(model):
+    tau = model.terms["die_lag"]["time_constant_s"]
+    lagging = model.with_terms({"noise": False})
+    sensor = Sensor(lagging, seed=1, environment_c=20.0)
+    for _ in range(round(tau / 0.01)):
+        sample = sensor.step(0.01, 30.0, 0, 0)
+    assert sample.die_c == pytest.approx(20.0 + 10.0 * (1 - math.exp(-1)), abs=1e-6)
+    instant = Sensor(lagging.with_terms({"die_lag": False}), seed=1, environment_c=20.0)
+    assert instant.step(0.01, 30.0, 0, 0).die_c == 30.0
+
+
+def test_rate_sensitivity_adds_gain_times_rate_on_z(model):
+    gain = model.terms["rate_sensitivity"]["lsb_per_c_per_s"]["z"]
+    assert gain > 0
+    assert model.terms["rate_sensitivity"]["lsb_per_c_per_s"]["x"] == 0.0
+    rate_only = model.with_terms(SENSOR_EFFECTS_OFF | {"rate_sensitivity": True})
+    ramp = sweep(rate_only, [20.0 + 0.001 * i for i in range(100)])  # 0.1 degC/s
+    assert ramp[-1].rate_c_per_s == pytest.approx(0.1)
+    assert ramp[-1].az - round(LSB_PER_G) == pytest.approx(gain * 0.1, abs=0.6)
+    assert ramp[-1].ax == 0
+    flat = sweep(model.with_terms(SENSOR_EFFECTS_OFF), [20.0 + 0.001 * i for i in range(100)])
+    assert flat[-1].az == round(LSB_PER_G)
+
+
+def test_noise_is_seeded_and_has_the_datasheet_sigma(model):
+    noisy = model.with_terms(SENSOR_EFFECTS_OFF | {"noise": True})
+
+    def draw(seed, n=20_000):
+        sensor = Sensor(noisy, seed=seed, environment_c=25.0)
+        return [sensor.step(0.01, 25.0, 0.0, 0.0) for _ in range(n)]
+
+    first, again, other = draw(7), draw(7), draw(8)
+    assert [s.ax for s in first] == [s.ax for s in again]
+    assert [s.ax for s in first] != [s.ax for s in other]
+    # 150 ug/sqrt(Hz) * sqrt(50 Hz) / 0.061 mg = 17.39 LSB (+ 1/sqrt(12) rounding)
+    expected = math.hypot(150e-6 * math.sqrt(50) * LSB_PER_G, 1 / math.sqrt(12))
+    one_g = round(LSB_PER_G)
+    for values in ([s.ax for s in first], [s.ay for s in first], [s.az - one_g for s in first]):
+        assert statistics.pstdev(values) == pytest.approx(expected, abs=0.4)
+        assert abs(statistics.fmean(values)) < 0.5
+
+
+def test_registers_saturate(model):
+    drift_only = model.with_terms(SENSOR_EFFECTS_OFF | {"drift": True})
+    # Warming X at -2000 degC: 571.5 + 20.23 * 2000 - 0.1044 * 2000^2 = -376568.5 LSB
+    cold = Sensor(drift_only, seed=1, environment_c=-2000.0).step(0.01, -2000.0, 0.0, 0.0)
+    assert cold.ax == -32768 and cold.temperature_raw == -2048
+    hot = Sensor(drift_only, seed=1, environment_c=1000.0).step(0.01, 1000.0, 0.0, 0.0)
+    assert hot.temperature_raw == 2047
