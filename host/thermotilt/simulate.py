@@ -148,7 +148,14 @@ def run(
                     CHAMBER, Board.thermal_chamber(), open(serial_dir / f"{CHAMBER}.txt", "wb")
                 )
             writer = RunLogWriter(csv_stream, with_truth=True, flush_each_row=False)
-            _play(scenario, model, seed, links, writer, pty, on_pty, progress)
+            try:
+                _play(scenario, model, seed, links, writer, pty, on_pty, progress)
+                interrupted = False
+            except KeyboardInterrupt:
+                # Ctrl-C keeps what was simulated so far, summary included.
+                interrupted = True
+            simulated = links[IMU].board.seconds
+            reports = {name: link.report() for name, link in links.items()}
         finally:
             for link in links.values():
                 link.capture.close()
@@ -161,13 +168,14 @@ def run(
         "model": model.source,
         "terms": {name: model.enabled(name) for name in model.terms},
         "faults": [vars(fault) for fault in model.faults],
-        "sim_seconds": round(scenario.duration_s, 3),
+        "interrupted": interrupted,
+        "sim_seconds": round(simulated, 3),
         "wall_seconds": round(wall, 3),
-        "speed_x_real_time": round(scenario.duration_s / wall, 2) if wall > 0 else None,
+        "speed_x_real_time": round(simulated / wall, 2) if wall > 0 else None,
         "rows": writer.rows,
         "marks": scenario.marks,
         "positions": [vars(position) for position in scenario.positions],
-        "boards": {name: link.report() for name, link in links.items()},
+        "boards": reports,
     }
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     return RunResult(out_dir, summary)
