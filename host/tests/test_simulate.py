@@ -1,0 +1,265 @@
+"""The digital twin end to end, run as a user runs it (`thermotilt simulate`):
+both real firmware images in simavr against the physics model.
+
+Checks the issue's "done when": Figure 8 reproduced within the README's
+tolerances; a cycle at 0 deg and at 30 deg on X whose raw drift follows the
+model's surfaces and whose compensated output is flat; byte-identical
+run.csv for the same seed; faults visible in the frames; the twin read
+through a pseudo-terminal with pyserial and with `thermotilt log`.
+"""
+
+import json
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import serial
+
+from thermotilt import figures
+from thermotilt.coefficients import PAPER_DEFAULTS
+from thermotilt.protocol import FrameReader, build_frame
+from thermotilt.runlog import ALL_COLUMNS, read_run_log
+
+THERMOTILT = [sys.executable, "-m", "thermotilt"]
+FIG8_AMBIENT_C = 19.0
+# Stated in the README: the cycle's compensated X and Y stay within this many
+# LSB of the tilt alone once each hold has settled.
+COMPENSATED_TOLERANCE_LSB = 10.0
+
+
+def simulate(*arguments, timeout=900):
+    result = subprocess.run([*THERMOTILT, "simulate", *map(str, arguments)],
+                            capture_output=True, text=True, timeout=timeout, check=False)
+    assert result.returncode == 0, result.stderr
+    return result
+
+
+def number(cell):
+    return float(cell) if cell != "" else float("nan")
+
+
+@pytest.fixture(scope="module")
+def fig8_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("fig8")
+    result = simulate("fig8", "--out", out, "--seed", 7)
+    return out, result.stdout
+
+
+def test_fig8_writes_the_documented_outputs(fig8_run):
+    out, stdout = fig8_run
+    rows = read_run_log(str(out / "run.csv"))
+    assert list(rows[0]) == list(ALL_COLUMNS)
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["sim_seconds"] == pytest.approx(241.5)
+    assert summary["wall_seconds"] > 0 and summary["seed"] == 7
+    assert summary["model"] == "default"
+    for board in ("imu_reader", "thermal_chamber"):
+        report = summary["boards"][board]
+        assert report["rejected"] == 0 and report["sequence_gaps"] == 0
+        assert report["cycles"] == pytest.approx(16e6 * 241.5, rel=1e-3)
+        assert report["refused_commands"] == [] and report["unanswered_commands"] == []
+    # 10 IMU frames a second, one CHS a second.
+    assert summary["boards"]["imu_reader"]["frames_by_type"]["IMU"] == pytest.approx(2415, abs=3)
+    assert summary["boards"]["thermal_chamber"]["frames_by_type"]["CHS"] == pytest.approx(241, abs=2)
+    assert len(rows) == summary["rows"]
+    captured = FrameReader()
+    captured.feed((out / "serial" / "imu_reader.txt").read_bytes())
+    assert captured.frames_by_type["IMU"] == len(rows)
+    assert "steps" not in stdout or "step 16 -> 18" in stdout
+
+
+def test_fig8_steps_take_about_13_seconds(fig8_run):
+    out, _ = fig8_run
+    steps = figures.step_responses(read_run_log(str(out / "run.csv")))
+    assert [(step.from_c, step.to_c) for step in steps] == [(16, 18), (18, 20), (20, 22)]
+    for step in steps:
+        assert step.completion_s == pytest.approx(figures.PAPER_STEP_TIME_S,
+                                                  abs=figures.STEP_TIME_TOLERANCE_S), step
+
+
+def test_fig8_offset_lies_on_the_ambient_side(fig8_run):
+    out, _ = fig8_run
+    holds = figures.holds(read_run_log(str(out / "run.csv")))
+    assert [hold.setpoint_c for hold in holds] == [16, 18, 20, 22]
+    for hold in holds:
+        # Under P-only control the chamber settles between setpoint and ambient.
+        # The paper's ~0.5 degC magnitude is not reproduced (docs/physics-model.md).
+        towards_ambient = 1 if hold.setpoint_c < FIG8_AMBIENT_C else -1
+        assert 0 < towards_ambient * hold.offset_c < figures.MAX_OFFSET_C, hold
+
+
+@pytest.fixture(scope="module")
+def cycle_runs(tmp_path_factory):
+    """The 0 deg and 30 deg cycles run side by side (two cores)."""
+    runs = {}
+    processes = []
+    for angle in (0, 30):
+        out = tmp_path_factory.mktemp(f"cycle{angle}")
+        runs[angle] = out
+        processes.append(subprocess.Popen(
+            [*THERMOTILT, "simulate", "cycle", "--out", str(out), "--incl-x", str(angle),
+             "--rest-seconds", "60"],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True))
+    for process in processes:
+        stdout, stderr = process.communicate(timeout=1800)
+        assert process.returncode == 0, stderr
+    return runs
+
+
+def settled_rows(rows):
+    """Rows in the second half of each hold, where the firmware's and the
+    model's drift set agree (the sets switch at slightly different moments)."""
+    keep = []
+    time_s = [number(row["time_s"]) for row in rows]
+    for hold in figures.holds(rows):
+        begin = (hold.start_s + hold.end_s) / 2
+        keep += [row for t, row in zip(time_s, rows)
+                 if begin <= t <= hold.end_s and row["comp_set"] == row["true_drift_set"]]
+    return keep
+
+
+@pytest.mark.parametrize("angle", [0, 30])
+def test_cycle_raw_drift_follows_the_models_surfaces(cycle_runs, angle):
+    rows = settled_rows(read_run_log(str(cycle_runs[angle] / "run.csv")))
+    assert len(rows) > 1000
+    temperatures = [number(row["imu_temp_c"]) for row in rows]
+    assert min(temperatures) < -5 and max(temperatures) > 40
+    for axis in ("x", "y"):
+        errors = []
+        for row in rows:
+            surface = PAPER_DEFAULTS.surface(row["true_drift_set"], axis.upper())
+            ideal = number(row[f"true_a{axis}"])
+            expected = ideal + surface.evaluate(number(row["true_reported_c"]), ideal)
+            errors.append(number(row[f"a{axis}_filt"]) - expected)
+        errors.sort()
+        # The Kalman filter's lag and noise, well below the drift itself.
+        assert abs(errors[len(errors) // 2]) < 10 and errors[-1] - errors[0] < 60, axis
+
+
+def test_cycle_at_0_deg_drifts_like_section_4_1(cycle_runs):
+    span = figures.drift_figures(read_run_log(str(cycle_runs[0] / "run.csv")))
+    # Section 4.1: around 1300 LSB on X and 850 on Y over -10..45 degC.
+    assert span["x"]["raw_span_lsb"] == pytest.approx(1300, rel=0.25)
+    assert span["y"]["raw_span_lsb"] == pytest.approx(850, rel=0.25)
+
+
+@pytest.mark.parametrize("angle", [0, 30])
+def test_cycle_compensated_output_is_flat(cycle_runs, angle):
+    rows = settled_rows(read_run_log(str(cycle_runs[angle] / "run.csv")))
+    for axis in ("x", "y"):
+        worst = max(abs(number(row[f"a{axis}_comp"]) - number(row[f"true_a{axis}"])) for row in rows)
+        assert worst <= COMPENSATED_TOLERANCE_LSB, (axis, worst)
+
+
+def test_same_seed_gives_identical_run_csv_and_another_seed_differs(tmp_path):
+    outputs = []
+    for name, seed in (("a", 3), ("b", 3), ("c", 4)):
+        simulate("fig8", "--out", tmp_path / name, "--seed", seed, "--hold-seconds", 10)
+        outputs.append((tmp_path / name / "run.csv").read_bytes())
+    assert outputs[0] == outputs[1]
+    assert outputs[0] != outputs[2]
+
+
+def lines_of(path, text):
+    return [line for line in path.read_text(errors="replace").splitlines() if text in line]
+
+
+def test_faults_from_the_command_line_show_in_the_frames(tmp_path):
+    out = tmp_path / "faults"
+    simulate("fig8", "--out", out, "--hold-seconds", 15,
+             "--fault", "inner_open@20-30", "--fault", "sensor_absent@5-8",
+             "--fault", "imu_uart_corrupt=0.002@40")
+    chamber = out / "serial" / "thermal_chamber.txt"
+    assert lines_of(chamber, "THERMISTOR,INNER_OPEN")
+    rows = read_run_log(str(out / "run.csv"))
+    during = [row for row in rows if 22 <= number(row["time_s"]) <= 29]
+    assert during and all(row["phase"] == "F" and row["pwm"] == "0" for row in during)
+    assert lines_of(out / "serial" / "imu_reader.txt", "SENSOR_MISSING")
+    assert not any(5.5 <= number(row["time_s"]) <= 8 for row in rows)
+    summary = json.loads((out / "summary.json").read_text())
+    imu = summary["boards"]["imu_reader"]
+    assert imu["corrupted_bytes"] > 0 and imu["rejected"] > 0
+    assert summary["boards"]["thermal_chamber"]["corrupted_bytes"] == 0
+
+
+def test_faults_from_the_model_file(tmp_path):
+    model = tmp_path / "broken-rig.toml"
+    default = Path(__import__("thermotilt.physics", fromlist=["x"]).__file__).parent / "models" / "default.toml"
+    model.write_text(default.read_text() + """
+[[faults]]
+name = "peltier_disconnected"
+
+[[faults]]
+name = "sensor_stuck"
+start_s = 30.0
+""")
+    out = tmp_path / "run"
+    simulate("fig8", "--out", out, "--hold-seconds", 15, "--model", model)
+    rows = read_run_log(str(out / "run.csv"))
+    driven = [row for row in rows if row["pwm"] not in ("", "0")]
+    assert driven, "the firmware still drives the bridge"
+    assert all(row["true_duty"] == "0.0000" for row in rows)
+    temperatures = [number(row["true_inner_c"]) for row in rows]
+    assert max(temperatures) - min(temperatures) < 0.2
+    assert lines_of(out / "serial" / "imu_reader.txt", "SENSOR_MISSING,NO_DATA")
+    assert json.loads((out / "summary.json").read_text())["model"] == str(model)
+
+
+def test_bad_use_is_one_readable_line(tmp_path):
+    for arguments, message in (
+        (["fig9"], "unknown scenario"),
+        (["field-warming", "--fault", "inner_open"], "needs the chamber"),
+        (["fig8", "--model", tmp_path / "missing.toml"], "missing.toml"),
+        (["fig8", "--disable", "no_such_term"], "no_such_term"),
+    ):
+        result = subprocess.run([*THERMOTILT, "simulate", *map(str, arguments), "--out", tmp_path / "x"],
+                                capture_output=True, text=True, timeout=120, check=False)
+        assert result.returncode == 1, arguments
+        assert result.stderr.count("\n") == 1 and message in result.stderr, result.stderr
+
+
+def test_the_twin_through_pseudo_terminals(tmp_path):
+    out = tmp_path / "twin"
+    twin = subprocess.Popen([*THERMOTILT, "simulate", "cycle", "--pty", "--out", str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    try:
+        ports = {}
+        while len(ports) < 2:
+            line = twin.stdout.readline()
+            assert line, "the twin ended before announcing its ports"
+            board, _, path = line.strip().partition(": ")
+            if path.startswith("/dev/"):
+                ports[board] = path
+        with serial.Serial(ports["imu_reader"], 115200, timeout=2) as imu:
+            imu.write(build_frame("VERSION", 0).encode())
+            reader = FrameReader()
+            replies = []
+            deadline = time.monotonic() + 20
+            while time.monotonic() < deadline and not any(f.type == "ACK" for f in replies):
+                replies += [f for f in reader.feed(imu.read(256)) if f.type in ("VER", "ACK", "IMU")]
+        assert any(f.type == "VER" and f["device"] == "imu_reader" for f in replies)
+        assert any(f.type == "IMU" for f in replies)
+        logged = tmp_path / "logged.csv"
+        result = subprocess.run(
+            [*THERMOTILT, "log", "--port", ports["imu_reader"], "--chamber-port",
+             ports["thermal_chamber"], "--out", str(logged), "--rows", "100"],
+            capture_output=True, text=True, timeout=120, check=False)
+        assert result.returncode == 0, result.stderr
+    finally:
+        # Ctrl-C: the twin stops and keeps what it simulated.
+        twin.send_signal(signal.SIGINT)
+        twin.wait(timeout=60)
+    assert json.loads((out / "summary.json").read_text())["interrupted"] is True
+    logged_rows = read_run_log(str(logged))
+    assert len(logged_rows) == 100
+    assert "true_die_c" not in logged_rows[0] and logged_rows[-1]["chamber_c"] != ""
+    # What the log wrote from the pseudo-terminals is what the twin logged itself.
+    twin_rows = {row["imu_seq"]: row for row in read_run_log(str(out / "run.csv"))}
+    # Chamber cells may differ by one CHS frame: the two ports are read apart.
+    same_columns = ["time_s", "imu_temp_c", "ax_raw", "ay_raw", "az_raw", "ax_filt", "ay_filt",
+                    "az_filt", "ax_comp", "ay_comp", "az_comp", "comp_set", "coef_source"]
+    for row in logged_rows:
+        assert {c: row[c] for c in same_columns} == {c: twin_rows[row["imu_seq"]][c] for c in same_columns}
