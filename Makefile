@@ -12,9 +12,12 @@ AVR_MCUS := atmega328p atmega2560
 NATIVE := $(BUILD)/native
 VENV_READY := $(VENV)/.installed
 
-.PHONY: all firmware test deps system-deps python-deps build native avr bench clean
+SCENARIO ?= fig8
+RUNS ?= runs
 
-all: firmware
+.PHONY: all firmware simulate test deps system-deps python-deps build native avr bench clean
+
+all: simulate
 
 deps: system-deps python-deps
 
@@ -52,13 +55,22 @@ avr: native
 
 build: native avr
 
-# The main job until the host tools exist: both firmware images and their sizes.
+# Both firmware images and their sizes.
 firmware: avr
 	@echo; for image in atmega328p/imu_reader atmega2560/thermal_chamber; do \
 	  mcu=$${image%%/*}; \
 	  echo "== $(BUILD)/$$image.hex"; \
 	  avr-size --format=avr --mcu=$$mcu $(BUILD)/$$image.elf | grep -E "Program|Data"; \
 	done
+
+# The main job: a paper experiment in the digital twin (both firmware images in
+# simavr against the physics model); SCENARIO=cycle, campaign, field-warming...
+simulate: build python-deps
+	$(VENV)/bin/thermotilt simulate $(SCENARIO) --out $(RUNS)/$(SCENARIO) --force
+
+# How fast the twin runs (simulated seconds per wall second); prints figures.
+bench: build python-deps
+	$(VENV)/bin/python host/tools/bench.py
 
 test: build python-deps
 	@BUILD=$(BUILD) VENV=$(VENV) bash cmake/run-tests.sh $(AVR_MCUS)

@@ -1,0 +1,57 @@
+"""`make bench`: how fast the twin runs, in simulated seconds per wall second.
+
+Runs the Figure 8 scenario (both boards: the IMU reading its LSM9DS0 over
+I2C at 100 Hz, the chamber controlling every 250 ms, both sending frames)
+and a field scenario (the IMU alone), and times the physics model's steps
+on their own. Prints figures; asserts nothing (the target, 20x real time on
+one core, is for a person to compare).
+"""
+
+from __future__ import annotations
+
+import tempfile
+import time
+from pathlib import Path
+
+from thermotilt import simulate
+from thermotilt.physics import Chamber, Model, Sensor
+from thermotilt.scenarios import ScenarioOptions, build
+
+TARGET_X_REAL_TIME = 20.0
+
+
+def physics_step_us(model: Model, steps: int = 20000) -> tuple[float, float]:
+    chamber = Chamber(model, 22.0)
+    sensor = Sensor(model, 1, 22.0)
+    begin = time.perf_counter()
+    for step in range(steps):
+        chamber.step(0.01, 0.5, 1 if step % 2000 < 1000 else -1, 22.0)
+    middle = time.perf_counter()
+    for _ in range(steps):
+        sensor.step(0.01, chamber.inner_c, 30.0, 0.0)
+    end = time.perf_counter()
+    return (middle - begin) / steps * 1e6, (end - middle) / steps * 1e6
+
+
+def main() -> None:
+    model = Model.load()
+    chamber_us, sensor_us = physics_step_us(model)
+    print(f"physics: chamber step {chamber_us:.1f} us, sensor step {sensor_us:.1f} us "
+          f"(one of each per 10 ms simulated)")
+    runs = [
+        ("both boards, fig8", build("fig8", ScenarioOptions())),
+        ("imu alone, field-warming (10 min)", build("field-warming", ScenarioOptions(duration_s=600))),
+    ]
+    with tempfile.TemporaryDirectory() as scratch:
+        for label, scenario in runs:
+            result = simulate.run(scenario, model, Path(scratch) / scenario.name)
+            summary = result.summary
+            speed = summary["speed_x_real_time"]
+            verdict = "meets" if speed >= TARGET_X_REAL_TIME else "below"
+            print(f"{label}: {summary['sim_seconds']:.0f} s simulated in "
+                  f"{summary['wall_seconds']:.1f} s wall = {speed:.1f}x real time "
+                  f"({verdict} the {TARGET_X_REAL_TIME:.0f}x target)")
+
+
+if __name__ == "__main__":
+    main()
