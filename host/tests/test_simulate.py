@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 import serial
 
-from thermotilt import figures
+from thermotilt import figures, physics
 from thermotilt.coefficients import PAPER_DEFAULTS
 from thermotilt.protocol import FrameReader, build_frame
 from thermotilt.runlog import ALL_COLUMNS, read_run_log
@@ -68,7 +68,8 @@ def test_fig8_writes_the_documented_outputs(fig8_run):
     captured = FrameReader()
     captured.feed((out / "serial" / "imu_reader.txt").read_bytes())
     assert captured.frames_by_type["IMU"] == len(rows)
-    assert "steps" not in stdout or "step 16 -> 18" in stdout
+    # The command prints Figure 8's numbers too.
+    assert "step 16 -> 18 degC" in stdout and "hold 22 degC" in stdout
 
 
 def test_fig8_steps_take_about_13_seconds(fig8_run):
@@ -187,7 +188,7 @@ def test_faults_from_the_command_line_show_in_the_frames(tmp_path):
 
 def test_faults_from_the_model_file(tmp_path):
     model = tmp_path / "broken-rig.toml"
-    default = Path(__import__("thermotilt.physics", fromlist=["x"]).__file__).parent / "models" / "default.toml"
+    default = Path(physics.__file__).parent / "models" / "default.toml"
     model.write_text(default.read_text() + """
 [[faults]]
 name = "peltier_disconnected"

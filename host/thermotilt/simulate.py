@@ -15,7 +15,7 @@ import json
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
+from typing import BinaryIO, Callable
 
 from .physics import Chamber, Fault, Model, Sensor, SensorSample
 from .protocol import Frame, FrameReader, SequenceCounter, build_frame
@@ -42,7 +42,7 @@ class BoardLink:
 
     name: str
     board: Board
-    capture: object
+    capture: BinaryIO
     reader: FrameReader = field(default_factory=FrameReader)
     host_seq: SequenceCounter = field(default_factory=SequenceCounter)
     pending: dict[int, str] = field(default_factory=dict)
@@ -181,7 +181,16 @@ def run(
     return RunResult(out_dir, summary)
 
 
-def _play(scenario, model, seed, links, writer, pty, on_pty, progress) -> None:
+def _play(
+    scenario: Scenario,
+    model: Model,
+    seed: int,
+    links: dict[str, BoardLink],
+    writer: RunLogWriter,
+    pty: bool,
+    on_pty: Callable[[str, str], None] | None,
+    progress: Callable[[float], None] | None,
+) -> None:
     imu = links[IMU]
     chamber_link = links.get(CHAMBER)
     imu.board.attach_lsm9ds0()
