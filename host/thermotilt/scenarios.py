@@ -207,6 +207,8 @@ def _smooth_ramp(begin_c: float, end_c: float, duration_s: float) -> Callable[[f
 def _field(name: str, description: str, paper_duration_s: float, options: ScenarioOptions,
            profile: Callable[[float], Callable[[float], float]]) -> Scenario:
     duration = options.duration_s or paper_duration_s
+    if duration != paper_duration_s:
+        description += f", compressed into {duration:g} s"
     return Scenario(
         name=name,
         description=description,
