@@ -55,6 +55,9 @@ def test_fig8_writes_the_documented_outputs(fig8_run):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["sim_seconds"] == pytest.approx(241.5)
     assert summary["wall_seconds"] > 0 and summary["seed"] == 7
+    assert summary["speed_x_real_time"] == pytest.approx(
+        summary["sim_seconds"] / summary["wall_seconds"], rel=0.01)
+    assert summary["interrupted"] is False
     assert summary["model"] == "default"
     for board in ("imu_reader", "thermal_chamber"):
         report = summary["boards"][board]
