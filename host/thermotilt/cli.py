@@ -83,7 +83,6 @@ def _command_coefficients(args: argparse.Namespace) -> int:
 
 def _command_simulate(args: argparse.Namespace) -> int:
     from . import simulate
-    from .figures import drift_figures, fig8_figures
     from .physics import Model, ModelError, parse_fault
     from .runlog import read_run_log
     from .scenarios import ScenarioError, ScenarioOptions, build
@@ -123,6 +122,8 @@ def _command_simulate(args: argparse.Namespace) -> int:
             )
         except (TwinError, simulate.SimulationError) as error:
             raise UsageError(str(error)) from None
+        except OSError as error:
+            raise UsageError(f"cannot write {out_dir}: {error.strerror or error}") from None
     summary = result.summary
     print(f"rows: {summary['rows']}  simulated: {summary['sim_seconds']:.0f} s  "
           f"wall: {summary['wall_seconds']:.1f} s  ({summary['speed_x_real_time']}x real time)")
@@ -131,8 +132,15 @@ def _command_simulate(args: argparse.Namespace) -> int:
               f"{report['cycles']} cycles")
         for refusal in report["refused_commands"]:
             print(f"{board} refused {refusal}")
-    rows = read_run_log(str(out_dir / "run.csv"))
-    if scenario.name == "fig8":
+    _print_figures(scenario.name, read_run_log(str(out_dir / "run.csv")))
+    return 0
+
+
+def _print_figures(scenario_name: str, rows: list[dict[str, str]]) -> None:
+    """The paper's numbers for the scenarios that have them."""
+    from .figures import drift_figures, fig8_figures
+
+    if scenario_name == "fig8":
         figures = fig8_figures(rows)
         for hold in figures["holds"]:
             print(f"hold {hold['setpoint_c']:g} degC: settled {hold['settled_c']:.2f}, "
@@ -140,12 +148,11 @@ def _command_simulate(args: argparse.Namespace) -> int:
         for step in figures["steps"]:
             print(f"step {step['from_c']:g} -> {step['to_c']:g} degC: {step['completion_s']:.1f} s, "
                   f"overshoot {step['overshoot_c']:.2f} degC")
-    elif scenario.name == "cycle":
+    elif scenario_name == "cycle":
         figures = drift_figures(rows)
         for axis in ("x", "y"):
             print(f"{axis.upper()}: raw drift {figures[axis]['raw_span_lsb']:.0f} LSB, "
                   f"compensated {figures[axis]['compensated_span_lsb']:.0f} LSB")
-    return 0
 
 
 def _command_log(args: argparse.Namespace) -> int:
