@@ -3,6 +3,7 @@ run.csv schema, chamber columns come from CHS frames, malformed lines are
 counted and skipped, and bad use ends with one readable line."""
 
 import os
+import termios
 import threading
 import time
 
@@ -39,24 +40,42 @@ def pty_pair():
             pass
 
 
-def feed_later(descriptor, chunks, delay_s=0.2):
-    def feed():
-        for chunk in chunks:
-            os.write(descriptor, chunk.encode("ascii"))
+def wait_until_opened(master, timeout_s=20.0):
+    """pyserial puts the port in raw mode when it opens it (the master sees
+    the same settings), then discards pending input: write only after that."""
+    deadline = time.monotonic() + timeout_s
+    while termios.tcgetattr(master)[3] & termios.ICANON:
+        if time.monotonic() > deadline:
+            raise TimeoutError("the logger never opened its port")
+        time.sleep(0.01)
+    time.sleep(0.3)
 
-    timer = threading.Timer(delay_s, feed)
-    timer.start()
-    return timer
+
+def feed_when_opened(master, chunks, then_close=False, after=None):
+    def feed():
+        wait_until_opened(master)
+        if after is not None:
+            after.join()
+            time.sleep(0.2)
+        for chunk in chunks:
+            os.write(master, chunk.encode("ascii") if isinstance(chunk, str) else chunk)
+        if then_close:
+            # Closing the master discards what the slave has not read yet.
+            time.sleep(0.5)
+            os.close(master)
+
+    thread = threading.Thread(target=feed)
+    thread.start()
+    return thread
 
 
 def test_log_writes_one_row_per_imu_frame_with_chamber_state(pty_pair, tmp_path, capsys):
     imu_master, imu_port = pty_pair()
     chamber_master, chamber_port = pty_pair()
     out = tmp_path / "run.csv"
-    # Opening a port discards what arrived before (pyserial flushes input).
-    chamber_timer = feed_later(chamber_master, [chs_frame(0, 900, 18.0, 17.62)], delay_s=0.1)
+    chamber_timer = feed_when_opened(chamber_master, [chs_frame(0, 900, 18.0, 17.62)])
     imu_lines = [imu_frame(0, 1000), "$IMU,1,garbage*00\r\n", imu_frame(2, 1100), imu_frame(3, 1200)]
-    timer = feed_later(imu_master, imu_lines, delay_s=0.3)
+    timer = feed_when_opened(imu_master, imu_lines, after=chamber_timer)
     status = main(["log", "--port", imu_port, "--chamber-port", chamber_port, "--out", str(out),
                    "--rows", "3", "--incl-x", "30", "--raw-dir", str(tmp_path / "raw")])
     timer.join()
@@ -77,7 +96,7 @@ def test_log_writes_one_row_per_imu_frame_with_chamber_state(pty_pair, tmp_path,
 
 def test_log_stops_after_board_time(pty_pair, tmp_path):
     master, port = pty_pair()
-    timer = feed_later(master, [imu_frame(seq, 5000 + 100 * seq) for seq in range(40)])
+    timer = feed_when_opened(master, [imu_frame(seq, 5000 + 100 * seq) for seq in range(40)])
     out = tmp_path / "run.csv"
     assert main(["log", "--port", port, "--out", str(out), "--duration", "2"]) == 0
     timer.join()
@@ -90,14 +109,7 @@ def test_log_ends_cleanly_when_the_port_closes(pty_pair, tmp_path, capsys):
     master, port = pty_pair()
     out = tmp_path / "run.csv"
 
-    def feed_then_close():
-        os.write(master, (imu_frame(0, 0) + imu_frame(1, 100)).encode())
-        # Closing the master discards what the slave has not read yet.
-        time.sleep(0.5)
-        os.close(master)
-
-    timer = threading.Timer(0.2, feed_then_close)
-    timer.start()
+    timer = feed_when_opened(master, [imu_frame(0, 0) + imu_frame(1, 100)], then_close=True)
     assert main(["log", "--port", port, "--out", str(out)]) == 0
     timer.join()
     assert len(read_run_log(str(out))) == 2
@@ -118,13 +130,7 @@ def test_log_refuses_a_missing_port_and_an_existing_output(tmp_path, capsys):
 def test_log_without_any_frame_fails(pty_pair, tmp_path, capsys):
     master, port = pty_pair()
 
-    def garbage_then_close():
-        os.write(master, b"hello\r\n$IMU,0*00\r\n")
-        time.sleep(0.5)
-        os.close(master)
-
-    timer = threading.Timer(0.2, garbage_then_close)
-    timer.start()
+    timer = feed_when_opened(master, [b"hello\r\n$IMU,0*00\r\n"], then_close=True)
     assert main(["log", "--port", port, "--out", str(tmp_path / "run.csv")]) == 1
     timer.join()
     assert "no IMU frames received" in capsys.readouterr().err
