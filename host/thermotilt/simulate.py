@@ -96,7 +96,7 @@ class _FaultSchedule:
 
     def update(self, t: float) -> None:
         for index, fault in enumerate(self._faults):
-            active = fault.start_s <= t and (fault.end_s is None or t < fault.end_s)
+            active = fault.active(t)
             if active != self._active[index]:
                 self._active[index] = active
                 self._apply(fault, active)
