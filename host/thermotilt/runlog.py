@@ -14,7 +14,7 @@ import math
 from dataclasses import dataclass
 from typing import IO, Any, Mapping
 
-from .protocol import Frame
+from .protocol import FRAMES, Frame
 
 COLUMNS: tuple[str, ...] = (
     "time_s",
@@ -99,8 +99,15 @@ def format_number(value: float | None, decimals: int) -> str:
     return text[1:] if text.startswith("-") and float(text) == 0 else text
 
 
+# Where each field sits in its frame, looked up once rather than per row.
+_FIELD_INDEX = {
+    frame_type: {name: index for index, name in enumerate(FRAMES[frame_type].field_names)}
+    for frame_type in ("IMU", "CHS")
+}
+
+
 def _raw_field(frame: Frame, name: str) -> str:
-    text = frame.raw_fields[list(frame.fields).index(name)]
+    text = frame.raw_fields[_FIELD_INDEX[frame.type][name]]
     return "" if text.lower() == "nan" else text
 
 
