@@ -348,6 +348,31 @@ def _coefficient_table(value: Any) -> CoefficientTable:
     )
 
 
+class _LagFraction:
+    """How far a first-order lag moves towards its input in one step,
+    1 - exp(-dt/tau), recomputed only when the step length changes (the twin
+    always steps 10 ms)."""
+
+    __slots__ = ("_tau_s", "_dt_s", "_fraction")
+
+    def __init__(self, tau_s: float) -> None:
+        self._tau_s = tau_s
+        self._dt_s = -1.0
+        self._fraction = 1.0
+
+    def of_step(self, dt_s: float) -> float:
+        if dt_s != self._dt_s:
+            self._dt_s = dt_s
+            self._fraction = -math.expm1(-dt_s / self._tau_s)
+        return self._fraction
+
+
+def _lag_of(term: Mapping[str, Any]) -> _LagFraction | None:
+    """The term's lag, or None when it is off (or has no time constant)."""
+    tau_s = term["time_constant_s"] if term["enabled"] else 0.0
+    return _LagFraction(tau_s) if tau_s > 0.0 else None
+
+
 class Chamber:
     """Two faces of the Peltier cell as lumped thermal nodes, and the two
     thermistors that read them.
@@ -372,9 +397,7 @@ class Chamber:
         "_outer_capacity",
         "_cell_conductance",
         "_heatsink_conductance",
-        "_thermistor_tau",
-        "_thermistor_dt",
-        "_thermistor_alpha",
+        "_thermistor_lag",
         "_max_substep",
         "_supply_mv",
         "_reference_ohm",
@@ -405,10 +428,7 @@ class Chamber:
         # Conduction through the cell stays when the heatsink is ideal.
         self._cell_conductance = heatsink["inner_conductance_w_per_k"]
         self._heatsink_conductance = heatsink["ambient_conductance_w_per_k"]
-        lag = terms["thermistor_lag"]
-        self._thermistor_tau = lag["time_constant_s"] if lag["enabled"] else 0.0
-        self._thermistor_dt = -1.0
-        self._thermistor_alpha = 1.0
+        self._thermistor_lag = _lag_of(terms["thermistor_lag"])
 
         # Explicit Euler is stable and accurate for steps well below the
         # shortest node time constant; longer steps are split.
@@ -462,11 +482,8 @@ class Chamber:
         self.inner_c = inner
         self.outer_c = outer
 
-        if self._thermistor_tau > 0.0:
-            if dt_s != self._thermistor_dt:
-                self._thermistor_dt = dt_s
-                self._thermistor_alpha = -math.expm1(-dt_s / self._thermistor_tau)
-            alpha = self._thermistor_alpha
+        if self._thermistor_lag is not None:
+            alpha = self._thermistor_lag.of_step(dt_s)
             self.inner_thermistor_c += alpha * (inner - self.inner_thermistor_c)
             self.outer_thermistor_c += alpha * (outer - self.outer_thermistor_c)
         else:
@@ -539,9 +556,7 @@ class Sensor:
         "_lsb_per_g",
         "_temperature_lsb_per_c",
         "_temperature_zero_c",
-        "_die_tau",
-        "_die_dt",
-        "_die_alpha",
+        "_die_lag",
         "_tilt",
         "_drift",
         "_surfaces",
@@ -567,10 +582,7 @@ class Sensor:
         self._temperature_lsb_per_c = constants["temperature_lsb_per_c"]
         self._temperature_zero_c = constants["temperature_zero_c"]
 
-        die_lag = terms["die_lag"]
-        self._die_tau = die_lag["time_constant_s"] if die_lag["enabled"] else 0.0
-        self._die_dt = -1.0
-        self._die_alpha = 1.0
+        self._die_lag = _lag_of(terms["die_lag"])
         self._tilt = bool(terms["tilt"]["enabled"])
         drift = terms["drift"]
         self._drift = bool(drift["enabled"])
@@ -612,11 +624,8 @@ class Sensor:
         if not dt_s > 0.0:
             raise ValueError(f"dt_s must be > 0, got {dt_s}")
         previous_die = self._die_c
-        if self._die_tau > 0.0:
-            if dt_s != self._die_dt:
-                self._die_dt = dt_s
-                self._die_alpha = -math.expm1(-dt_s / self._die_tau)
-            die = previous_die + self._die_alpha * (environment_c - previous_die)
+        if self._die_lag is not None:
+            die = previous_die + self._die_lag.of_step(dt_s) * (environment_c - previous_die)
         else:
             die = float(environment_c)
         self._die_c = die
