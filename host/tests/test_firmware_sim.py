@@ -19,6 +19,8 @@ import pytest
 from thermotilt.coefficients import PAPER_DEFAULTS
 from thermotilt.protocol import PROTOCOL_VERSION, FrameReader, build_frame
 
+from firmware_helpers import divider_millivolts, of_type
+
 REPO = Path(__file__).resolve().parents[2]
 BUILD = Path(os.environ.get("THERMOTILT_BUILD_DIR", REPO / "build"))
 AVR_RUN = BUILD / "native" / "avr_run"
@@ -47,17 +49,6 @@ def run_board(mcu: str, image: str, seconds: float, *options: str, commands=(), 
     frames = reader.feed(result.stdout)
     assert reader.malformed == 0 and reader.gaps == 0
     return frames
-
-
-def divider_millivolts(celsius: float) -> int:
-    """The thermistor input for a temperature: beta equation, 100 kOhm NTC
-    (beta 3950 K) below a 100 kOhm reference resistor from 5 V."""
-    ntc = 100e3 * math.exp(3950.0 * (1.0 / (celsius + 273.15) - 1.0 / 298.15))
-    return round(5000.0 * ntc / (ntc + 100e3))
-
-
-def of_type(frames, frame_type):
-    return [frame for frame in frames if frame.type == frame_type]
 
 
 @pytest.fixture(scope="module")
@@ -151,7 +142,7 @@ def test_imu_reader_answers_commands(tmp_path):
 
 def test_chamber_reads_both_thermistors_and_idles_without_a_program():
     frames = run_board(
-        "atmega2560", "thermal_chamber", 2.5, "--adc", f"0={divider_millivolts(20.0)}", "--adc", f"1={divider_millivolts(25.0)}"
+        "atmega2560", "thermal_chamber", 2.5, "--adc", f"0={round(divider_millivolts(20.0))}", "--adc", f"1={round(divider_millivolts(25.0))}"
     )
     assert not of_type(frames, "ERR")
     for status in of_type(frames, "CHS"):
@@ -170,7 +161,8 @@ def test_chamber_runs_a_program_and_drives_the_peltier_by_the_p_law(tmp_path):
         build_frame("SETPRG", 4, [16, 22, 2, 60, 1200, 1]),
         build_frame("STATUS", 5),
     ]
-    inner = divider_millivolts(18.3)
+    # avr_run holds an input at whole millivolts.
+    inner = round(divider_millivolts(18.3))
     frames = run_board(
         "atmega2560", "thermal_chamber", 2.5, "--adc", f"0={inner}", "--adc", "1=2500", commands=commands, tmp_path=tmp_path
     )

@@ -18,16 +18,12 @@ import serial
 from thermotilt.protocol import FrameReader, build_frame
 from thermotilt.twin import Board, Drive, TwinError, build_dir, firmware_elf
 
+from firmware_helpers import divider_millivolts, of_type
+
 KP = 350.0
 BYTE_SECONDS = 10 / 115200
 # -1700 / -400 / 16000 LSB, raw temperature 32 -> 32 / 8 + 21 = 25.000 degC.
 SENSOR = (-1700, -400, 16000, 32)
-
-
-def divider_millivolts(celsius: float) -> float:
-    """100 kOhm NTC (beta 3950 K) to ground below a 100 kOhm reference from 5 V."""
-    ntc = 100e3 * math.exp(3950.0 * (1.0 / (celsius + 273.15) - 1.0 / 298.15))
-    return 5000.0 * ntc / (ntc + 100e3)
 
 
 def measured_celsius(millivolts: float) -> float:
@@ -36,10 +32,6 @@ def measured_celsius(millivolts: float) -> float:
     code = math.floor(millivolts * 1024 / 5000)
     ntc = 100e3 * code / (1024 - code)
     return 1.0 / (math.log(ntc / 100e3) / 3950.0 + 1.0 / 298.15) - 273.15
-
-
-def of_type(frames, frame_type):
-    return [frame for frame in frames if frame.type == frame_type]
 
 
 def chamber(inner_c: float, outer_c: float = 25.0) -> Board:
