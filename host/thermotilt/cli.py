@@ -157,6 +157,7 @@ def _print_figures(scenario_name: str, rows: list[dict[str, str]]) -> None:
 
 def _command_log(args: argparse.Namespace) -> int:
     from .logger import LogError, log_boards
+    from .runlog import format_number
 
     try:
         result = log_boards(
@@ -168,9 +169,9 @@ def _command_log(args: argparse.Namespace) -> int:
             max_rows=args.rows,
             raw_dir=Path(args.raw_dir) if args.raw_dir else None,
             context={
-                "ambient_c": "" if args.ambient is None else f"{args.ambient:.3f}",
-                "incl_x_deg": "" if args.incl_x is None else f"{args.incl_x:.2f}",
-                "incl_y_deg": "" if args.incl_y is None else f"{args.incl_y:.2f}",
+                "ambient_c": format_number(args.ambient, 3),
+                "incl_x_deg": format_number(args.incl_x, 2),
+                "incl_y_deg": format_number(args.incl_y, 2),
             },
             force=args.force,
         )
