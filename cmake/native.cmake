@@ -14,7 +14,7 @@ endforeach()
 find_library(SIMAVR_LIBRARY simavr REQUIRED)
 find_path(SIMAVR_INCLUDE_DIR simavr/sim_avr.h REQUIRED)
 # Position-independent, because libthermotilt_twin.so links it as well.
-add_library(sim_board STATIC sim/board.c sim/byte_queue.c sim/l298n.c sim/lsm9ds0.c sim/uart_bridge.c)
+add_library(sim_board STATIC sim/board.c sim/byte_queue.c sim/l298n.c sim/lsm9ds0.c sim/line_noise.c sim/uart_bridge.c)
 set_target_properties(sim_board PROPERTIES POSITION_INDEPENDENT_CODE ON)
 target_include_directories(sim_board PUBLIC sim ${SIMAVR_INCLUDE_DIR})
 target_compile_options(sim_board PRIVATE ${PROJECT_WARNINGS})
@@ -28,3 +28,9 @@ target_link_libraries(avr_run PRIVATE sim_board)
 add_library(thermotilt_twin SHARED sim/twin.c)
 target_compile_options(thermotilt_twin PRIVATE ${PROJECT_WARNINGS})
 target_link_libraries(thermotilt_twin PRIVATE sim_board)
+
+# `make bench`: corrupted frames the firmware's parser accepts (sim/line_noise.c is the twin's wire fault).
+add_executable(integrity_bench sim/integrity_bench.cpp sim/line_noise.c)
+target_include_directories(integrity_bench PRIVATE sim)
+target_compile_options(integrity_bench PRIVATE ${PROJECT_WARNINGS})
+target_link_libraries(integrity_bench PRIVATE thermotilt_libs)

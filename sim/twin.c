@@ -124,7 +124,7 @@ void twin_uart_set_corruption(twin_t *twin, double probability, uint64_t seed)
 
 uint64_t twin_uart_corrupted_bytes(const twin_t *twin)
 {
-    return twin->uart.corrupted_bytes;
+    return twin->uart.noise[0].corrupted_bytes + twin->uart.noise[1].corrupted_bytes;
 }
 
 uint64_t twin_pty_dropped_bytes(const twin_t *twin)

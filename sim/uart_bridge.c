@@ -13,36 +13,10 @@
 
 enum { LINE_BAUD = 115200, BITS_PER_BYTE = 10, PTY_READ_CHUNK = 4096 };
 
-/*
- * splitmix64 (Steele, Lea and Flood), written out here rather than rand():
- * the same seed must give the same corrupted bytes on every machine and libc,
- * and each board keeps its own state.
- */
-static uint64_t splitmix64_next(uint64_t *state)
-{
-    uint64_t z = (*state += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-}
-
-static uint8_t maybe_corrupt(uart_bridge_t *bridge, int direction, uint8_t byte)
-{
-    if (bridge->corruption_threshold == 0) {
-        return byte;
-    }
-    uint64_t *state = &bridge->random_state[direction];
-    if ((splitmix64_next(state) >> 11) >= bridge->corruption_threshold) {
-        return byte;
-    }
-    bridge->corrupted_bytes++;
-    return (uint8_t)(byte ^ (1u << (splitmix64_next(state) >> 61)));
-}
-
 static void on_firmware_byte(void *context, uint8_t byte)
 {
     uart_bridge_t *bridge = (uart_bridge_t *)context;
-    byte = maybe_corrupt(bridge, 0, byte);
+    byte = line_noise_apply(&bridge->noise[0], byte);
     byte_queue_push(&bridge->from_firmware, &byte, 1);
     if (bridge->pty_master < 0) {
         return;
@@ -71,7 +45,7 @@ static avr_cycle_count_t deliver_next_byte(avr_t *avr, avr_cycle_count_t when, v
     }
     bridge->line_free_scaled += bridge->byte_time_scaled;
     /* This can answer XOFF right away, when simavr's receive FIFO fills. */
-    avr_raise_irq(bridge->firmware_input, maybe_corrupt(bridge, 1, byte));
+    avr_raise_irq(bridge->firmware_input, line_noise_apply(&bridge->noise[1], byte));
     if (bridge->receiver_full || bridge->to_firmware.length == 0) {
         return 0;
     }
@@ -154,17 +128,10 @@ int uart_bridge_write(uart_bridge_t *bridge, const uint8_t *bytes, size_t length
 
 void uart_bridge_set_corruption(uart_bridge_t *bridge, double probability, uint64_t seed)
 {
-    /* A 53-bit draw below the threshold corrupts: at probability 1, every draw. */
-    const uint64_t draws = 1ull << 53;
-    if (probability <= 0) {
-        bridge->corruption_threshold = 0;
-    } else if (probability >= 1) {
-        bridge->corruption_threshold = draws;
-    } else {
-        bridge->corruption_threshold = (uint64_t)(probability * (double)draws);
-    }
-    bridge->random_state[0] = splitmix64_next(&seed);
-    bridge->random_state[1] = splitmix64_next(&seed);
+    uint64_t from_firmware = splitmix64_next(&seed);
+    uint64_t to_firmware = splitmix64_next(&seed);
+    line_noise_set(&bridge->noise[0], probability, from_firmware);
+    line_noise_set(&bridge->noise[1], probability, to_firmware);
 }
 
 /* Raw before anyone opens the slave: an echo would loop our frames back. */

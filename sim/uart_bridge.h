@@ -13,6 +13,7 @@
 
 #include "board.h"
 #include "byte_queue.h"
+#include "line_noise.h"
 
 enum { UART_BRIDGE_PTY_PATH_CAPACITY = 128 };
 
@@ -25,9 +26,7 @@ typedef struct uart_bridge {
     /* When the line is free for the next byte, in cycles x baud (exact). */
     uint64_t line_free_scaled;
     uint64_t byte_time_scaled;
-    uint64_t corruption_threshold; /* a draw below it corrupts the byte */
-    uint64_t random_state[2];      /* [0] bytes from the firmware, [1] bytes to it */
-    uint64_t corrupted_bytes;
+    line_noise_t noise[2]; /* [0] bytes from the firmware, [1] bytes to it */
     int pty_master;
     char pty_path[UART_BRIDGE_PTY_PATH_CAPACITY];
     byte_queue_t pty_backlog;
