@@ -1,6 +1,8 @@
 #include <string.h>
 #include <unity.h>
 
+#include <Crc16.h>
+
 #include "Compensation.h"
 
 // Expected numbers below come from a Python (double precision) evaluation of

@@ -2,9 +2,7 @@
 
 #include "Compensation.h"
 
-#ifdef __AVR__
-#include <util/crc16.h>
-#endif
+#include <Crc16.h>
 
 namespace {
 
@@ -12,21 +10,6 @@ const uint8_t MAGIC_OFFSET = 0;
 const uint8_t VERSION_OFFSET = 1;
 const uint8_t FLOATS_OFFSET = 2;
 const uint8_t CRC_OFFSET = COEFFICIENT_BLOCK_SIZE - 2;
-
-uint16_t crcXmodemUpdate(uint16_t crc, uint8_t data)
-{
-#ifdef __AVR__
-    return _crc_xmodem_update(crc, data);
-#else
-    // avr-libc's optimised routine exists only for AVR; this is the equivalent
-    // C it documents, so host and device compute the same CRC.
-    crc = (uint16_t)(crc ^ ((uint16_t)data << 8));
-    for (uint8_t bit = 0; bit < 8; ++bit) {
-        crc = (crc & 0x8000u) ? (uint16_t)((crc << 1) ^ 0x1021u) : (uint16_t)(crc << 1);
-    }
-    return crc;
-#endif
-}
 
 // Byte by byte rather than copying the struct, so the block does not depend
 // on the compiler's padding or the host's byte order.
@@ -51,15 +34,6 @@ float getFloat(const uint8_t* in)
 }
 
 }  // namespace
-
-uint16_t crc16Xmodem(const uint8_t* data, uint16_t length)
-{
-    uint16_t crc = 0;
-    for (uint16_t i = 0; i < length; ++i) {
-        crc = crcXmodemUpdate(crc, data[i]);
-    }
-    return crc;
-}
 
 void encodeCoefficients(const Coefficients& in, uint8_t out[COEFFICIENT_BLOCK_SIZE])
 {

@@ -87,7 +87,4 @@ void encodeCoefficients(const Coefficients& in, uint8_t out[COEFFICIENT_BLOCK_SI
 // (another version may have another layout), then CRC.
 BlockStatus decodeCoefficients(const uint8_t in[COEFFICIENT_BLOCK_SIZE], Coefficients& out);
 
-// CRC-16/XMODEM: poly 0x1021, init 0x0000, no reflection, no final XOR.
-uint16_t crc16Xmodem(const uint8_t* data, uint16_t length);
-
 #endif
