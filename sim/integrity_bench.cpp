@@ -17,7 +17,7 @@
 
 namespace {
 
-const uint64_t kDefaultFrames = 2000000;
+const uint64_t kDefaultFrames = 4000000;
 const double kDefaultRates[] = {0.001, 0.01};
 // With none seen in n trials, 3/n is the 95 % upper bound (-ln 0.05 = 3.0).
 const double kZeroEventsUpperBound95 = 2.995732;

@@ -21,20 +21,19 @@ REPO_DIR = HOST_DIR.parent
 DEFINITION = REPO_DIR / "lib" / "Protocol" / "src" / "ProtocolFrames.def"
 
 # The same vectors as test/test_protocol/test_protocol.cpp. Checksums were
-# computed independently (functools.reduce over the body with XOR); by hand for
-# "START,1": 53 ^ 54 ^ 41 ^ 52 ^ 54 ^ 2C ^ 31 = 5D.
+# computed independently ("%04X" % binascii.crc_hqx(body, 0), CRC-16/XMODEM)
 VECTORS = [
-    "$START,1*5D",
-    "$VER,0,imu_reader,0.1.0,1*5A",
-    "$ACK,0,13,STOP*4F",
-    "$ACK,65535,12,SETPRG*51",
-    "$ERR,8,-1,BAD_CHECKSUM,CMD*3E",
-    "$SETPRG,9,-10.00,45.00,2.00,60,1200,1*17",
-    "$GETCOE,3,C,Y*1A",
-    "$IMU,42,123456,-1650,-388,16012,-1649.75,-388.50,16012.25,-1078.25,-34.50,16011.00,23.50,W,E*5C",
-    "$COE,7,W,X,5.7150e+02,-2.0230e+01,1.5690e-03,-1.0440e-01,-6.9360e-05,6.3270e-09*78",
+    "$START,1*80BD",
+    "$VER,0,imu_reader,0.1.0,1*FA36",
+    "$ACK,0,13,STOP*B192",
+    "$ACK,65535,12,SETPRG*7DCE",
+    "$ERR,8,-1,BAD_CHECKSUM,CMD*9211",
+    "$SETPRG,9,-10.00,45.00,2.00,60,1200,1*A843",
+    "$GETCOE,3,C,Y*C2AC",
+    "$IMU,42,123456,-1650,-388,16012,-1649.75,-388.50,16012.25,-1078.25,-34.50,16011.00,23.50,W,E*BC38",
+    "$COE,7,W,X,5.7150e+02,-2.0230e+01,1.5690e-03,-1.0440e-01,-6.9360e-05,6.3270e-09*FCD1",
 ]
-LONGEST = "$LONG,0," + "A" * 109 + "*7B"  # 120 characters; 0x3A ^ 0x41 = 0x7B
+LONGEST = "$LONG,0," + "A" * 107 + "*E008"  # 120 characters
 
 
 def read_all(data, chunk=None):
@@ -54,9 +53,10 @@ def test_checksum_vectors(line):
 
 
 def test_checksum_by_hand():
-    assert checksum("START,1") == 0x5D
-    assert checksum("ERR,1,-0.1") == 0x76
-    assert checksum(b"START,1") == 0x5D
+    assert checksum("123456789") == 0x31C3  # CRC-16/XMODEM's check value
+    assert checksum("START,1") == 0x80BD
+    assert checksum("ERR,1,-0.1") == 0x2330
+    assert checksum(b"START,1") == 0x80BD
 
 
 def test_table_matches_brief():
@@ -220,30 +220,30 @@ def test_non_finite_values():
 @pytest.mark.parametrize(
     "text, reason",
     [
-        ("$ACK,0,13,STOP*4E", protocol.BAD_CHECKSUM),
+        ("$ACK,0,13,STOP*B193", protocol.BAD_CHECKSUM),
         ("$ACK,0,13,STOP*G0", protocol.BAD_CHECKSUM),
         ("$ACK,0,13,STOP", protocol.NO_CHECKSUM),
         ("$ACK,0,13,STOP*4", protocol.NO_CHECKSUM),
-        ("$LONG,0," + "A" * 110 + "*3A", protocol.TOO_LONG),
-        ("$ACK,65536,1,X*3F", protocol.BAD_SEQ),
-        ("$ACK,x,1*" + "%02X" % checksum("ACK,x,1"), protocol.BAD_SEQ),
-        ("$A,1*" + "%02X" % checksum("A,1"), protocol.BAD_TYPE),
-        ("$ACKNOWLE,1*" + "%02X" % checksum("ACKNOWLE,1"), protocol.BAD_TYPE),
-        ("$X1,1*" + "%02X" % checksum("X1,1"), protocol.BAD_TYPE),
-        ("$ACK,1,\x01*" + "%02X" % checksum("ACK,1,\x01"), protocol.BAD_CHAR),
+        ("$LONG,0," + "A" * 108 + "*ADCB", protocol.TOO_LONG),
+        ("$ACK,65536,1,X*35E4", protocol.BAD_SEQ),
+        ("$ACK,x,1*" + "%04X" % checksum("ACK,x,1"), protocol.BAD_SEQ),
+        ("$A,1*" + "%04X" % checksum("A,1"), protocol.BAD_TYPE),
+        ("$ACKNOWLE,1*" + "%04X" % checksum("ACKNOWLE,1"), protocol.BAD_TYPE),
+        ("$X1,1*" + "%04X" % checksum("X1,1"), protocol.BAD_TYPE),
+        ("$ACK,1,\x01*" + "%04X" % checksum("ACK,1,\x01"), protocol.BAD_CHAR),
         (
-            "$ACK,1," + ",".join("1" * 17) + "*" + "%02X" % checksum("ACK,1," + ",".join("1" * 17)),
+            "$ACK,1," + ",".join("1" * 17) + "*" + "%04X" % checksum("ACK,1," + ",".join("1" * 17)),
             protocol.TOO_MANY_FIELDS,
         ),
-        ("$ACK,1,5*" + "%02X" % checksum("ACK,1,5"), protocol.FIELD_COUNT),
-        ("$ACK,1,five,X*" + "%02X" % checksum("ACK,1,five,X"), protocol.BAD_FIELD),
+        ("$ACK,1,5*" + "%04X" % checksum("ACK,1,5"), protocol.FIELD_COUNT),
+        ("$ACK,1,five,X*" + "%04X" % checksum("ACK,1,five,X"), protocol.BAD_FIELD),
     ],
 )
 def test_malformed_lines(text, reason):
     with pytest.raises(MalformedFrame) as error:
         parse_line(text)
     assert error.value.reason == reason
-    reader, frames = read_all(text + "\r\n$START,1*5D\r\n")
+    reader, frames = read_all(text + "\r\n$START,1*80BD\r\n")
     assert [f.type for f in frames] == ["START"]
     assert reader.malformed == 1
     assert reader.malformed_by_reason == {reason: 1}
@@ -251,8 +251,8 @@ def test_malformed_lines(text, reason):
 
 def test_reader_garbage_crlf_lf_lowercase():
     data = (
-        b"\x00\xffnoise*12,\r\n$START,1*5D\r\n$GETCOE,3,C,Y*1a\n\n$STOP,4*"
-        + b"%02X\r\n" % checksum("STOP,4")
+        b"\x00\xffnoise*12,\r\n$START,1*80BD\r\n$GETCOE,3,C,Y*c2ac\n\n$STOP,4*"
+        + b"%04X\r\n" % checksum("STOP,4")
     )
     reader, frames = read_all(data)
     assert [f.type for f in frames] == ["START", "GETCOE", "STOP"]
@@ -262,7 +262,7 @@ def test_reader_garbage_crlf_lf_lowercase():
 
 
 def test_reader_over_long_line_then_good_frame():
-    data = b"$" + b"A" * 300 + b"\r\n$START,1*5D\r\n" + b"$ACK,0,1$START,2*5E\r\n"
+    data = b"$" + b"A" * 300 + b"\r\n$START,1*80BD\r\n" + b"$ACK,0,1$START,2*B0DE\r\n"
     reader, frames = read_all(data)
     assert [f.seq for f in frames] == [1, 2]
     assert reader.malformed_by_reason == {protocol.TOO_LONG: 1, protocol.TRUNCATED: 1}
@@ -270,7 +270,7 @@ def test_reader_over_long_line_then_good_frame():
 
 def test_reader_same_result_in_any_chunking():
     data = (
-        "\r\n".join(VECTORS + [LONGEST, "$ACK,0,13,STOP*4E", "$" + "B" * 200]) + "\r\n"
+        "\r\n".join(VECTORS + [LONGEST, "$ACK,0,13,STOP*B193", "$" + "B" * 200]) + "\r\n"
     ).encode()
     whole, whole_frames = read_all(data)
     for chunk in (1, 7, 64):
@@ -336,7 +336,7 @@ def test_unknown_type_is_kept_raw():
 
 def test_appended_fields_are_tolerated():
     body = "ACK,5,1,STOP,9"
-    frame = parse_line(f"${body}*{checksum(body):02X}")
+    frame = parse_line(f"${body}*{checksum(body):04X}")
     assert frame.fields == {"cmd_seq": 1, "cmd_type": "STOP"}
     assert frame.raw_fields[-1] == "9"
 

@@ -1,4 +1,4 @@
-"""ThermoTilt serial frames: ``$TYPE,SEQ,field,...*HH\\r\\n`` (docs/protocol.md).
+"""ThermoTilt serial frames: ``$TYPE,SEQ,field,...*HHHH\\r\\n`` (docs/protocol.md).
 
 The frame table comes from lib/Protocol/src/ProtocolFrames.def through the
 generated module :mod:`thermotilt.protocol_spec`; the rules here mirror the
@@ -7,6 +7,7 @@ firmware's FrameParser so both sides accept and reject the same lines.
 
 from __future__ import annotations
 
+import binascii
 import math
 import numbers
 import re
@@ -41,7 +42,9 @@ BAD_FIELD = "BAD_FIELD"
 
 _TYPE = re.compile(r"[A-Z]{2,7}")
 _SEQ = re.compile(r"[0-9]{1,5}")
-_HEX2 = re.compile(r"[0-9A-Fa-f]{2}")
+# The line check after '*': CRC-16/XMODEM as four hex digits (Protocol.h).
+CHECKSUM_DIGITS = 4
+_CHECKSUM_HEX = re.compile(r"[0-9A-Fa-f]{%d}" % CHECKSUM_DIGITS)
 _INTEGER = re.compile(r"[+-]?[0-9]+")
 _FLOAT = re.compile(
     r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?|[+-]?(?:nan|inf|infinity)",
@@ -81,6 +84,7 @@ class MalformedFrame(ValueError):
     def __init__(self, reason: str, detail: str):
         super().__init__(f"{reason}: {detail}")
         self.reason = reason
+        self.detail = detail
 
 
 @dataclass(frozen=True)
@@ -99,16 +103,18 @@ class Frame:
     def line(self) -> str:
         """The frame as sent, without CR LF."""
         body = ",".join((self.type, str(self.seq)) + self.raw_fields)
-        return f"${body}*{checksum(body):02X}"
+        return _with_checksum(body)
 
 
 def checksum(body: str | bytes) -> int:
-    """XOR of the bytes between '$' and '*'."""
+    """CRC-16/XMODEM of the bytes between '$' and '*', as the firmware's
+    Protocol::checksum (avr-libc's _crc_xmodem_update)."""
     data = body.encode("latin-1") if isinstance(body, str) else bytes(body)
-    result = 0
-    for byte in data:
-        result ^= byte
-    return result
+    return binascii.crc_hqx(data, 0)
+
+
+def _with_checksum(body: str) -> str:
+    return f"${body}*{checksum(body):0{CHECKSUM_DIGITS}X}"
 
 
 def next_seq(seq: int) -> int:
@@ -168,12 +174,19 @@ def build_frame(frame_type: str, seq: int, values: Iterable[Any] | Mapping[str, 
             )
         values = [values[name] for name in spec.field_names]
     texts = [format_value(value) for value in values]
-    if spec is not None and len(texts) != len(spec.fields):
-        raise ValueError(f"{frame_type} takes {len(spec.fields)} fields, got {len(texts)}")
+    if spec is not None:
+        if len(texts) != len(spec.fields):
+            raise ValueError(f"{frame_type} takes {len(spec.fields)} fields, got {len(texts)}")
+        # What the reader would refuse is never sent.
+        for field_spec, text in zip(spec.fields, texts, strict=True):
+            try:
+                _convert(field_spec, text)
+            except MalformedFrame as error:
+                raise ValueError(f"{frame_type}: {error.detail}") from None
     if len(texts) > MAX_FIELDS:
         raise ValueError(f"{len(texts)} fields, at most {MAX_FIELDS} allowed")
     body = ",".join([frame_type, str(int(seq))] + texts)
-    line = f"${body}*{checksum(body):02X}"
+    line = _with_checksum(body)
     if len(line) > MAX_LINE:
         raise ValueError(f"{frame_type} frame is {len(line)} characters, at most {MAX_LINE}")
     return line + "\r\n"
@@ -188,15 +201,19 @@ def _split_body(body: str) -> tuple[str, int, tuple[str, ...]]:
     if "$" in body:
         raise MalformedFrame(TRUNCATED, "a '$' inside the line")
     star = body.find("*")
-    if star < 0 or len(body) - star != 3:
-        raise MalformedFrame(NO_CHECKSUM, "no '*' followed by two checksum digits")
+    if star < 0 or len(body) - star != 1 + CHECKSUM_DIGITS:
+        raise MalformedFrame(
+            NO_CHECKSUM, f"no '*' followed by {CHECKSUM_DIGITS} checksum digits"
+        )
     digits = body[star + 1 :]
-    if not _HEX2.fullmatch(digits):
+    if not _CHECKSUM_HEX.fullmatch(digits):
         raise MalformedFrame(BAD_CHECKSUM, f"checksum {digits!r} is not hexadecimal")
     content = body[:star]
     expected = checksum(content)
     if int(digits, 16) != expected:
-        raise MalformedFrame(BAD_CHECKSUM, f"checksum {digits}, computed {expected:02X}")
+        raise MalformedFrame(
+            BAD_CHECKSUM, f"checksum {digits}, computed {expected:0{CHECKSUM_DIGITS}X}"
+        )
     tokens = content.split(",")
     if not _TYPE.fullmatch(tokens[0]):
         raise MalformedFrame(BAD_TYPE, f"type {tokens[0]!r} is not 2 to 7 upper-case letters")

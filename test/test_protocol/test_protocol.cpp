@@ -5,9 +5,8 @@
 #include "Protocol.h"
 
 // Expected lines and checksums were computed independently in Python:
-//   functools.reduce(lambda a, c: a ^ ord(c), body, 0)
-// over the text between '$' and '*'. By hand for "START,1":
-//   S 53 ^ T 54 ^ A 41 ^ R 52 ^ T 54 ^ , 2C ^ 1 31 = 0x5D.
+//   "%04X" % binascii.crc_hqx(body.encode(), 0)
+// (CRC-16/XMODEM) over the text between '$' and '*'.
 // host/tests/test_protocol.py checks the same vectors.
 
 static char buffer[Protocol::LINE_BUFFER_SIZE];
@@ -34,8 +33,9 @@ static uint8_t feedText(const char *text)
 
 static void test_checksum(void)
 {
-    TEST_ASSERT_EQUAL_HEX8(0x5D, Protocol::checksum("START,1", 7));
-    TEST_ASSERT_EQUAL_HEX8(0x4F, Protocol::checksum("ACK,0,13,STOP", 13));
+    TEST_ASSERT_EQUAL_HEX16(0x31C3, Protocol::checksum("123456789", 9));
+    TEST_ASSERT_EQUAL_HEX16(0x80BD, Protocol::checksum("START,1", 7));
+    TEST_ASSERT_EQUAL_HEX16(0xB192, Protocol::checksum("ACK,0,13,STOP", 13));
 }
 
 static void test_table(void)
@@ -69,9 +69,9 @@ static void test_imu(void)
     const char *line = writer.finish();
     TEST_ASSERT_NOT_NULL(line);
     TEST_ASSERT_EQUAL_STRING("$IMU,42,123456,-1650,-388,16012,-1649.75,-388.50,16012.25,"
-                             "-1078.25,-34.50,16011.00,23.50,W,E*5C\r\n",
+                             "-1078.25,-34.50,16011.00,23.50,W,E*BC38\r\n",
                              line);
-    TEST_ASSERT_EQUAL_UINT8(97, writer.length());
+    TEST_ASSERT_EQUAL_UINT8(99, writer.length());
 
     TEST_ASSERT_EQUAL_UINT8(1, feedText(line));
     TEST_ASSERT_TRUE(parser.typeIs(Protocol::Tag::IMU));
@@ -106,7 +106,7 @@ static void test_coe(void)
     writer.addScientific(6.327e-9f);
     const char *line = writer.finish();
     TEST_ASSERT_EQUAL_STRING("$COE,7,W,X,5.7150e+02,-2.0230e+01,1.5690e-03,-1.0440e-01,"
-                             "-6.9360e-05,6.3270e-09*78\r\n",
+                             "-6.9360e-05,6.3270e-09*FCD1\r\n",
                              line);
     TEST_ASSERT_EQUAL_UINT8(1, feedText(line));
     float p02 = 0.0f;
@@ -119,20 +119,32 @@ static void test_coe(void)
 
 static void test_bad_sum(void)
 {
-    // Correct checksum is 4F; lower-case hex is accepted.
-    TEST_ASSERT_EQUAL_UINT8(0, feedText("$ACK,0,13,STOP*4E\r\n"));
+    // Correct checksum is B192; lower-case hex is accepted.
+    TEST_ASSERT_EQUAL_UINT8(0, feedText("$ACK,0,13,STOP*B193\r\n"));
     TEST_ASSERT_EQUAL_UINT16(1, parser.malformedCount());
     TEST_ASSERT_EQUAL_UINT8(Protocol::MALFORMED_BAD_CHECKSUM, parser.lastMalformedReason());
-    TEST_ASSERT_EQUAL_UINT8(1, feedText("$GETCOE,3,C,Y*1a\n"));
+    TEST_ASSERT_EQUAL_UINT8(1, feedText("$GETCOE,3,C,Y*c2ac\n"));
     TEST_ASSERT_EQUAL_STRING("Y", parser.field(1));
     TEST_ASSERT_EQUAL_UINT8(0, feedText("$ACK,0,13,STOP\r\n"));
     TEST_ASSERT_EQUAL_UINT8(Protocol::MALFORMED_NO_CHECKSUM, parser.lastMalformedReason());
     TEST_ASSERT_EQUAL_UINT16(2, parser.malformedCount());
+    // Protocol 1's two-digit XOR line is no longer a frame.
+    TEST_ASSERT_EQUAL_UINT8(0, feedText("$START,1*5D\r\n"));
+    TEST_ASSERT_EQUAL_UINT8(Protocol::MALFORMED_NO_CHECKSUM, parser.lastMalformedReason());
+}
+
+// Two flips in the same bit position of two bytes kept protocol 1's XOR:
+// rest 1200 -> 1300 s and hold 60 -> 70 s ('2'->'3', '6'->'7': bit 0 twice)
+// under the original line's check.
+static void test_same_bit_flips(void)
+{
+    TEST_ASSERT_EQUAL_UINT8(0, feedText("$SETPRG,9,-10.00,45.00,2.00,70,1300,1*A843\r\n"));
+    TEST_ASSERT_EQUAL_UINT8(Protocol::MALFORMED_BAD_CHECKSUM, parser.lastMalformedReason());
 }
 
 static void test_garbage(void)
 {
-    TEST_ASSERT_EQUAL_UINT8(1, feedText("\x01zz*12,\r\n$START,1*5D\r\n"));
+    TEST_ASSERT_EQUAL_UINT8(1, feedText("\x01zz*12,\r\n$START,1*80BD\r\n"));
     TEST_ASSERT_TRUE(parser.typeIs(Protocol::Tag::START));
     TEST_ASSERT_EQUAL_UINT8(0, parser.fieldCount());
     TEST_ASSERT_EQUAL_UINT16(0, parser.malformedCount());
@@ -144,16 +156,16 @@ static void test_too_long(void)
     for (uint8_t i = 0; i < 130; ++i) {
         TEST_ASSERT_FALSE(parser.feed('A'));
     }
-    TEST_ASSERT_EQUAL_UINT8(1, feedText("\r\n$START,1*5D\r\n"));
+    TEST_ASSERT_EQUAL_UINT8(1, feedText("\r\n$START,1*80BD\r\n"));
     TEST_ASSERT_EQUAL_UINT16(1, parser.malformedCount());
     TEST_ASSERT_EQUAL_UINT8(Protocol::MALFORMED_TOO_LONG, parser.lastMalformedReason());
     // A cut-off line followed directly by the next '$' is also counted.
-    TEST_ASSERT_EQUAL_UINT8(1, feedText("$ACK,0,1$START,1*5D\r\n"));
+    TEST_ASSERT_EQUAL_UINT8(1, feedText("$ACK,0,1$START,1*80BD\r\n"));
     TEST_ASSERT_EQUAL_UINT8(Protocol::MALFORMED_TRUNCATED, parser.lastMalformedReason());
 }
 
-// "$LONG,0," + n x 'A' + "*HH": 120 characters when n = 109. Checksum by
-// Python: 0x3A for "LONG,0,", ^ 0x41 for an odd number of 'A' = 0x7B.
+// "$LONG,0," + n x 'A' + "*HHHH": 120 characters when n = 107. Checksums
+// by Python as above.
 static uint8_t feedLongLine(uint8_t letters, const char *trailer)
 {
     feedText("$LONG,0,");
@@ -165,15 +177,15 @@ static uint8_t feedLongLine(uint8_t letters, const char *trailer)
 
 static void test_longest(void)
 {
-    TEST_ASSERT_EQUAL_UINT8(1, feedLongLine(109, "*7B\r\n"));
-    TEST_ASSERT_EQUAL_UINT8(109, strlen(parser.field(0)));
-    TEST_ASSERT_EQUAL_UINT8(0, feedLongLine(110, "*3A\r\n"));
+    TEST_ASSERT_EQUAL_UINT8(1, feedLongLine(107, "*E008\r\n"));
+    TEST_ASSERT_EQUAL_UINT8(107, strlen(parser.field(0)));
+    TEST_ASSERT_EQUAL_UINT8(0, feedLongLine(108, "*ADCB\r\n"));
     TEST_ASSERT_EQUAL_UINT8(Protocol::MALFORMED_TOO_LONG, parser.lastMalformedReason());
 }
 
 static void test_numbers(void)
 {
-    TEST_ASSERT_EQUAL_UINT8(1, feedText("$SETPRG,9,-10.00,45.00,2.00,60,1200,1*17\r\n"));
+    TEST_ASSERT_EQUAL_UINT8(1, feedText("$SETPRG,9,-10.00,45.00,2.00,60,1200,1*A843\r\n"));
     float start = 0.0f;
     int32_t rest = 0;
     TEST_ASSERT_TRUE(parser.fieldFloat(0, start));
@@ -183,7 +195,7 @@ static void test_numbers(void)
     TEST_ASSERT_FALSE(parser.fieldInt(0, rest));
     TEST_ASSERT_EQUAL_INT32(1200, rest);
 
-    TEST_ASSERT_EQUAL_UINT8(1, feedText("$ERR,8,-1,BAD_CHECKSUM,CMD*3E\r\n"));
+    TEST_ASSERT_EQUAL_UINT8(1, feedText("$ERR,8,-1,BAD_CHECKSUM,CMD*9211\r\n"));
     int32_t cmdSeq = 0;
     TEST_ASSERT_TRUE(parser.fieldInt(0, cmdSeq));
     TEST_ASSERT_EQUAL_INT32(-1, cmdSeq);
@@ -197,15 +209,15 @@ static void test_seq_wrap(void)
     writer.begin(Protocol::Tag::ACK, seq);
     writer.addInt(12);
     writer.addText("SETPRG");
-    TEST_ASSERT_EQUAL_STRING("$ACK,65535,12,SETPRG*51\r\n", writer.finish());
+    TEST_ASSERT_EQUAL_STRING("$ACK,65535,12,SETPRG*7DCE\r\n", writer.finish());
     ++seq;
     writer.begin(Protocol::Tag::ACK, seq);
     writer.addInt(13);
     writer.addText("STOP");
-    TEST_ASSERT_EQUAL_STRING("$ACK,0,13,STOP*4F\r\n", writer.finish());
-    TEST_ASSERT_EQUAL_UINT8(1, feedText("$ACK,65535,12,SETPRG*51\r\n"));
+    TEST_ASSERT_EQUAL_STRING("$ACK,0,13,STOP*B192\r\n", writer.finish());
+    TEST_ASSERT_EQUAL_UINT8(1, feedText("$ACK,65535,12,SETPRG*7DCE\r\n"));
     TEST_ASSERT_EQUAL_UINT16(65535u, parser.seq());
-    TEST_ASSERT_EQUAL_UINT8(0, feedText("$ACK,65536,1,X*3F\r\n"));
+    TEST_ASSERT_EQUAL_UINT8(0, feedText("$ACK,65536,1,X*35E4\r\n"));
     TEST_ASSERT_EQUAL_UINT8(Protocol::MALFORMED_BAD_SEQ, parser.lastMalformedReason());
 }
 
@@ -224,7 +236,27 @@ static void test_writer_errs(void)
     TEST_ASSERT_NULL(writer.finish());
     writer.begin(Protocol::Tag::ERR, 1);
     writer.addFixed(-0.126f, 1);
-    TEST_ASSERT_EQUAL_STRING("$ERR,1,-0.1*76\r\n", writer.finish());
+    TEST_ASSERT_EQUAL_STRING("$ERR,1,-0.1*2330\r\n", writer.finish());
+
+    writer.begin(Protocol::Tag::IMU, 1);
+    for (uint8_t i = 0; i < Protocol::MAX_FIELDS; ++i) {
+        writer.addUnsigned(i);
+    }
+    TEST_ASSERT_NOT_NULL(writer.finish());
+    writer.begin(Protocol::Tag::IMU, 1);
+    for (uint8_t i = 0; i <= Protocol::MAX_FIELDS; ++i) {
+        writer.addUnsigned(i);
+    }
+    TEST_ASSERT_NULL(writer.finish());
+}
+
+static void test_directions(void)
+{
+    TEST_ASSERT_TRUE(Protocol::isBoardFrame(Protocol::Tag::IMU));
+    TEST_ASSERT_TRUE(Protocol::isBoardFrame(Protocol::Tag::ERR));
+    TEST_ASSERT_TRUE(Protocol::isBoardFrame(Protocol::Tag::ACK));
+    TEST_ASSERT_FALSE(Protocol::isBoardFrame(Protocol::Tag::SETPRG));
+    TEST_ASSERT_FALSE(Protocol::isBoardFrame("NOSUCH"));
 }
 
 int runUnityTests(void)
@@ -235,11 +267,13 @@ int runUnityTests(void)
     RUN_TEST(test_imu);
     RUN_TEST(test_coe);
     RUN_TEST(test_bad_sum);
+    RUN_TEST(test_same_bit_flips);
     RUN_TEST(test_garbage);
     RUN_TEST(test_too_long);
     RUN_TEST(test_longest);
     RUN_TEST(test_numbers);
     RUN_TEST(test_seq_wrap);
     RUN_TEST(test_writer_errs);
+    RUN_TEST(test_directions);
     return UNITY_END();
 }

@@ -4,6 +4,8 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+
+#include <Crc16.h>
 #ifndef __AVR__
 #include <stdio.h>
 #endif
@@ -12,8 +14,8 @@ using namespace Protocol;
 
 namespace {
 
-// "*HH\r\n" and the terminating NUL.
-const uint8_t TRAILER_SIZE = 6;
+// '*', the checksum digits, CR LF and the terminating NUL.
+const uint8_t TRAILER_SIZE = 1 + CHECKSUM_DIGITS + 3;
 // Enough for a 32-bit integer, or a float with |value| < 1e9 and up to 8
 // decimals, or 8 significant digits in scientific notation.
 const uint8_t NUMBER_BUFFER_SIZE = 24;
@@ -95,20 +97,29 @@ bool isNonEmptyWithoutLeadingSpace(const char *text)
 
 }  // namespace
 
-uint8_t Protocol::checksum(const char *text, uint8_t length)
+uint16_t Protocol::checksum(const char *text, uint8_t length)
 {
-    uint8_t sum = 0;
-    for (uint8_t i = 0; i < length; ++i) {
-        sum ^= (uint8_t)text[i];
-    }
-    return sum;
+    return crc16Xmodem((const uint8_t *)text, length);
+}
+
+bool Protocol::isBoardFrame(const char *type)
+{
+#define THERMOTILT_FRAME(tag, direction, fields) \
+    if (THERMOTILT_DIRECTION_##direction && strcmp(type, Tag::tag) == 0) return true;
+#define THERMOTILT_DIRECTION_BOARD true
+#define THERMOTILT_DIRECTION_HOST false
+#include "ProtocolFrames.def"
+#undef THERMOTILT_DIRECTION_HOST
+#undef THERMOTILT_DIRECTION_BOARD
+#undef THERMOTILT_FRAME
+    return false;
 }
 
 FrameWriter::FrameWriter(char *buffer, uint16_t capacity)
-    : buffer_(buffer), contentLimit_(0), length_(0), ok_(false), finished_(false)
+    : buffer_(buffer), contentLimit_(0), length_(0), fieldCount_(0), ok_(false), finished_(false)
 {
     uint16_t limit = capacity > TRAILER_SIZE ? (uint16_t)(capacity - TRAILER_SIZE) : 0u;
-    const uint8_t longestContent = MAX_LINE - 3;
+    const uint8_t longestContent = MAX_LINE - 1 - CHECKSUM_DIGITS;
     contentLimit_ = limit > longestContent ? longestContent : (uint8_t)limit;
 }
 
@@ -119,7 +130,10 @@ void FrameWriter::begin(const char *type, uint16_t seq)
     ok_ = isValidType(type);
     append("$");
     append(type);
-    addUnsigned(seq);
+    char digits[NUMBER_BUFFER_SIZE];
+    append(",");
+    append(formatUnsigned(seq, digits + sizeof digits - 1));
+    fieldCount_ = 0;
 }
 
 void FrameWriter::append(const char *text)
@@ -138,6 +152,10 @@ void FrameWriter::append(const char *text)
 
 bool FrameWriter::startField()
 {
+    if (fieldCount_ >= MAX_FIELDS) {
+        ok_ = false;
+    }
+    ++fieldCount_;
     append(",");
     return ok_ && !finished_;
 }
@@ -230,10 +248,11 @@ const char *FrameWriter::finish()
         return 0;
     }
     if (!finished_) {
-        uint8_t sum = checksum(buffer_ + 1, (uint8_t)(length_ - 1));
+        uint16_t sum = checksum(buffer_ + 1, (uint8_t)(length_ - 1));
         buffer_[length_++] = '*';
-        buffer_[length_++] = hexDigit((uint8_t)(sum >> 4));
-        buffer_[length_++] = hexDigit((uint8_t)(sum & 0x0Fu));
+        for (int8_t shift = 4 * (CHECKSUM_DIGITS - 1); shift >= 0; shift -= 4) {
+            buffer_[length_++] = hexDigit((uint8_t)((sum >> shift) & 0x0Fu));
+        }
         buffer_[length_++] = '\r';
         buffer_[length_++] = '\n';
         buffer_[length_] = '\0';
@@ -302,15 +321,21 @@ bool FrameParser::endLine()
 {
     line_[length_] = '\0';
     const char *star = strchr(line_, '*');
-    if (star == 0 || length_ - (uint8_t)(star - line_) != 3) {
+    if (star == 0 || length_ - (uint8_t)(star - line_) != 1 + CHECKSUM_DIGITS) {
         reject(MALFORMED_NO_CHECKSUM);
         return false;
     }
     uint8_t starPosition = (uint8_t)(star - line_);
-    int8_t high = hexValue(star[1]);
-    int8_t low = hexValue(star[2]);
-    if (high < 0 || low < 0 ||
-        checksum(line_, starPosition) != (uint8_t)((high << 4) | low)) {
+    uint16_t received = 0;
+    for (uint8_t i = 1; i <= CHECKSUM_DIGITS; ++i) {
+        int8_t digit = hexValue(star[i]);
+        if (digit < 0) {
+            reject(MALFORMED_BAD_CHECKSUM);
+            return false;
+        }
+        received = (uint16_t)((received << 4) | (uint8_t)digit);
+    }
+    if (checksum(line_, starPosition) != received) {
         reject(MALFORMED_BAD_CHECKSUM);
         return false;
     }

@@ -1,7 +1,7 @@
 #ifndef THERMOTILT_PROTOCOL_H
 #define THERMOTILT_PROTOCOL_H
 
-// ThermoTilt serial frames: $TYPE,SEQ,field,...*HH\r\n (see docs/protocol.md).
+// ThermoTilt serial frames: $TYPE,SEQ,field,...*HHHH\r\n (see docs/protocol.md).
 // Frame types and fields are defined once, in ProtocolFrames.def.
 
 #include <stdint.h>
@@ -13,13 +13,15 @@
 namespace Protocol {
 
 const uint8_t VERSION = THERMOTILT_PROTOCOL_VERSION;
-// Longest line, from '$' to the checksum digits, without CR LF.
+// Longest line, from '$' to the last checksum digit, without CR LF.
 const uint8_t MAX_LINE = THERMOTILT_PROTOCOL_MAX_LINE;
 // Most fields after TYPE and SEQ that a parser keeps.
 const uint8_t MAX_FIELDS = THERMOTILT_PROTOCOL_MAX_FIELDS;
 // A writer buffer of this size holds any legal line plus CR LF and NUL.
 const uint8_t LINE_BUFFER_SIZE = MAX_LINE + 3;
 const uint8_t MAX_TYPE_LENGTH = 7;
+// The line check after '*': CRC-16/XMODEM as four hex digits.
+const uint8_t CHECKSUM_DIGITS = 4;
 
 constexpr uint8_t countCommas(const char *text)
 {
@@ -45,6 +47,10 @@ namespace FieldCount {
 #undef THERMOTILT_FRAME
 }
 
+// True for the types a board sends (IMU, CHS, ACK, ERR, ...): a board never
+// answers those, so an echoing terminal cannot make it talk to itself.
+bool isBoardFrame(const char *type);
+
 enum MalformedReason : uint8_t {
     MALFORMED_NONE = 0,
     MALFORMED_TRUNCATED,        // a new '$' arrived before the line ended
@@ -57,14 +63,15 @@ enum MalformedReason : uint8_t {
     MALFORMED_TOO_MANY_FIELDS,  // more than MAX_FIELDS fields after SEQ
 };
 
-// XOR of `length` bytes: the checksum of the text between '$' and '*'.
-uint8_t checksum(const char *text, uint8_t length);
+// CRC-16/XMODEM of `length` bytes: the check of the text between '$' and '*'.
+uint16_t checksum(const char *text, uint8_t length);
 
 }  // namespace Protocol
 
 // Builds one frame in a caller-supplied buffer. Any error (overflow, bad
-// type, forbidden character in text) is remembered and makes finish() fail,
-// so a sketch can add all fields and check once.
+// type, forbidden character in text, more than MAX_FIELDS fields) is
+// remembered and makes finish() fail, so a sketch can add all fields and
+// check once.
 class FrameWriter {
 public:
     FrameWriter(char *buffer, uint16_t capacity);
@@ -80,7 +87,7 @@ public:
     void addText(const char *text);
     void addChar(char value);
 
-    // Appends "*HH\r\n" and returns the NUL-terminated line, or 0 on error.
+    // Appends "*HHHH\r\n" and returns the NUL-terminated line, or 0 on error.
     const char *finish();
     // Characters of the finished line including CR LF.
     uint8_t length() const { return length_; }
@@ -94,6 +101,7 @@ private:
     char *buffer_;
     uint8_t contentLimit_;
     uint8_t length_;
+    uint8_t fieldCount_;
     bool ok_;
     bool finished_;
 };
