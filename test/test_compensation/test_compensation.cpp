@@ -1,3 +1,4 @@
+#include <math.h>
 #include <string.h>
 #include <unity.h>
 
@@ -200,11 +201,14 @@ static void test_block_default_bytes(void)
 
 static void test_block_round_trip(void)
 {
+    // Each term scaled to the size of the paper's, so that decoding accepts
+    // the surfaces (an output of at most a few thousand LSB).
+    const float termScale[COMP_COEFFICIENT_COUNT] = {1.0f, 1e-1f, 1e-3f, 1e-3f, 1e-5f, 1e-9f};
     Coefficients original;
     for (uint8_t s = 0; s < COMP_SET_COUNT; ++s) {
         for (uint8_t a = 0; a < COMP_AXIS_COUNT; ++a) {
             for (uint8_t k = 0; k < COMP_COEFFICIENT_COUNT; ++k) {
-                original.set[s].axis[a].p[k] = (float)(s * 100 + a * 10 + k) * -1.25e-3f + 7.0f;
+                original.set[s].axis[a].p[k] = ((float)(s * 100 + a * 10 + k) * -1.25e-3f + 7.0f) * termScale[k];
             }
         }
     }
@@ -241,6 +245,120 @@ static void test_block_rejects(void)
     TEST_ASSERT_FLOAT_WITHIN(1e-6f, 0.0f, untouched.set[1].axis[1].p[0]);
 }
 
+// The frame limit, 9.99e6 LSB: 1e7 (ten characters at one decimal in the
+// longest IMU line, Compensation.h) less 0.1 %.
+static const float FRAME_LIMIT_LSB = 9.99e6f;
+static const float INT16_SPAN_LSB = 32768.0f;
+
+static AxisSurface constantSurface(float p00, float p01)
+{
+    AxisSurface surface = {{p00, 0.0f, p01, 0.0f, 0.0f, 0.0f}};
+    return surface;
+}
+
+static void test_default_surfaces_fit_the_frame(void)
+{
+    for (uint8_t s = 0; s < COMP_SET_COUNT; ++s) {
+        for (uint8_t axis = 0; axis < COMP_AXIS_COUNT; ++axis) {
+            TEST_ASSERT(surfaceOutputFitsFrame(surface((CompSet)s, axis)));
+        }
+    }
+}
+
+static void test_output_limit_includes_the_raw_reading(void)
+{
+    // raw - p00 is largest at raw = -32768 (or 32767 for a negative p00); all
+    // values here are integers below 2^24, exact in a float.
+    TEST_ASSERT(surfaceOutputFitsFrame(constantSurface(FRAME_LIMIT_LSB - INT16_SPAN_LSB - 16.0f, 0.0f)));
+    TEST_ASSERT_FALSE(surfaceOutputFitsFrame(constantSurface(FRAME_LIMIT_LSB - INT16_SPAN_LSB + 16.0f, 0.0f)));
+    TEST_ASSERT(surfaceOutputFitsFrame(constantSurface(-(FRAME_LIMIT_LSB - INT16_SPAN_LSB - 16.0f), 0.0f)));
+    TEST_ASSERT_FALSE(surfaceOutputFitsFrame(constantSurface(-(FRAME_LIMIT_LSB - INT16_SPAN_LSB + 16.0f), 0.0f)));
+    // p01 = 1 removes the raw reading: the output is -p00 everywhere.
+    TEST_ASSERT(surfaceOutputFitsFrame(constantSurface(9.98e6f, 1.0f)));
+    TEST_ASSERT_FALSE(surfaceOutputFitsFrame(constantSurface(1.0e7f, 1.0f)));
+}
+
+// raw - f = peak * (1 - ((T - 22.5) / 62.5)^2): zero at -40 and 85 degC, so
+// every corner is zero; the peak sits at 22.5 degC along both a-edges.
+static AxisSurface edgePeak(float peak)
+{
+    float curvature = peak / (62.5f * 62.5f);
+    AxisSurface surface = {{-peak + curvature * 22.5f * 22.5f, -45.0f * curvature, 1.0f, curvature, 0.0f, 0.0f}};
+    return surface;
+}
+
+// raw - f = peak - (peak / 2) ((T - 22.5) / 62.5)^2 - (peak / 2) (a / 32768)^2:
+// zero at the corners, peak / 2 at every edge vertex, the peak only inside.
+static AxisSurface insidePeak(float peak)
+{
+    float temperatureCurvature = peak / (2.0f * 62.5f * 62.5f);
+    float accelCurvature = peak / (2.0f * INT16_SPAN_LSB * INT16_SPAN_LSB);
+    AxisSurface surface = {{-peak + temperatureCurvature * 22.5f * 22.5f, -45.0f * temperatureCurvature, 1.0f,
+                            temperatureCurvature, 0.0f, accelCurvature}};
+    return surface;
+}
+
+static void test_output_peaks_between_the_corners_are_found(void)
+{
+    TEST_ASSERT_FLOAT_WITHIN(1.0f, 1.2e7f, compensate(edgePeak(1.2e7f), 22.5f, 32767.0f));
+    TEST_ASSERT_FLOAT_WITHIN(1.0f, 0.0f, compensate(edgePeak(1.2e7f), 85.0f, 32767.0f));
+    TEST_ASSERT_FALSE(surfaceOutputFitsFrame(edgePeak(1.2e7f)));
+    TEST_ASSERT(surfaceOutputFitsFrame(edgePeak(9.9e6f)));
+
+    TEST_ASSERT_FLOAT_WITHIN(1.0f, 1.5e7f, compensate(insidePeak(1.5e7f), 22.5f, 0.0f));
+    TEST_ASSERT_FLOAT_WITHIN(1.0f, 7.5e6f, compensate(insidePeak(1.5e7f), 22.5f, -32768.0f));
+    TEST_ASSERT_FLOAT_WITHIN(1.0f, 7.5e6f, compensate(insidePeak(1.5e7f), 85.0f, 0.0f));
+    TEST_ASSERT_FALSE(surfaceOutputFitsFrame(insidePeak(1.5e7f)));
+    TEST_ASSERT(surfaceOutputFitsFrame(insidePeak(9.9e6f)));
+}
+
+static void test_non_finite_outputs_do_not_fit(void)
+{
+    for (uint8_t k = 0; k < COMP_COEFFICIENT_COUNT; ++k) {
+        AxisSurface surface = constantSurface(0.0f, 0.0f);
+        surface.p[k] = NAN;
+        TEST_ASSERT_FALSE(surfaceOutputFitsFrame(surface));
+        surface.p[k] = -INFINITY;
+        TEST_ASSERT_FALSE(surfaceOutputFitsFrame(surface));
+    }
+    // Finite, but p02 a^2 overflows a float (3e38 * 32768^2).
+    AxisSurface overflowing = constantSurface(0.0f, 0.0f);
+    overflowing.p[P02] = 3e38f;
+    TEST_ASSERT_FALSE(surfaceOutputFitsFrame(overflowing));
+}
+
+static void test_block_blank_and_bad_values(void)
+{
+    Coefficients zero;
+    memset(&zero, 0, sizeof(zero));
+    Coefficients untouched = zero;
+
+    memset(block, 0xFF, sizeof(block));
+    TEST_ASSERT(decodeCoefficients(block, untouched) == BlockStatus::Blank);
+
+    // Power lost while saving over a blank EEPROM: the first 100 bytes written.
+    encodeCoefficients(coefficients, block);
+    memset(block + 100, 0xFF, sizeof(block) - 100);
+    TEST_ASSERT(decodeCoefficients(block, untouched) == BlockStatus::BadCrc);
+
+    // An erased magic byte in front of written data is damage, not blank.
+    encodeCoefficients(coefficients, block);
+    block[0] = 0xFF;
+    TEST_ASSERT(decodeCoefficients(block, untouched) == BlockStatus::BadMagic);
+
+    // Sound blocks (CRC computed over them) carrying values no frame can hold.
+    Coefficients bad = coefficients;
+    bad.set[1].axis[2].p[P20] = NAN;
+    encodeCoefficients(bad, block);
+    TEST_ASSERT(decodeCoefficients(block, untouched) == BlockStatus::BadValues);
+    bad = coefficients;
+    bad.set[0].axis[1].p[P00] = 2e7f;
+    encodeCoefficients(bad, block);
+    TEST_ASSERT(decodeCoefficients(block, untouched) == BlockStatus::BadValues);
+
+    TEST_ASSERT_EQUAL_MEMORY(&zero, &untouched, sizeof(Coefficients));
+}
+
 int runUnityTests(void)
 {
     UNITY_BEGIN();
@@ -258,5 +376,10 @@ int runUnityTests(void)
     RUN_TEST(test_block_default_bytes);
     RUN_TEST(test_block_round_trip);
     RUN_TEST(test_block_rejects);
+    RUN_TEST(test_default_surfaces_fit_the_frame);
+    RUN_TEST(test_output_limit_includes_the_raw_reading);
+    RUN_TEST(test_output_peaks_between_the_corners_are_found);
+    RUN_TEST(test_non_finite_outputs_do_not_fit);
+    RUN_TEST(test_block_blank_and_bad_values);
     return UNITY_END();
 }

@@ -1,5 +1,7 @@
 #include "Compensation.h"
 
+#include <math.h>
+
 #ifdef __AVR__
 #include <avr/pgmspace.h>
 #else
@@ -61,6 +63,66 @@ float surfaceCorrection(const AxisSurface& surface, float tempC, float accelLsb)
 float compensate(const AxisSurface& surface, float tempC, float rawLsb)
 {
     return rawLsb - surfaceCorrection(surface, tempC, rawLsb);
+}
+
+namespace {
+
+float clampTo(float value, float low, float high)
+{
+    // A term of zero puts a vertex at infinity or 0/0; any point of the
+    // domain is a harmless candidate, so those fall back to an end.
+    if (!(value > low)) {
+        return low;
+    }
+    return value < high ? value : high;
+}
+
+// Collects whether every point it is shown has a compensated output that fits.
+class FrameFitCheck {
+public:
+    explicit FrameFitCheck(const AxisSurface& surface) : surface_(surface), fits_(true) {}
+
+    void at(float tempC, float accelLsb)
+    {
+        float output = compensate(surface_, clampTo(tempC, COMP_TEMPERATURE_MIN_C, COMP_TEMPERATURE_MAX_C),
+                                  clampTo(accelLsb, COMP_ACCEL_MIN_LSB, COMP_ACCEL_MAX_LSB));
+        // Written so that NaN fails too.
+        if (!(fabsf(output) < COMP_OUTPUT_LIMIT_LSB)) {
+            fits_ = false;
+        }
+    }
+
+    bool fits() const { return fits_; }
+
+private:
+    const AxisSurface& surface_;
+    bool fits_;
+};
+
+}  // namespace
+
+bool surfaceOutputFitsFrame(const AxisSurface& surface)
+{
+    // g(T, a) = a - f(T, a) = -p00 - p10 T + (1 - p01) a - p20 T^2 - p11 T a - p02 a^2.
+    const float* p = surface.p;
+    const float temperatures[2] = {COMP_TEMPERATURE_MIN_C, COMP_TEMPERATURE_MAX_C};
+    const float accelerations[2] = {COMP_ACCEL_MIN_LSB, COMP_ACCEL_MAX_LSB};
+    const float accelSlope = 1.0f - p[P01];
+    FrameFitCheck check(surface);
+    for (uint8_t i = 0; i < 2; ++i) {
+        for (uint8_t j = 0; j < 2; ++j) {
+            check.at(temperatures[i], accelerations[j]);
+        }
+        // Vertex along a at fixed T: dg/da = 1 - p01 - p11 T - 2 p02 a = 0.
+        check.at(temperatures[i], (accelSlope - p[P11] * temperatures[i]) / (2.0f * p[P02]));
+        // Vertex along T at fixed a: dg/dT = -p10 - 2 p20 T - p11 a = 0.
+        check.at(-(p[P10] + p[P11] * accelerations[i]) / (2.0f * p[P20]), accelerations[i]);
+    }
+    // Both derivatives zero: [2 p20, p11; p11, 2 p02] (T, a) = (-p10, 1 - p01).
+    float determinant = 4.0f * p[P20] * p[P02] - p[P11] * p[P11];
+    check.at((-2.0f * p[P02] * p[P10] - p[P11] * accelSlope) / determinant,
+             (2.0f * p[P20] * accelSlope + p[P11] * p[P10]) / determinant);
+    return check.fits();
 }
 
 TrendDetector::TrendDetector(float hysteresisC, CompSet initial)

@@ -49,6 +49,27 @@ float surfaceCorrection(const AxisSurface& surface, float tempC, float accelLsb)
 // raw - f puts the 25 degC readings nearest the offsets of section 4.1.
 float compensate(const AxisSurface& surface, float tempC, float rawLsb);
 
+// Where the firmware meets a surface: the LSM9DS0's operating temperature
+// range (datasheet, -40..+85 degC) and any int16 acceleration reading.
+const float COMP_TEMPERATURE_MIN_C = -40.0f;
+const float COMP_TEMPERATURE_MAX_C = 85.0f;
+const float COMP_ACCEL_MIN_LSB = -32768.0f;
+const float COMP_ACCEL_MAX_LSB = 32767.0f;
+
+// Largest |raw - f(T, raw)| an IMU frame carries. The longest IMU line of
+// protocol 2 has 87 characters besides the three compensated values
+// ("$IMU", seq 65535, t_ms 4294967295, raws -32768, filtered -32768.0,
+// temperature -235.000, set, source, "*HHHH" and commas), which leaves 33 of
+// the 120: ten characters a value at one decimal, "-9999999.9", so |x| < 1e7.
+// 0.1 % below that covers the float rounding of f (~1 LSB near 1e7).
+const float COMP_OUTPUT_LIMIT_LSB = 9.99e6f;
+
+// True when raw - f(T, raw) is finite and below COMP_OUTPUT_LIMIT_LSB in
+// magnitude everywhere in that domain. It is a quadratic, so its largest
+// magnitude lies at a corner, at the vertex of an edge or at the stationary
+// point inside, and only those are evaluated.
+bool surfaceOutputFitsFrame(const AxisSurface& surface);
+
 // Chooses the warming or cooling set from the temperature stream: a Schmitt
 // trigger on the excursion from the running extreme. While warming it tracks
 // the highest temperature seen and switches to cooling at the first sample
@@ -80,11 +101,14 @@ const uint8_t COEFFICIENT_BLOCK_MAGIC = 0x54;
 const uint8_t COEFFICIENT_BLOCK_VERSION = 1;
 const uint8_t COEFFICIENT_BLOCK_SIZE = 148;
 
-enum class BlockStatus : uint8_t { Ok, BadMagic, BadVersion, BadCrc };
+// Blank: every byte 0xFF, an erased EEPROM that was never saved to.
+// BadValues: a sound block with a surface surfaceOutputFitsFrame refuses.
+enum class BlockStatus : uint8_t { Ok, Blank, BadMagic, BadVersion, BadCrc, BadValues };
 
 void encodeCoefficients(const Coefficients& in, uint8_t out[COEFFICIENT_BLOCK_SIZE]);
-// Leaves `out` untouched unless the block is valid. Checks magic, then version
-// (another version may have another layout), then CRC.
+// Leaves `out` untouched unless the block is valid. Checks for a blank block,
+// then magic, version (another version may have another layout), CRC, and
+// last the values.
 BlockStatus decodeCoefficients(const uint8_t in[COEFFICIENT_BLOCK_SIZE], Coefficients& out);
 
 #endif
