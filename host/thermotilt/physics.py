@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import re
+import reprlib
 import tomllib
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
@@ -57,51 +58,107 @@ FAULT_NAMES: tuple[str, ...] = (
 )
 _FAULTS_WITH_RATE = frozenset({"imu_uart_corrupt", "chamber_uart_corrupt"})
 
-# Parameter kinds: "number" (finite), "positive" (> 0), "non_negative",
-# "fraction" (0..1), "axes" / "axes_non_negative" (a table {x, y, z} of
-# numbers), "coefficients" ("paper" or a table of surfaces).
-_TERM_PARAMETERS: Mapping[str, Mapping[str, str]] = {
-    "peltier_pumping": {"full_duty_w": "non_negative"},
+
+@dataclass(frozen=True)
+class Bounds:
+    """The physically plausible range of a number in the model file;
+    docs/physics-model.md gives the reason for each."""
+
+    low: float
+    high: float
+    unit: str = ""
+    # True: the value must lie above low, not on it.
+    low_exclusive: bool = False
+
+    def check(self, value: Any, where: str) -> float:
+        number = _number(value, where)
+        below = number <= self.low if self.low_exclusive else number < self.low
+        if below or not number <= self.high:
+            raise ModelError(f"{where}: must be {self}, got {reprlib.repr(value)}")
+        return number
+
+    def __str__(self) -> str:
+        unit = f" {self.unit}" if self.unit else ""
+        return f"{'>' if self.low_exclusive else '>='} {self.low:g} and <= {self.high:g}{unit}"
+
+
+@dataclass(frozen=True)
+class PerAxis:
+    """A table {x, y, z} of numbers within the same bounds."""
+
+    bounds: Bounds
+
+
+# The strings are "bool" (enabled) and "coefficients" ("paper" or a table
+# of drift surfaces).
+ParameterKind = Bounds | PerAxis | str
+
+_INT16_MIN, _INT16_MAX = -32768, 32767
+_INT16_SPAN = _INT16_MAX - _INT16_MIN + 1
+# The LSM9DS0's operating temperature range (datasheet).
+_OPERATING_C = Bounds(-40.0, 85.0, "degC")
+_HEAT_CAPACITY = Bounds(4.0, 1e5, "J/K")
+_HEATER_POWER = Bounds(0.0, 500.0, "W")
+_RESISTOR = Bounds(100.0, 1e7, "ohm")
+
+TERM_PARAMETERS: Mapping[str, Mapping[str, ParameterKind]] = {
+    "peltier_pumping": {"full_duty_w": _HEATER_POWER},
     "joule_heating": {
-        "full_duty_w": "non_negative",
-        "exponent": "positive",
-        "inner_fraction": "fraction",
+        "full_duty_w": _HEATER_POWER,
+        "exponent": Bounds(1.0, 2.0),
+        "inner_fraction": Bounds(0.0, 1.0),
     },
-    "ambient_leak": {"conductance_w_per_k": "non_negative"},
+    "ambient_leak": {"conductance_w_per_k": Bounds(0.0, 10.0, "W/K")},
     "heatsink": {
-        "heat_capacity_j_per_k": "positive",
-        "inner_conductance_w_per_k": "non_negative",
-        "ambient_conductance_w_per_k": "non_negative",
+        "heat_capacity_j_per_k": _HEAT_CAPACITY,
+        "inner_conductance_w_per_k": Bounds(0.0, 10.0, "W/K"),
+        "ambient_conductance_w_per_k": Bounds(0.0, 50.0, "W/K"),
     },
-    "thermistor_lag": {"time_constant_s": "positive"},
-    "die_lag": {"time_constant_s": "positive"},
+    "thermistor_lag": {"time_constant_s": Bounds(0.0, 600.0, "s", low_exclusive=True)},
+    "die_lag": {"time_constant_s": Bounds(0.0, 3600.0, "s", low_exclusive=True)},
     "tilt": {},
-    "drift": {"coefficients": "coefficients", "schmitt_band_c": "non_negative"},
-    "rate_sensitivity": {"lsb_per_c_per_s": "axes"},
-    "temperature_offset": {"offset_c": "number"},
+    "drift": {"coefficients": "coefficients", "schmitt_band_c": Bounds(0.0, 10.0, "degC")},
+    "rate_sensitivity": {
+        "lsb_per_c_per_s": PerAxis(Bounds(-_INT16_SPAN, _INT16_SPAN, "LSB per degC/s"))
+    },
+    "temperature_offset": {"offset_c": Bounds(-20.0, 20.0, "degC")},
     "temperature_quantisation": {},
-    "sensitivity_loss": {"gain_loss_at_1g": "fraction"},
-    "noise": {"sigma_lsb": "axes_non_negative"},
+    "sensitivity_loss": {"gain_loss_at_1g": Bounds(0.0, 0.33)},
+    "noise": {"sigma_lsb": PerAxis(Bounds(0.0, 1000.0, "LSB"))},
 }
 
 # Properties of the hardware that are not switchable effects.
-_CONSTANT_PARAMETERS: Mapping[str, Mapping[str, str]] = {
+CONSTANT_PARAMETERS: Mapping[str, Mapping[str, ParameterKind]] = {
     "chamber": {
-        "inner_heat_capacity_j_per_k": "positive",
-        "supply_mv": "positive",
-        "divider_reference_ohm": "positive",
-        "thermistor_r25_ohm": "positive",
-        "thermistor_beta_k": "positive",
+        "inner_heat_capacity_j_per_k": _HEAT_CAPACITY,
+        "supply_mv": Bounds(1800.0, 5500.0, "mV"),
+        "divider_reference_ohm": _RESISTOR,
+        "thermistor_r25_ohm": _RESISTOR,
+        "thermistor_beta_k": Bounds(1000.0, 10000.0, "K"),
     },
     "sensor": {
-        "lsb_per_g": "positive",
-        "temperature_lsb_per_c": "positive",
-        "temperature_zero_c": "number",
+        "lsb_per_g": Bounds(1000.0, _INT16_MAX, "LSB"),
+        "temperature_lsb_per_c": Bounds(1.0, 256.0, "LSB"),
+        "temperature_zero_c": _OPERATING_C,
     },
 }
 
+# A drift surface term alone may add at most the int16 span anywhere the
+# sensor works: over its operating range and at any int16 reading. p<i><j>
+# multiplies T^i a^j.
+_SURFACE_TERM_POWERS = ((0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2))
+SURFACE_TERM_NAMES = tuple(f"p{t}{a}" for t, a in _SURFACE_TERM_POWERS)
+_LARGEST_ABS_C = max(-_OPERATING_C.low, _OPERATING_C.high)
+SURFACE_TERM_BOUNDS: tuple[Bounds, ...] = tuple(
+    Bounds(-limit, limit)
+    for limit in (
+        _INT16_SPAN / (_LARGEST_ABS_C**t * float(-_INT16_MIN) ** a) for t, a in _SURFACE_TERM_POWERS
+    )
+)
+# A model file is a few kB; this stops a device file from being read forever.
+_MAX_MODEL_BYTES = 1 << 20
+
 _ZERO_CELSIUS_K = 273.15
-_INT16_MIN, _INT16_MAX = -32768, 32767
 # The LSM9DS0 temperature output is 12-bit two's complement.
 _TEMPERATURE_RAW_MIN, _TEMPERATURE_RAW_MAX = -2048, 2047
 _NOISE_BLOCK_SAMPLES = 4096
@@ -178,14 +235,13 @@ class Model:
             text = resources.files(__package__).joinpath("models/default.toml").read_text("utf-8")
         else:
             source = str(path)
-            try:
-                text = Path(path).read_text(encoding="utf-8")
-            except OSError as error:
-                raise ModelError(f"{source}: cannot read: {error.strerror or error}") from None
+            text = _read_model_text(Path(path), source)
         try:
             document = tomllib.loads(text)
         except tomllib.TOMLDecodeError as error:
             raise ModelError(f"{source}: not valid TOML: {error}") from None
+        except RecursionError:
+            raise ModelError(f"{source}: not valid TOML: nested too deeply") from None
         return _model_from_document(document, source)
 
     def enabled(self, term: str) -> bool:
@@ -211,17 +267,31 @@ class Model:
             raise ModelError(f"{self.source}: unknown term '{term}' (known: {', '.join(TERMS)})")
 
 
+def _read_model_text(path: Path, source: str) -> str:
+    try:
+        with open(path, "rb") as stream:
+            data = stream.read(_MAX_MODEL_BYTES + 1)
+    except OSError as error:
+        raise ModelError(f"{source}: cannot read: {error.strerror or error}") from None
+    if len(data) > _MAX_MODEL_BYTES:
+        raise ModelError(f"{source}: larger than {_MAX_MODEL_BYTES} bytes, not a model file")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as error:
+        raise ModelError(f"{source}: not UTF-8 text (byte {error.start})") from None
+
+
 def _model_from_document(document: Mapping[str, Any], source: str) -> Model:
-    known_sections = set(TERMS) | set(_CONSTANT_PARAMETERS) | {"faults"}
+    known_sections = set(TERMS) | set(CONSTANT_PARAMETERS) | {"faults"}
     for section in document:
         if section not in known_sections:
             raise ModelError(f"{source}: unknown section [{section}]")
     constants = {
         section: _read_table(document, section, parameters, source, switchable=False)
-        for section, parameters in _CONSTANT_PARAMETERS.items()
+        for section, parameters in CONSTANT_PARAMETERS.items()
     }
     terms = {
-        term: _read_table(document, term, _TERM_PARAMETERS[term], source, switchable=True)
+        term: _read_table(document, term, TERM_PARAMETERS[term], source, switchable=True)
         for term in TERMS
     }
     faults = _read_faults(document.get("faults", []), source)
@@ -236,14 +306,16 @@ def _model_from_document(document: Mapping[str, Any], source: str) -> Model:
 def _read_table(
     document: Mapping[str, Any],
     section: str,
-    parameters: Mapping[str, str],
+    parameters: Mapping[str, ParameterKind],
     source: str,
     switchable: bool,
 ) -> Mapping[str, Any]:
-    table = document.get(section)
-    if not isinstance(table, dict):
+    if section not in document:
         raise ModelError(f"{source}: missing section [{section}]")
-    expected = dict(parameters)
+    table = document[section]
+    if not isinstance(table, dict):
+        raise ModelError(f"{source}: [{section}] must be a table, got {reprlib.repr(table)}")
+    expected: dict[str, ParameterKind] = dict(parameters)
     if switchable:
         expected["enabled"] = "bool"
     for name in table:
@@ -257,34 +329,40 @@ def _read_table(
     return MappingProxyType(values)
 
 
-def _is_number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
+def _number(value: Any, where: str) -> float:
+    """A TOML integer or float as a float; integers beyond float's range are
+    infinite."""
+    if not isinstance(value, (int, float)) or isinstance(value, bool):
+        raise ModelError(f"{where}: expected a number, got {reprlib.repr(value)}")
+    try:
+        return float(value)
+    except OverflowError:
+        return math.copysign(math.inf, value)
 
 
-def _checked_value(value: Any, kind: str, where: str) -> Any:
-    if kind == "bool":
-        if not isinstance(value, bool):
-            raise ModelError(f"{where}: expected true or false, got {value!r}")
-        return value
-    if kind in ("axes", "axes_non_negative"):
+def _finite_number(value: Any, where: str) -> float:
+    number = _number(value, where)
+    if not math.isfinite(number):
+        raise ModelError(f"{where}: expected a finite number, got {reprlib.repr(value)}")
+    return number
+
+
+def _checked_value(value: Any, kind: ParameterKind, where: str) -> Any:
+    if isinstance(kind, Bounds):
+        return kind.check(value, where)
+    if isinstance(kind, PerAxis):
         if not isinstance(value, dict) or set(value) != {"x", "y", "z"}:
-            raise ModelError(f"{where}: expected a table {{x = .., y = .., z = ..}}, got {value!r}")
-        scalar_kind = "non_negative" if kind == "axes_non_negative" else "number"
+            raise ModelError(
+                f"{where}: expected a table {{x = .., y = .., z = ..}}, got {reprlib.repr(value)}"
+            )
         return MappingProxyType(
-            {axis: _checked_value(value[axis], scalar_kind, f"{where}.{axis}") for axis in "xyz"}
+            {axis: kind.bounds.check(value[axis], f"{where}.{axis}") for axis in "xyz"}
         )
     if kind == "coefficients":
         return _checked_coefficients(value, where)
-    if not _is_number(value) or not math.isfinite(value):
-        raise ModelError(f"{where}: expected a number, got {value!r}")
-    number = float(value)
-    if kind == "positive" and not number > 0.0:
-        raise ModelError(f"{where}: must be > 0, got {number}")
-    if kind == "non_negative" and not number >= 0.0:
-        raise ModelError(f"{where}: must be >= 0, got {number}")
-    if kind == "fraction" and not 0.0 <= number <= 1.0:
-        raise ModelError(f"{where}: must be between 0 and 1, got {number}")
-    return number
+    if not isinstance(value, bool):
+        raise ModelError(f"{where}: expected true or false, got {reprlib.repr(value)}")
+    return value
 
 
 def _checked_coefficients(value: Any, where: str) -> Any:
@@ -300,15 +378,14 @@ def _checked_coefficients(value: Any, where: str) -> Any:
         surfaces[set_] = {}
         for axis in AXES:
             terms = per_axis[axis]
-            if (
-                not isinstance(terms, list)
-                or len(terms) != 6
-                or not all(_is_number(term) and math.isfinite(term) for term in terms)
-            ):
+            if not isinstance(terms, list) or len(terms) != len(SURFACE_TERM_NAMES):
                 raise ModelError(
-                    f"{where}.{set_}.{axis}: expected 6 numbers p00, p10, p01, p20, p11, p02"
+                    f"{where}.{set_}.{axis}: expected 6 numbers {', '.join(SURFACE_TERM_NAMES)}"
                 )
-            surfaces[set_][axis] = tuple(float(term) for term in terms)
+            surfaces[set_][axis] = tuple(
+                bounds.check(term, f"{where}.{set_}.{axis} {name}")
+                for term, name, bounds in zip(terms, SURFACE_TERM_NAMES, SURFACE_TERM_BOUNDS)
+            )
     return MappingProxyType(surfaces)
 
 
@@ -326,10 +403,11 @@ def _read_faults(entries: Any, source: str) -> tuple[Fault, ...]:
         name = entry.get("name")
         if not isinstance(name, str):
             raise ModelError(f"{where}: missing name")
-        numbers = {}
-        for key in ("start_s", "end_s", "rate"):
-            if key in entry:
-                numbers[key] = _checked_value(entry[key], "number", f"{where} {key}")
+        numbers = {
+            key: _finite_number(entry[key], f"{where} {key}")
+            for key in ("start_s", "end_s", "rate")
+            if key in entry
+        }
         try:
             fault = Fault(
                 name, numbers.get("start_s", 0.0), numbers.get("end_s"), numbers.get("rate")
