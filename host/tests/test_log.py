@@ -3,6 +3,9 @@ run.csv schema, chamber columns come from CHS frames, malformed lines are
 counted and skipped, and bad use ends with one readable line."""
 
 import os
+import signal
+import subprocess
+import sys
 import termios
 import threading
 import time
@@ -134,3 +137,36 @@ def test_log_without_any_frame_fails(pty_pair, tmp_path, capsys):
     assert main(["log", "--port", port, "--out", str(tmp_path / "run.csv")]) == 1
     timer.join()
     assert "no IMU frames received" in capsys.readouterr().err
+
+
+def test_a_killed_log_keeps_every_byte_it_received(pty_pair, tmp_path):
+    """Rows and raw bytes are flushed as they arrive: SIGKILL, which no
+    handler sees, loses nothing the logger had read."""
+    imu_master, imu_port = pty_pair()
+    chamber_master, chamber_port = pty_pair()
+    out, raw = tmp_path / "run.csv", tmp_path / "raw"
+    imu_bytes = b"boot noise\r\n" + "".join(
+        imu_frame(seq, 1000 + 100 * seq) for seq in range(40)).encode()
+    chamber_bytes = "".join(chs_frame(seq, 900 + 1000 * seq, 18.0 + seq, 17.5) for seq in range(5))
+    logger = subprocess.Popen(
+        [sys.executable, "-m", "thermotilt", "log", "--port", imu_port, "--chamber-port",
+         chamber_port, "--out", str(out), "--raw-dir", str(raw)],
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        wait_until_opened(chamber_master)
+        os.write(chamber_master, chamber_bytes.encode())
+        wait_until_opened(imu_master)
+        time.sleep(0.3)
+        os.write(imu_master, imu_bytes)
+        deadline = time.monotonic() + 20
+        # The last row carries the last CHS frame: the logger has read both ports to the end.
+        while not ((rows := read_run_log(str(out)) if out.exists() else [])
+                   and len(rows) == 40 and rows[-1]["setpoint_c"] == "22"):
+            assert time.monotonic() < deadline, "the logger never wrote every row"
+            time.sleep(0.05)
+    finally:
+        logger.kill()
+        logger.wait(timeout=10)
+    assert logger.returncode == -signal.SIGKILL
+    assert (raw / "imu_reader.txt").read_bytes() == imu_bytes
+    assert (raw / "thermal_chamber.txt").read_bytes() == chamber_bytes.encode()

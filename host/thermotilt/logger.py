@@ -1,19 +1,21 @@
 """``thermotilt log``: real boards (or the twin's pseudo-terminals) to run.csv.
 
 The IMU reader's frames make the rows; the chamber's CHS frames, when its
-port is given, fill the chamber columns. Each row is flushed as it is
-written and the raw bytes can be kept, so stopping with Ctrl-C, or the board
-going away, loses nothing already received.
+port is given, fill the chamber columns. Each row, and each chunk of raw
+bytes when they are kept, is flushed as it is written, so stopping with
+Ctrl-C, the board going away or the logger being killed loses nothing
+already received.
 """
 
 from __future__ import annotations
 
+import os
 import sys
 import time
-from contextlib import ExitStack
+from contextlib import ExitStack, contextmanager, suppress
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Mapping
+from typing import Any, Iterator, Mapping
 
 import serial
 
@@ -23,6 +25,7 @@ from .runlog import ChamberState, RunLogWriter
 # Long enough for a 10 Hz stream to fill a read; short enough to watch both ports.
 READ_TIMEOUT_S = 0.05
 SILENCE_WARNING_S = 5.0
+INTERRUPTED = "interrupted"
 
 
 class LogError(RuntimeError):
@@ -41,8 +44,40 @@ class LogResult:
 def _open_port(port: str, baud: int) -> serial.Serial:
     try:
         return serial.serial_for_url(port, baudrate=baud, timeout=READ_TIMEOUT_S)
-    except (serial.SerialException, ValueError) as error:
+    # pyserial's URL handlers raise whatever their parsing meets
+    # (loop://?x gives a KeyError), so any failure here is the port's.
+    except Exception as error:
         raise LogError(f"cannot open {port}: {error}") from None
+
+
+class _OutputFile:
+    """A file the logger writes: a failure is one LogError naming the file,
+    and closing it after a failed write does not fail a second time."""
+
+    def __init__(self, path: Path, mode: str, **options: Any) -> None:
+        self._path = path
+        with self._reported():
+            self._stream = open(path, mode, **options)
+
+    def write(self, data: Any) -> None:
+        with self._reported():
+            self._stream.write(data)
+
+    def flush(self) -> None:
+        with self._reported():
+            self._stream.flush()
+
+    def close(self) -> None:
+        # Everything written was flushed; what is left failed and was reported.
+        with suppress(OSError):
+            self._stream.close()
+
+    @contextmanager
+    def _reported(self) -> Iterator[None]:
+        try:
+            yield
+        except OSError as error:
+            raise LogError(f"cannot write {self._path}: {error.strerror or error}") from None
 
 
 def _read_available(port: serial.Serial, wait: bool) -> bytes:
@@ -68,15 +103,18 @@ def log_boards(
     context: Mapping[str, str] | None = None,
     force: bool = False,
 ) -> LogResult:
-    if out_path.exists() and not force:
+    # os.path answers False where pathlib raises (a parent that cannot be
+    # searched); opening the file then says why.
+    if os.path.isdir(out_path):
+        raise LogError(f"{out_path} is a folder; --out names the run.csv to write")
+    if os.path.exists(out_path) and not force:
         raise LogError(f"{out_path} exists; choose another --out or add --force")
     context = dict(context or {})
     imu_reader, chamber_reader = FrameReader(), FrameReader()
     chamber_state = ChamberState.unknown()
     first_ms: int | None = None
     last_ms = 0
-    stop = ""
-    end_reason = "interrupted"
+    stop = end_reason = ""
     started = time.monotonic()
     warned = False
     with ExitStack() as stack:
@@ -84,24 +122,24 @@ def log_boards(
         chamber = stack.enter_context(_open_port(chamber_port, baud)) if chamber_port else None
         raw_imu = raw_chamber = None
         if raw_dir is not None:
-            raw_dir.mkdir(parents=True, exist_ok=True)
-            raw_imu = stack.enter_context(open(raw_dir / "imu_reader.txt", "ab"))
+            try:
+                raw_dir.mkdir(parents=True, exist_ok=True)
+            except OSError as error:
+                raise LogError(f"cannot create folder {raw_dir}: {error.strerror or error}") from None
+            raw_imu = _open_output(stack, raw_dir / "imu_reader.txt", "ab")
             if chamber is not None:
-                raw_chamber = stack.enter_context(open(raw_dir / "thermal_chamber.txt", "ab"))
-        stream = stack.enter_context(open(out_path, "w", newline=""))
-        writer = RunLogWriter(stream, with_truth=False)
+                raw_chamber = _open_output(stack, raw_dir / "thermal_chamber.txt", "ab")
+        writer = RunLogWriter(_open_output(stack, out_path, "w", newline=""), with_truth=False)
         try:
             while True:
                 if chamber is not None:
                     data = _read_available(chamber, wait=False)
-                    if raw_chamber is not None and data:
-                        raw_chamber.write(data)
+                    _save_raw(raw_chamber, data)
                     for frame in chamber_reader.feed(data):
                         if frame.type == "CHS":
                             chamber_state.update(frame)
                 data = _read_available(imu, wait=True)
-                if raw_imu is not None and data:
-                    raw_imu.write(data)
+                _save_raw(raw_imu, data)
                 for frame in imu_reader.feed(data):
                     if frame.type != "IMU":
                         continue
@@ -125,10 +163,22 @@ def log_boards(
         except EOFError:
             end_reason = "port closed"
         except KeyboardInterrupt:
-            end_reason = "interrupted"
-    if writer.rows == 0:
+            end_reason = INTERRUPTED
+    if writer.rows == 0 and end_reason != INTERRUPTED:
         raise LogError(f"no IMU frames received from {imu_port} ({end_reason}); "
                        f"{imu_reader.malformed} malformed lines")
     return LogResult(writer.rows, imu_reader.frames + chamber_reader.frames,
                      imu_reader.malformed + chamber_reader.malformed,
                      imu_reader.gaps + chamber_reader.gaps, end_reason)
+
+
+def _open_output(stack: ExitStack, path: Path, mode: str, **options: Any) -> _OutputFile:
+    output = _OutputFile(path, mode, **options)
+    stack.callback(output.close)
+    return output
+
+
+def _save_raw(capture: _OutputFile | None, data: bytes) -> None:
+    if capture is not None and data:
+        capture.write(data)
+        capture.flush()

@@ -136,6 +136,8 @@ class RunLogWriter:
         self._flush_each_row = flush_each_row
         self._writer = csv.DictWriter(stream, fieldnames=self.columns, lineterminator="\n")
         self._writer.writeheader()
+        if flush_each_row:
+            self._stream.flush()
         self.rows = 0
 
     def write_imu_frame(
