@@ -6,7 +6,7 @@ import pytest
 from thermotilt import __version__
 from thermotilt.cli import main
 from thermotilt.coefficients import PAPER_DEFAULTS, decode_block, encode_block
-from thermotilt.protocol import build_frame
+from thermotilt.protocol import PROTOCOL_VERSION, build_frame
 
 
 def run(*args, stdin=None):
@@ -31,7 +31,7 @@ def assert_one_line_error(result, code):
 def test_version():
     result = run("--version")
     assert result.returncode == 0
-    assert result.stdout.strip() == f"thermotilt {__version__} (protocol 1)"
+    assert result.stdout.strip() == f"thermotilt {__version__} (protocol {PROTOCOL_VERSION})"
 
 
 def test_frames_counts(tmp_path, capsys):
@@ -42,7 +42,7 @@ def test_frames_counts(tmp_path, capsys):
         + build_frame(
             "IMU", 1, [10, 1, 2, 3, 1.5, 2.5, 3.5, 1.0, 2.0, 3.0, 21.5, "W", "D"]
         ).encode()
-        + b"$ACK,2,0,STOP*00\r\n"
+        + build_frame("ACK", 2, [0, "STOP"]).replace("STOP", "STOQ").encode()
         + build_frame(
             "IMU", 4, [20, 1, 2, 3, 1.5, 2.5, 3.5, 1.0, 2.0, 3.0, 21.5, "W", "D"]
         ).encode()
@@ -63,7 +63,7 @@ def test_frames_counts(tmp_path, capsys):
 
 
 def test_frames_from_stdin():
-    result = run("frames", "-", stdin="$START,1*5D\r\n")
+    result = run("frames", "-", stdin=build_frame("START", 1))
     assert result.returncode == 0
     assert "  START: 1" in result.stdout.splitlines()
 
@@ -76,7 +76,8 @@ def test_frames_missing_file(tmp_path):
 
 def test_frames_without_valid_frames(tmp_path):
     capture = tmp_path / "junk.bin"
-    capture.write_bytes(b"$ACK,0,13,STOP*4E\r\nhello\r\n")
+    corrupted = build_frame("ACK", 0, [13, "STOP"]).replace("STOP", "STOQ")
+    capture.write_bytes(corrupted.encode() + b"hello\r\n")
     result = run("frames", str(capture))
     assert_one_line_error(result, 1)
     assert "no valid frames (1 malformed)" in result.stderr

@@ -1,17 +1,21 @@
-"""Command line: ``thermotilt SUBCOMMAND ...``. Errors are one line on stderr."""
+"""Command line: ``thermotilt SUBCOMMAND ...``. Errors are one line on stderr
+(docs/reliability.md lists them)."""
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import NoReturn, Sequence
+from typing import IO, NoReturn, Sequence, TypeVar
 
 from tqdm import tqdm
 
 from . import __version__
 from .coefficients import (
+    BLOCK_SIZE,
     PAPER_DEFAULTS,
     CoefficientBlockError,
     decode_block,
@@ -21,6 +25,23 @@ from .coefficients import (
 from .protocol import PROTOCOL_VERSION, FrameReader
 
 PROGRAM = "thermotilt"
+# 128 + SIGINT, what a shell reports for a command stopped by Ctrl-C.
+EXIT_INTERRUPTED = 130
+_READ_CHUNK = 65536
+
+# The LSM9DS0's operating range: the ambient of any rig it works in lies within it.
+AMBIENT_RANGE_C = (-40.0, 85.0)
+INCLINATION_RANGE_DEG = (-90.0, 90.0)
+# The boards count time in uint32 milliseconds, which wrap after 49.7 days.
+BOARD_SECONDS_RANGE = (0.001, (2**32 - 1) / 1000.0)
+# The twin's UART corruption generator takes a 64-bit seed.
+SEED_RANGE = (0, 2**64 - 1)
+# An hour per step and a day of rest keep the paper's longest cycle (57
+# steps) within the chamber firmware's uint32 milliseconds.
+HOLD_SECONDS_RANGE = (1, 3600)
+REST_SECONDS_RANGE = (0, 86400)
+
+_Number = TypeVar("_Number", int, float)
 
 
 class UsageError(Exception):
@@ -32,24 +53,56 @@ class _ArgumentParser(argparse.ArgumentParser):
         # argparse would print the usage too; one line is easier to read in logs.
         self.exit(2, f"{PROGRAM}: error: {message} (see --help)\n")
 
+    def _print_message(self, message: str, file: IO[str] | None = None) -> None:
+        # argparse drops write errors; --help on a full disk is reported like any output.
+        if message:
+            (file or sys.stderr).write(message)
 
-def _read_capture(path: str) -> bytes:
-    if path == "-":
-        return sys.stdin.buffer.read()
+
+def _within(
+    parse: Callable[[str], _Number], low: _Number, high: _Number | None = None, unit: str = ""
+) -> Callable[[str], _Number]:
+    """An argparse type: a number from low to high (None: no upper limit)."""
+
+    def show(value: _Number) -> str:
+        return f"{value:.10g}" if isinstance(value, float) else str(value)
+
+    def checked(text: str) -> _Number:
+        value = parse(text)
+        if not (low <= value and (high is None or value <= high)):
+            span = f"at least {show(low)}" if high is None else f"from {show(low)} to {show(high)}"
+            raise argparse.ArgumentTypeError(f"must be {span}{unit}, got {text}")
+        return value
+
+    # argparse names the type in "invalid float value: 'x'".
+    checked.__name__ = parse.__name__
+    return checked
+
+
+def _interrupted() -> int:
+    print(f"{PROGRAM}: interrupted", file=sys.stderr)
+    return EXIT_INTERRUPTED
+
+
+def _input_chunks(path: str) -> Iterator[bytes]:
+    """The bytes of a file, or of standard input for "-", as they arrive
+    (unbuffered, so a live stream is counted up to the moment it stops)."""
+    name = "standard input" if path == "-" else path
+    if path == "-" and sys.stdin is None:
+        raise UsageError("standard input is closed")
     try:
-        with open(path, "rb") as capture:
-            return capture.read()
+        if path == "-":
+            stream = open(sys.stdin.fileno(), "rb", buffering=0, closefd=False)
+        else:
+            stream = open(path, "rb", buffering=0)
+        with stream:
+            while chunk := stream.read(_READ_CHUNK):
+                yield chunk
     except OSError as error:
-        raise UsageError(f"cannot read {path}: {error.strerror or error}") from None
+        raise UsageError(f"cannot read {name}: {error.strerror or error}") from None
 
 
-def _command_frames(args: argparse.Namespace) -> int:
-    reader = FrameReader()
-    reader.feed(_read_capture(args.capture))
-    # A capture may end without a line end: the last line still counts.
-    reader.feed(b"\n")
-    if reader.frames == 0:
-        raise UsageError(f"{args.capture}: no valid frames ({reader.malformed} malformed)")
+def _print_frame_counts(reader: FrameReader) -> None:
     print(f"frames: {reader.frames}")
     for frame_type, count in sorted(reader.frames_by_type.items()):
         print(f"  {frame_type}: {count}")
@@ -57,13 +110,34 @@ def _command_frames(args: argparse.Namespace) -> int:
     for reason, count in sorted(reader.malformed_by_reason.items()):
         print(f"  {reason}: {count}")
     print(f"gaps: {reader.gaps} (lost frames: {reader.lost_frames})")
+
+
+def _command_frames(args: argparse.Namespace) -> int:
+    reader = FrameReader()
+    try:
+        for chunk in _input_chunks(args.capture):
+            reader.feed(chunk)
+    except KeyboardInterrupt:
+        _print_frame_counts(reader)
+        return _interrupted()
+    # A capture may end without a line end: the last line still counts.
+    reader.feed(b"\n")
+    if reader.frames == 0:
+        raise UsageError(f"{args.capture}: no valid frames ({reader.malformed} malformed)")
+    _print_frame_counts(reader)
     return 0
 
 
 def _command_coefficients(args: argparse.Namespace) -> int:
     if args.block:
+        data = b""
+        # Enough to tell a wrong size; a device file is not read forever.
+        for chunk in _input_chunks(args.block):
+            data += chunk
+            if len(data) > BLOCK_SIZE:
+                break
         try:
-            table = decode_block(_read_capture(args.block))
+            table = decode_block(data)
         except CoefficientBlockError as error:
             raise UsageError(f"{args.block}: {error}") from None
     else:
@@ -107,7 +181,7 @@ def _command_simulate(args: argparse.Namespace) -> int:
     except (ModelError, ScenarioError) as error:
         raise UsageError(str(error)) from None
     out_dir = Path(args.out or f"runs/{scenario.name}-{time.strftime('%Y%m%d-%H%M%S')}")
-    if (out_dir / "run.csv").exists() and not args.force:
+    if os.path.exists(out_dir / "run.csv") and not args.force:
         raise UsageError(f"{out_dir}/run.csv exists; choose another --out or add --force")
 
     def announce_pty(board: str, path: str) -> None:
@@ -132,13 +206,15 @@ def _command_simulate(args: argparse.Namespace) -> int:
               f"{report['cycles']} cycles")
         for refusal in report["refused_commands"]:
             print(f"{board} refused {refusal}")
+    if summary["interrupted"]:
+        return _interrupted()
     _print_figures(scenario.name, read_run_log(str(out_dir / "run.csv")))
     return 0
 
 
 def _print_figures(scenario_name: str, rows: list[dict[str, str]]) -> None:
     """The paper's numbers for the scenarios that have them."""
-    from .figures import drift_figures, fig8_figures
+    from .figures import drift_figures, fig8_figures, holds
 
     if scenario_name == "fig8":
         figures = fig8_figures(rows)
@@ -148,7 +224,8 @@ def _print_figures(scenario_name: str, rows: list[dict[str, str]]) -> None:
         for step in figures["steps"]:
             print(f"step {step['from_c']:g} -> {step['to_c']:g} degC: {step['completion_s']:.1f} s, "
                   f"overshoot {step['overshoot_c']:.2f} degC")
-    elif scenario_name == "cycle":
+    # Holds shorter than the settling window give no drift to measure.
+    elif scenario_name == "cycle" and holds(rows):
         figures = drift_figures(rows)
         for axis in ("x", "y"):
             print(f"{axis.upper()}: raw drift {figures[axis]['raw_span_lsb']:.0f} LSB, "
@@ -156,7 +233,7 @@ def _print_figures(scenario_name: str, rows: list[dict[str, str]]) -> None:
 
 
 def _command_log(args: argparse.Namespace) -> int:
-    from .logger import LogError, log_boards
+    from .logger import INTERRUPTED, LogError, log_boards
     from .runlog import format_number
 
     try:
@@ -179,7 +256,7 @@ def _command_log(args: argparse.Namespace) -> int:
         raise UsageError(str(error)) from None
     print(f"rows: {result.rows}  frames: {result.frames}  rejected: {result.rejected}  "
           f"gaps: {result.gaps}  ({result.end_reason})")
-    return 0
+    return _interrupted() if result.end_reason == INTERRUPTED else 0
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -190,6 +267,9 @@ def build_parser() -> argparse.ArgumentParser:
         version=f"{PROGRAM} {__version__} (protocol {PROTOCOL_VERSION})",
     )
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    ambient = _within(float, *AMBIENT_RANGE_C, " degC")
+    inclination = _within(float, *INCLINATION_RANGE_DEG, " deg")
+    board_seconds = _within(float, *BOARD_SECONDS_RANGE, " s")
 
     frames = commands.add_parser(
         "frames", help="count the frames in a capture file: per type, malformed, sequence gaps"
@@ -211,17 +291,20 @@ def build_parser() -> argparse.ArgumentParser:
                           "or field-alternating")
     simulate.add_argument("--out", help="output folder (default runs/SCENARIO-DATE-TIME)")
     simulate.add_argument("--force", action="store_true", help="overwrite an earlier run in --out")
-    simulate.add_argument("--seed", type=int, default=1, help="noise seed (default 1)")
+    simulate.add_argument("--seed", type=_within(int, *SEED_RANGE), default=1,
+                          help="noise seed (default 1)")
     simulate.add_argument("--model", help="physics model file (default: the packaged default.toml)")
-    simulate.add_argument("--hold-seconds", type=int, default=60,
+    simulate.add_argument("--hold-seconds", type=_within(int, *HOLD_SECONDS_RANGE), default=60,
                           help="time per chamber step (default 60, the paper's)")
-    simulate.add_argument("--rest-seconds", type=int, default=1200,
+    simulate.add_argument("--rest-seconds", type=_within(int, *REST_SECONDS_RANGE), default=1200,
                           help="Peltier-off rest after each cycle (default 1200)")
-    simulate.add_argument("--incl-x", type=float, default=0.0, help="table angle on X, degrees")
-    simulate.add_argument("--incl-y", type=float, default=0.0, help="table angle on Y, degrees")
+    simulate.add_argument("--incl-x", type=inclination, default=0.0,
+                          help="table angle on X, degrees")
+    simulate.add_argument("--incl-y", type=inclination, default=0.0,
+                          help="table angle on Y, degrees")
     simulate.add_argument("--positions", help="campaign subset, e.g. 0,X+30,Y-15")
-    simulate.add_argument("--ambient", type=float, help="ambient temperature for chamber scenarios")
-    simulate.add_argument("--duration", type=float,
+    simulate.add_argument("--ambient", type=ambient, help="ambient temperature for chamber scenarios")
+    simulate.add_argument("--duration", type=board_seconds,
                           help="field scenarios: compress the day's profile into this many seconds")
     simulate.add_argument("--enable", action="append", default=[], metavar="TERM",
                           help="switch a model term on (repeatable)")
@@ -238,24 +321,60 @@ def build_parser() -> argparse.ArgumentParser:
     log.add_argument("--out", required=True, help="run.csv to write")
     log.add_argument("--chamber-port", help="the thermal chamber's serial port, if logged too")
     log.add_argument("--baud", type=int, default=115200, help="line speed (default 115200)")
-    log.add_argument("--duration", type=float, help="stop after this many seconds of board time")
-    log.add_argument("--rows", type=int, help="stop after this many rows")
+    log.add_argument("--duration", type=board_seconds,
+                     help="stop after this many seconds of board time")
+    log.add_argument("--rows", type=_within(int, 1), help="stop after this many rows")
     log.add_argument("--raw-dir", help="also save the raw bytes of each port in this folder")
-    log.add_argument("--ambient", type=float, help="ambient temperature to record, degC")
-    log.add_argument("--incl-x", type=float, help="table angle on X to record, degrees")
-    log.add_argument("--incl-y", type=float, help="table angle on Y to record, degrees")
+    log.add_argument("--ambient", type=ambient, help="ambient temperature to record, degC")
+    log.add_argument("--incl-x", type=inclination, help="table angle on X to record, degrees")
+    log.add_argument("--incl-y", type=inclination, help="table angle on Y to record, degrees")
     log.add_argument("--force", action="store_true", help="overwrite an existing --out")
     log.set_defaults(run=_command_log)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    if sys.stdout is None:
+        return _error("standard output is closed")
     try:
-        return args.run(args)
-    except UsageError as error:
-        print(f"{PROGRAM}: error: {error}", file=sys.stderr)
-        return 1
+        return _run(argv)
     except KeyboardInterrupt:
-        print(f"{PROGRAM}: interrupted", file=sys.stderr)
-        return 130
+        return _interrupted()
+    except BrokenPipeError:
+        # The reader left (`thermotilt ... | head`): nobody is left to tell.
+        _discard_stdout()
+        return 1
+    except OSError as error:
+        # Every file a command writes reports its own errors; what is left is
+        # standard output, e.g. on a full disk.
+        _discard_stdout()
+        return _error(f"cannot write standard output: {error.strerror or error}")
+
+
+def _run(argv: Sequence[str] | None) -> int:
+    # A file name that is not UTF-8 is still printable.
+    sys.stdout.reconfigure(errors="backslashreplace")
+    try:
+        args = build_parser().parse_args(argv)
+    finally:
+        # --help and --version print and exit: a failed write shows here.
+        sys.stdout.flush()
+    try:
+        status = args.run(args)
+    except UsageError as error:
+        status = _error(str(error))
+    sys.stdout.flush()
+    return status
+
+
+def _error(message: str) -> int:
+    print(f"{PROGRAM}: error: {message}", file=sys.stderr)
+    return 1
+
+
+def _discard_stdout() -> None:
+    """Point standard output at /dev/null, so the interpreter's last flush of
+    what could not be written raises nothing more."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())
+    os.close(devnull)
