@@ -2,6 +2,9 @@
 
 #include <Arduino.h>
 #include <avr/sleep.h>
+#include <string.h>
+
+#include "Watchdog.h"
 
 static const char* malformedName(Protocol::MalformedReason reason)
 {
@@ -18,7 +21,16 @@ static const char* malformedName(Protocol::MalformedReason reason)
     }
 }
 
-SerialLink::SerialLink() : writer_(line_, sizeof line_), nextSeq_(0), malformedSeen_(0) {}
+SerialLink::SerialLink()
+    : writer_(line_, sizeof line_),
+      nextSeq_(0),
+      malformedSeen_(0),
+      encodeFailures_(0),
+      lastMalformedReportMs_(0),
+      malformedReported_(false),
+      lastHostFrameMs_(0)
+{
+}
 
 void SerialLink::begin()
 {
@@ -27,13 +39,19 @@ void SerialLink::begin()
 
 bool SerialLink::poll()
 {
-    while (Serial.available() > 0) {
+    for (uint8_t read = 0; read < MAX_BYTES_PER_POLL && Serial.available() > 0; ++read) {
         bool complete = parser_.feed((char)Serial.read());
         if (parser_.malformedCount() != malformedSeen_) {
             malformedSeen_ = parser_.malformedCount();
-            report("BAD_FRAME", malformedName(parser_.lastMalformedReason()));
+            uint32_t now = millis();
+            if (!malformedReported_ || now - lastMalformedReportMs_ >= MALFORMED_REPORT_MS) {
+                malformedReported_ = true;
+                lastMalformedReportMs_ = now;
+                report("BAD_FRAME", malformedName(parser_.lastMalformedReason()));
+            }
         }
-        if (complete) {
+        if (complete && !Protocol::isBoardFrame(parser_.type())) {
+            lastHostFrameMs_ = millis();
             return true;
         }
     }
@@ -51,6 +69,19 @@ void SerialLink::send()
     const char* text = writer_.finish();
     if (text) {
         Serial.write(text);
+        return;
+    }
+    ++encodeFailures_;
+    char type[Protocol::MAX_TYPE_LENGTH + 1];
+    size_t typeLength = strcspn(line_ + 1, ",");
+    if (typeLength > Protocol::MAX_TYPE_LENGTH) {
+        typeLength = Protocol::MAX_TYPE_LENGTH;
+    }
+    memcpy(type, line_ + 1, typeLength);
+    type[typeLength] = '\0';
+    // An ERR always fits; the guard keeps a broken writer from recursing.
+    if (strcmp(type, Protocol::Tag::ERR) != 0) {
+        report("FRAME_ENCODE", type);
     }
 }
 
@@ -60,7 +91,16 @@ void SerialLink::sendVersion(const char* device, const char* firmwareVersion)
     frame.addText(device);
     frame.addText(firmwareVersion);
     frame.addUnsigned(Protocol::VERSION);
+    frame.addText(resetCauseName());
     send();
+}
+
+void SerialLink::announceStart(const char* device, const char* firmwareVersion)
+{
+    sendVersion(device, firmwareVersion);
+    if (resetWasAbnormal()) {
+        report("RESET", resetCauseName());
+    }
 }
 
 void SerialLink::acknowledge()

@@ -1,7 +1,9 @@
 // The board's end of the serial protocol (docs/protocol.md): parses command
 // frames from Serial, numbers every frame it sends, and answers commands with
 // ACK or ERR. Malformed input is counted by the parser and reported, never
-// acted on.
+// acted on. Nothing the host sends can hold the board's loop: each poll
+// reads a bounded number of bytes and malformed lines are reported at a
+// bounded rate.
 #ifndef THERMOTILT_SERIAL_LINK_H
 #define THERMOTILT_SERIAL_LINK_H
 
@@ -9,6 +11,12 @@
 
 // Both boards and the host use one speed; see docs/protocol.md.
 const unsigned long SERIAL_BAUD = 115200;
+// Fewer than Serial's 64-byte receive buffer holds, so a flood is read over
+// several loop passes with the control work in between.
+const uint8_t MAX_BYTES_PER_POLL = 32;
+// A line-rate flood of short bad lines would need ~15x the line's capacity
+// to answer each one; one BAD_FRAME a second says enough.
+const uint32_t MALFORMED_REPORT_MS = 1000;
 
 class SerialLink {
 public:
@@ -16,18 +24,29 @@ public:
 
     void begin();
 
-    // Reads what Serial holds; true when a command frame is ready in command().
-    // A malformed line is answered with an unsolicited ERR.
+    // Reads up to MAX_BYTES_PER_POLL bytes; true when a command frame is
+    // ready in command(). Frames a board sends (IMU, ACK, ERR, ...) are
+    // ignored, so an echoing terminal cannot start a conversation of the
+    // board with itself. A malformed line is answered with an unsolicited
+    // ERR, at most once per MALFORMED_REPORT_MS.
     bool poll();
     const FrameParser& command() const { return parser_; }
     bool commandIs(const char* tag) const { return parser_.typeIs(tag); }
 
+    // millis() when the last valid frame from the host arrived.
+    uint32_t lastHostFrameMs() const { return lastHostFrameMs_; }
+
     // Starts a frame with the next sequence number; add fields, then send().
+    // A frame that does not encode is not sent; it is counted and reported
+    // as ERR FRAME_ENCODE with its type.
     FrameWriter& start(const char* type);
     void send();
+    uint16_t encodeFailures() const { return encodeFailures_; }
 
-    // The VER frame: which firmware this is and which protocol it speaks.
+    // The VER frame: which firmware, which protocol, why the board last reset.
     void sendVersion(const char* device, const char* firmwareVersion);
+    // VER at start-up, and ERR RESET after a watchdog or brown-out reset.
+    void announceStart(const char* device, const char* firmwareVersion);
 
     void acknowledge();
     void reject(const char* code, const char* detail);
@@ -41,6 +60,10 @@ private:
     FrameParser parser_;
     uint16_t nextSeq_;
     uint16_t malformedSeen_;
+    uint16_t encodeFailures_;
+    uint32_t lastMalformedReportMs_;
+    bool malformedReported_;
+    uint32_t lastHostFrameMs_;
 };
 
 // Sleeps in idle mode until the next interrupt (the 1 ms timer tick or a
