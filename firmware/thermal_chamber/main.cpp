@@ -1,32 +1,60 @@
 // Thermal chamber (Arduino Mega 2560): two NTC thermistors, the programmed
 // temperature staircase and the proportional controller driving a Peltier
 // cell through an L298N; CHS status frames on the serial port.
+//
+// Safety is this board's job, not the host's: a thermistor fault, a face
+// outside its limits, a runaway (lib/ThermalGuard), a silent host (when the
+// heartbeat is on) or a hung loop (the watchdog) turns the bridge off by
+// itself. Faults latch: the bridge stays off until the host sends CLEAR.
 #include <Arduino.h>
 
 #include <ChamberControl.h>
 #include <Program.h>
 #include <Protocol.h>
+#include <ThermalGuard.h>
 #include <Thermistor.h>
 
 #include "SerialLink.h"
+#include "Watchdog.h"
 
 namespace {
 
-const char FIRMWARE_VERSION[] = "0.1.0";
+const char FIRMWARE_VERSION[] = "0.2.0";
 // The reference (inner) face is the controlled one; the outer face is the
 // heatsink side, watched because each face's temperature depends on the other.
 const uint8_t INNER_THERMISTOR_PIN = A0;
 const uint8_t OUTER_THERMISTOR_PIN = A1;
 const uint32_t CONTROL_PERIOD_MS = 250;
 const uint8_t CONTROL_TICKS_PER_STATUS = 4;
+const float CONTROL_PERIOD_S = (float)CONTROL_PERIOD_MS / 1000.0f;
+// An hour: longer is no heartbeat at all.
+const int32_t MAX_HEARTBEAT_S = 3600;
 
-enum Fault : uint8_t { NO_FAULT, INNER_OPEN, INNER_SHORT, OUTER_OPEN, OUTER_SHORT };
+enum Fault : uint8_t {
+    NO_FAULT,
+    INNER_OPEN,
+    INNER_SHORT,
+    OUTER_OPEN,
+    OUTER_SHORT,
+    INNER_HOT,
+    INNER_COLD,
+    OUTER_HOT,
+    OUTER_COLD,
+    NO_RESPONSE,
+    WRONG_WAY,
+    HOLD_LOST,
+    HOST_SILENT,
+};
 
 SerialLink link;
 Thermistor thermistor;
 ChamberController controller;
 TemperatureProgram program;
+ThermalGuard guard;
+// START runs only a program the host set and the board accepted.
+bool programAccepted = false;
 bool running = false;
+uint16_t heartbeatS = 0;
 bool proportionalOnly = true;
 uint32_t programStartMs = 0;
 uint32_t lastControlMs = 0;
@@ -44,12 +72,51 @@ const char* faultName(Fault value)
     case INNER_SHORT: return "INNER_SHORT";
     case OUTER_OPEN: return "OUTER_OPEN";
     case OUTER_SHORT: return "OUTER_SHORT";
+    case INNER_HOT: return "INNER_HOT";
+    case INNER_COLD: return "INNER_COLD";
+    case OUTER_HOT: return "OUTER_HOT";
+    case OUTER_COLD: return "OUTER_COLD";
+    case NO_RESPONSE: return "NO_RESPONSE";
+    case WRONG_WAY: return "WRONG_WAY";
+    case HOLD_LOST: return "HOLD_LOST";
+    case HOST_SILENT: return "HOST_SILENT";
     default: return "OK";
     }
 }
 
+// The ERR code a fault is reported with.
+const char* faultCategory(Fault value)
+{
+    switch (value) {
+    case INNER_OPEN:
+    case INNER_SHORT:
+    case OUTER_OPEN:
+    case OUTER_SHORT: return "THERMISTOR";
+    case INNER_HOT:
+    case INNER_COLD:
+    case OUTER_HOT:
+    case OUTER_COLD: return "LIMIT";
+    case HOST_SILENT: return "HEARTBEAT";
+    default: return "RUNAWAY";
+    }
+}
+
+Fault faultOf(GuardFault value)
+{
+    switch (value) {
+    case GuardFault::InnerHot: return INNER_HOT;
+    case GuardFault::InnerCold: return INNER_COLD;
+    case GuardFault::OuterHot: return OUTER_HOT;
+    case GuardFault::OuterCold: return OUTER_COLD;
+    case GuardFault::NoResponse: return NO_RESPONSE;
+    case GuardFault::WrongWay: return WRONG_WAY;
+    case GuardFault::HoldLost: return HOLD_LOST;
+    default: return NO_FAULT;
+    }
+}
+
 // Out of plausible range reads like an open circuit: no trustworthy value.
-Fault faultOf(const ThermistorReading& reading, Fault open, Fault shorted)
+Fault thermistorFaultOf(const ThermistorReading& reading, Fault open, Fault shorted)
 {
     switch (reading.status) {
     case ThermistorStatus::Ok: return NO_FAULT;
@@ -125,33 +192,65 @@ void sendStatus(uint32_t now)
     link.send();
 }
 
+// A fault present now, in the order a person would look for it.
+Fault presentSensorFault()
+{
+    Fault found = thermistorFaultOf(inner, INNER_OPEN, INNER_SHORT);
+    if (found == NO_FAULT) {
+        found = thermistorFaultOf(outer, OUTER_OPEN, OUTER_SHORT);
+    }
+    if (found == NO_FAULT) {
+        found = faultOf(guard.limitFault(inner.celsius, outer.celsius));
+    }
+    return found;
+}
+
+void trip(Fault detected)
+{
+    fault = detected;
+    stopProgram();
+    link.report(faultCategory(detected), faultName(detected));
+}
+
+bool hostSilent(uint32_t now)
+{
+    return running && heartbeatS != 0 && now - link.lastHostFrameMs() > (uint32_t)heartbeatS * 1000UL;
+}
+
 void controlTick(uint32_t now)
 {
     inner = readFace(INNER_THERMISTOR_PIN);
     outer = readFace(OUTER_THERMISTOR_PIN);
-    Fault detected = faultOf(inner, INNER_OPEN, INNER_SHORT);
-    if (detected == NO_FAULT) {
-        detected = faultOf(outer, OUTER_OPEN, OUTER_SHORT);
-    }
-    if (detected != fault) {
-        fault = detected;
-        if (fault != NO_FAULT) {
-            // A program does not resume by itself after a sensor fault.
-            stopProgram();
-            link.report("THERMISTOR", faultName(fault));
-        }
+    if (fault != NO_FAULT) {
+        return;
     }
     if (running) {
         programState = program.stateAt(now - programStartMs);
-        if (programState.phase == ProgramPhase::Done) {
-            stopProgram();
-        } else if (programState.driveEnabled) {
-            float dtSeconds = (float)CONTROL_PERIOD_MS / 1000.0f;
-            applyDrive(controller.update(programState.setpoint_c, inner.celsius, dtSeconds));
-        } else {
-            controller.reset();
-            applyDrive({0, Direction::Off});
-        }
+    }
+    bool driving = running && programState.phase != ProgramPhase::Done && programState.driveEnabled;
+    Fault detected = presentSensorFault();
+    if (detected == NO_FAULT) {
+        // Judged with the drive that produced these readings.
+        detected = faultOf(guard.update(driving ? programState.setpoint_c : NAN, inner.celsius, outer.celsius,
+                                        drive, CONTROL_PERIOD_S));
+    }
+    if (detected == NO_FAULT && hostSilent(now)) {
+        detected = HOST_SILENT;
+    }
+    if (detected != NO_FAULT) {
+        trip(detected);
+        return;
+    }
+    if (!running) {
+        return;
+    }
+    if (programState.phase == ProgramPhase::Done) {
+        stopProgram();
+    } else if (driving) {
+        applyDrive(controller.update(programState.setpoint_c, inner.celsius, CONTROL_PERIOD_S));
+    } else {
+        controller.reset();
+        applyDrive({0, Direction::Off});
     }
 }
 
@@ -168,6 +267,24 @@ void sendProgram()
     frame.addText(proportionalOnly ? "P" : "PI");
     frame.addFixed(controller.proportionalGain(), 3);
     frame.addFixed(controller.integralGain(), 3);
+    frame.addUnsigned(programAccepted ? 1 : 0);
+    link.send();
+}
+
+void sendGuard()
+{
+    const GuardSettings& settings = guard.settings();
+    FrameWriter& frame = link.start(Protocol::Tag::GRD);
+    frame.addFixed(settings.band_c, 2);
+    frame.addFixed(settings.gain_c, 2);
+    frame.addFixed(settings.window_s, 1);
+    frame.addFixed(settings.wrong_way_c, 2);
+    frame.addFixed(settings.max_error_c_s, 1);
+    frame.addFixed(settings.inner_min_c, 2);
+    frame.addFixed(settings.inner_max_c, 2);
+    frame.addFixed(settings.outer_min_c, 2);
+    frame.addFixed(settings.outer_max_c, 2);
+    frame.addUnsigned(heartbeatS);
     link.send();
 }
 
@@ -192,16 +309,18 @@ void setProgram(const FrameParser& command)
     int32_t rest = 0;
     int32_t cycles = 0;
     ProgramSettings settings;
-    bool parsed = command.fieldCount() == Protocol::FieldCount::SETPRG && command.fieldFloat(0, settings.start_c) &&
+    bool parsed = command.fieldCount() >= Protocol::FieldCount::SETPRG && command.fieldFloat(0, settings.start_c) &&
                   command.fieldFloat(1, settings.max_c) && command.fieldFloat(2, settings.step_c) &&
                   command.fieldInt(3, hold) && command.fieldInt(4, rest) && command.fieldInt(5, cycles) &&
                   hold >= 0 && rest >= 0 && cycles >= 0 && cycles <= 65535;
-    if (!parsed) {
-        link.reject("BAD_ARG", "SETPRG_FIELDS");
-        return;
-    }
     if (running) {
         link.reject("BUSY", "STOP_FIRST");
+        return;
+    }
+    // A refused program must not leave an older one for START to run.
+    programAccepted = false;
+    if (!parsed) {
+        link.reject("BAD_ARG", "SETPRG_FIELDS");
         return;
     }
     settings.hold_s = (uint32_t)hold;
@@ -212,6 +331,7 @@ void setProgram(const FrameParser& command)
         link.reject("BAD_ARG", programErrorName(error));
         return;
     }
+    programAccepted = true;
     link.acknowledge();
 }
 
@@ -220,7 +340,7 @@ void setControl(const FrameParser& command)
     const char* mode = command.field(0);
     float kp = 0.0f;
     float ki = 0.0f;
-    bool parsed = command.fieldCount() == Protocol::FieldCount::SETCTL && command.fieldFloat(1, kp) &&
+    bool parsed = command.fieldCount() >= Protocol::FieldCount::SETCTL && command.fieldFloat(1, kp) &&
                   command.fieldFloat(2, ki) && kp >= 0.0f && ki >= 0.0f && isfinite(kp) && isfinite(ki);
     bool proportional = parsed && strcmp(mode, "P") == 0;
     if (!parsed || (!proportional && strcmp(mode, "PI") != 0)) {
@@ -234,6 +354,64 @@ void setControl(const FrameParser& command)
     link.acknowledge();
 }
 
+const char* guardErrorName(GuardError error)
+{
+    switch (error) {
+    case GuardError::CheckOutOfRange: return "CHECK_RANGE";
+    case GuardError::LimitOutOfRange: return "LIMIT_RANGE";
+    case GuardError::LimitsInverted: return "LIMIT_MIN_GE_MAX";
+    default: return "OK";
+    }
+}
+
+void setGuard(const FrameParser& command)
+{
+    GuardSettings settings;
+    float* values[] = {&settings.band_c,      &settings.gain_c,      &settings.window_s,
+                       &settings.wrong_way_c, &settings.max_error_c_s, &settings.inner_min_c,
+                       &settings.inner_max_c, &settings.outer_min_c, &settings.outer_max_c};
+    const uint8_t count = sizeof values / sizeof values[0];
+    bool parsed = command.fieldCount() >= Protocol::FieldCount::SETGRD;
+    for (uint8_t i = 0; parsed && i < count; ++i) {
+        parsed = command.fieldFloat(i, *values[i]);
+    }
+    if (!parsed) {
+        link.reject("BAD_ARG", "SETGRD_FIELDS");
+        return;
+    }
+    GuardError error = guard.configure(settings);
+    if (error != GuardError::None) {
+        link.reject("BAD_ARG", guardErrorName(error));
+        return;
+    }
+    link.acknowledge();
+}
+
+void setHeartbeat(const FrameParser& command)
+{
+    int32_t seconds = 0;
+    if (command.fieldCount() < Protocol::FieldCount::SETHB || !command.fieldInt(0, seconds) || seconds < 0 ||
+        seconds > MAX_HEARTBEAT_S) {
+        link.reject("BAD_ARG", "HEARTBEAT_0_3600");
+        return;
+    }
+    heartbeatS = (uint16_t)seconds;
+    link.acknowledge();
+}
+
+// A latched fault clears only on request, and only once its cause is gone.
+void clearFault()
+{
+    Fault present = presentSensorFault();
+    if (present != NO_FAULT) {
+        link.reject("FAULT", faultName(present));
+        return;
+    }
+    fault = NO_FAULT;
+    guard.reset();
+    link.acknowledge();
+}
+
 void handleCommand(uint32_t now)
 {
     const FrameParser& command = link.command();
@@ -242,7 +420,12 @@ void handleCommand(uint32_t now)
             link.reject("FAULT", faultName(fault));
             return;
         }
+        if (!programAccepted) {
+            link.reject("NO_PROGRAM", "SETPRG_FIRST");
+            return;
+        }
         running = true;
+        guard.reset();
         programStartMs = now;
         controller.reset();
         programState = program.stateAt(0);
@@ -255,11 +438,18 @@ void handleCommand(uint32_t now)
         link.acknowledge();
     } else if (link.commandIs(Protocol::Tag::STATUS)) {
         sendProgram();
+        sendGuard();
         link.acknowledge();
     } else if (link.commandIs(Protocol::Tag::SETPRG)) {
         setProgram(command);
     } else if (link.commandIs(Protocol::Tag::SETCTL)) {
         setControl(command);
+    } else if (link.commandIs(Protocol::Tag::SETGRD)) {
+        setGuard(command);
+    } else if (link.commandIs(Protocol::Tag::SETHB)) {
+        setHeartbeat(command);
+    } else if (link.commandIs(Protocol::Tag::CLEAR)) {
+        clearFault();
     } else {
         link.reject("UNKNOWN_CMD", command.type());
     }
@@ -273,13 +463,15 @@ void setup()
     pinMode(kL298nIn2Pin, OUTPUT);
     pinMode(kL298nEnaPin, OUTPUT);
     applyDrive({0, Direction::Off});
+    startWatchdog();
     link.begin();
-    link.sendVersion("thermal_chamber", FIRMWARE_VERSION);
+    link.announceStart("thermal_chamber", FIRMWARE_VERSION);
     lastControlMs = millis();
 }
 
 void loop()
 {
+    feedWatchdog();
     uint32_t now = millis();
     if (link.poll()) {
         handleCommand(now);

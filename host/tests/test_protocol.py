@@ -24,7 +24,7 @@ DEFINITION = REPO_DIR / "lib" / "Protocol" / "src" / "ProtocolFrames.def"
 # computed independently ("%04X" % binascii.crc_hqx(body, 0), CRC-16/XMODEM)
 VECTORS = [
     "$START,1*80BD",
-    "$VER,0,imu_reader,0.1.0,1*FA36",
+    "$VER,0,imu_reader,0.2.0,2,POWER_ON*5BB9",
     "$ACK,0,13,STOP*B192",
     "$ACK,65535,12,SETPRG*7DCE",
     "$ERR,8,-1,BAD_CHECKSUM,CMD*9211",
@@ -97,12 +97,17 @@ def test_table_matches_brief():
         "mode",
         "kp",
         "ki",
+        "accepted",
     )
     assert FRAMES["SETPRG"].field_names == FRAMES["PRG"].field_names[:6]
+    assert FRAMES["VER"].field_names == ("device", "firmware_version", "protocol_version", "reset_cause")
+    assert FRAMES["SETGRD"].field_names == FRAMES["GRD"].field_names[:-1]
+    assert FRAMES["GRD"].field_names[-1] == "heartbeat_s"
+    assert FRAMES["SETHB"].field_names == ("timeout_s",)
     assert FRAMES["SETCOE"].field_names == FRAMES["COE"].field_names
     assert FRAMES["ERR"].field_names == ("cmd_seq", "code", "detail")
     board = {tag for tag, spec in FRAMES.items() if spec.direction == "board"}
-    assert board == {"IMU", "CHS", "VER", "ICF", "PRG", "COE", "ACK", "ERR"}
+    assert board == {"IMU", "CHS", "VER", "ICF", "PRG", "GRD", "COE", "ACK", "ERR"}
     host = {tag for tag, spec in FRAMES.items() if spec.direction == "host"}
     assert host == {
         "START",
@@ -116,6 +121,9 @@ def test_table_matches_brief():
         "SETCOE",
         "SAVECOE",
         "DEFCOE",
+        "SETGRD",
+        "SETHB",
+        "CLEAR",
     }
 
 
@@ -139,9 +147,9 @@ def test_docs_show_every_frame():
         pytest.skip("not in the ThermoTilt repository: no docs/protocol.md")
     text = docs.read_text()
     for tag, spec in FRAMES.items():
-        signature = ",".join(("$" + tag, "seq") + spec.field_names) + "*HH"
+        signature = ",".join(("$" + tag, "seq") + spec.field_names) + "*HHHH"
         assert f"`{signature}`" in text, f"docs/protocol.md lacks {signature}"
-    examples = re.findall(r"`(\$[A-Z]+,[0-9][^`]*\*[0-9A-F]{2})`", text)
+    examples = re.findall(r"`(\$[A-Z]+,[0-9][^`]*\*[0-9A-F]{4})`", text)
     assert len(examples) >= len(FRAMES)
     for example in examples:
         parse_line(example)  # raises on a wrong checksum or field count
@@ -208,8 +216,8 @@ def test_build_from_mapping_and_errors():
     with pytest.raises(ValueError, match="0..65535"):
         build_frame("START", 65536)
     with pytest.raises(ValueError, match="characters"):
-        build_frame("LONG", 0, ["A" * 110])
-    assert build_frame("LONG", 0, ["A" * 109]) == LONGEST + "\r\n"
+        build_frame("LONG", 0, ["A" * 108])
+    assert build_frame("LONG", 0, ["A" * 107]) == LONGEST + "\r\n"
 
 
 def test_non_finite_values():
@@ -221,7 +229,7 @@ def test_non_finite_values():
     "text, reason",
     [
         ("$ACK,0,13,STOP*B193", protocol.BAD_CHECKSUM),
-        ("$ACK,0,13,STOP*G0", protocol.BAD_CHECKSUM),
+        ("$ACK,0,13,STOP*G000", protocol.BAD_CHECKSUM),
         ("$ACK,0,13,STOP", protocol.NO_CHECKSUM),
         ("$ACK,0,13,STOP*4", protocol.NO_CHECKSUM),
         ("$LONG,0," + "A" * 108 + "*ADCB", protocol.TOO_LONG),

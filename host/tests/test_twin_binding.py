@@ -107,7 +107,7 @@ def test_chamber_heats_at_full_drive_once_the_error_saturates():
     assert (status["phase"], status["pwm"], status["dir"]) == ("W", 255, "H")
 
 
-def test_an_open_inner_thermistor_stops_the_drive_until_it_is_fixed():
+def test_an_open_inner_thermistor_stops_the_drive_until_the_host_clears_it():
     reader = FrameReader()
     with chamber(inner_c=18.0) as board:
         board.run_until(1.0)
@@ -116,21 +116,32 @@ def test_an_open_inner_thermistor_stops_the_drive_until_it_is_fixed():
         assert board.read_l298n().direction == 1
         board.set_adc_fault(0, "open")
         board.run_until(2.6)
+        board.write_uart(build_frame("CLEAR", 3).encode())
         board.read_l298n()
         board.run_until(3.6)
         faulty = board.read_l298n()
         board.set_adc_fault(0, "none")
         board.run_until(4.6)
+        board.write_uart((build_frame("START", 4) + build_frame("CLEAR", 5)).encode())
+        board.run_until(5.6)
         frames = reader.feed(board.read_uart())
+        cleared = board.read_l298n()
     assert faulty == Drive(duty=0.0, direction=0, pwm=0)
     errors = of_type(frames, "ERR")
-    assert [(e["code"], e["detail"]) for e in errors] == [("THERMISTOR", "INNER_OPEN")]
-    during, after = (next(f for f in of_type(frames, "CHS") if f["t_ms"] == t_ms) for t_ms in (3000, 4000))
+    assert [(e["cmd_seq"], e["code"], e["detail"]) for e in errors] == [
+        (-1, "THERMISTOR", "INNER_OPEN"),
+        (3, "FAULT", "INNER_OPEN"),  # CLEAR refused while the thermistor is still open
+        (4, "FAULT", "INNER_OPEN"),  # START refused while the fault is latched
+    ]
+    assert [f["cmd_seq"] for f in of_type(frames, "ACK")] == [1, 2, 5]
+    during, fixed, after = (next(f for f in of_type(frames, "CHS") if f["t_ms"] == t_ms) for t_ms in (3000, 4000, 5000))
     assert (during["phase"], during["fault"], during["pwm"], during["dir"]) == ("F", "INNER_OPEN", 0, "O")
     assert math.isnan(during["inner_c"])
-    # Clearing the fault gives back the physical input; the program stays stopped.
+    # The reading is back but the fault stays latched until CLEAR.
+    assert (fixed["phase"], fixed["fault"], fixed["pwm"]) == ("F", "INNER_OPEN", 0)
+    assert fixed["inner_c"] == pytest.approx(measured_celsius(divider_millivolts(18.0)), abs=0.006)
     assert (after["phase"], after["fault"]) == ("I", "OK")
-    assert after["inner_c"] == pytest.approx(measured_celsius(divider_millivolts(18.0)), abs=0.006)
+    assert cleared == Drive(duty=0.0, direction=0, pwm=0)
 
 
 def test_a_shorted_outer_thermistor_is_reported():
@@ -380,7 +391,7 @@ def test_invalid_arguments_are_refused():
             with pytest.raises(ValueError):
                 call()
         with pytest.raises(TypeError):
-            board.write_uart("$VERSION,1*7F\r\n")
+            board.write_uart(build_frame("VERSION", 1))
     with Board.imu_reader() as board:
         with pytest.raises(ValueError, match="ADC channel"):
             board.set_adc_millivolts(8, 100)

@@ -45,6 +45,7 @@ FRAMES = {
             ("device", "t"),
             ("firmware_version", "t"),
             ("protocol_version", "i"),
+            ("reset_cause", "t"),
         ),
     ),
     "ICF": (
@@ -68,6 +69,22 @@ FRAMES = {
             ("mode", "t"),
             ("kp", "f"),
             ("ki", "f"),
+            ("accepted", "i"),
+        ),
+    ),
+    "GRD": (
+        "board",
+        (
+            ("band_c", "f"),
+            ("gain_c", "f"),
+            ("window_s", "f"),
+            ("wrong_way_c", "f"),
+            ("max_error_c_s", "f"),
+            ("inner_min_c", "f"),
+            ("inner_max_c", "f"),
+            ("outer_min_c", "f"),
+            ("outer_max_c", "f"),
+            ("heartbeat_s", "i"),
         ),
     ),
     "COE": (
@@ -121,6 +138,27 @@ FRAMES = {
             ("ki", "f"),
         ),
     ),
+    "SETGRD": (
+        "host",
+        (
+            ("band_c", "f"),
+            ("gain_c", "f"),
+            ("window_s", "f"),
+            ("wrong_way_c", "f"),
+            ("max_error_c_s", "f"),
+            ("inner_min_c", "f"),
+            ("inner_max_c", "f"),
+            ("outer_min_c", "f"),
+            ("outer_max_c", "f"),
+        ),
+    ),
+    "SETHB": (
+        "host",
+        (
+            ("timeout_s", "i"),
+        ),
+    ),
+    "CLEAR": ("host", ()),
     "SETDEC": (
         "host",
         (

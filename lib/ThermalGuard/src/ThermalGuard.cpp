@@ -69,7 +69,7 @@ void ThermalGuard::reset()
     reached_ = false;
 }
 
-GuardFault ThermalGuard::checkLimits(float innerC, float outerC) const
+GuardFault ThermalGuard::limitFault(float innerC, float outerC) const
 {
     if (innerC > settings_.inner_max_c) return GuardFault::InnerHot;
     if (innerC < settings_.inner_min_c) return GuardFault::InnerCold;
@@ -89,7 +89,7 @@ void ThermalGuard::restartApproach(float innerC, int8_t direction)
 GuardFault ThermalGuard::update(float targetC, float innerC, float outerC, const DriveCommand &drive,
                                 float dtSeconds)
 {
-    GuardFault limit = checkLimits(innerC, outerC);
+    GuardFault limit = limitFault(innerC, outerC);
     if (limit != GuardFault::None) {
         return limit;
     }

@@ -77,6 +77,9 @@ public:
     // Forgets what it saw, e.g. when a program starts.
     void reset();
 
+    // The absolute limits alone, e.g. before a latched fault may be cleared.
+    GuardFault limitFault(float innerC, float outerC) const;
+
     // target_c is NaN while the program does not drive the face (idle, rest,
     // done): then only the limits apply. A NaN reading trips nothing here;
     // the thermistor checks own that case.
@@ -84,7 +87,6 @@ public:
                       float dtSeconds);
 
 private:
-    GuardFault checkLimits(float innerC, float outerC) const;
     void restartApproach(float innerC, int8_t direction);
 
     GuardSettings settings_;
