@@ -71,6 +71,16 @@ __attribute__((format(printf, 3, 4))) static void report(char *error, size_t err
     va_end(arguments);
 }
 
+static avr_flashaddr_t symbol_address(const elf_firmware_t *firmware, const char *name)
+{
+    for (uint32_t i = 0; i < firmware->symbolcount; ++i) {
+        if (strcmp(firmware->symbol[i]->symbol, name) == 0) {
+            return firmware->symbol[i]->addr;
+        }
+    }
+    return 0;
+}
+
 /* avr_load_firmware copies the flash image into the MCU's own memory. */
 static void free_flash_image(elf_firmware_t *firmware)
 {
@@ -106,9 +116,24 @@ int board_load(board_t *board, const char *elf_path, const char *mcu, uint32_t f
     board->avr->avcc = SUPPLY_MILLIVOLTS;
     board->avr->aref = SUPPLY_MILLIVOLTS;
     avr_load_firmware(board->avr, &firmware);
+    board->exit_address = symbol_address(&firmware, "_exit");
     free_flash_image(&firmware);
     board->avr->sleep = skip_sleep;
     count_phase_correct_pwm_to_top(board->avr);
+    return 0;
+}
+
+int board_hang(board_t *board)
+{
+    if (board->exit_address == 0) {
+        return -1;
+    }
+    avr_t *avr = board->avr;
+    avr->sreg[S_I] = 0;
+    avr->pc = board->exit_address;
+    if (avr->state == cpu_Sleeping) {
+        avr->state = cpu_Running;
+    }
     return 0;
 }
 

@@ -19,6 +19,7 @@ typedef struct board {
     const uint8_t *uart_input;
     size_t uart_input_length;
     size_t uart_input_sent;
+    avr_flashaddr_t exit_address; /* libgcc's _exit: cli, then an endless loop; 0 if none */
 } board_t;
 
 /*
@@ -28,6 +29,13 @@ typedef struct board {
  */
 int board_load(board_t *board, const char *elf_path, const char *mcu, uint32_t frequency_hz, char *error,
                size_t error_capacity);
+
+/*
+ * Hangs the firmware as a deadlock would: interrupts off and the CPU in
+ * libgcc's _exit loop, so only the watchdog can bring it
+ * back. Returns 0, or -1 when the image has no such loop.
+ */
+int board_hang(board_t *board);
 
 /* Releases the MCU; the board can be loaded again afterwards. */
 void board_free(board_t *board);

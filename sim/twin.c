@@ -143,6 +143,11 @@ static void apply_adc(twin_t *twin, unsigned channel)
     board_set_adc_millivolts(&twin->board, (uint8_t)channel, millivolts);
 }
 
+int twin_hang(twin_t *twin)
+{
+    return board_hang(&twin->board);
+}
+
 int twin_adc_set_millivolts(twin_t *twin, unsigned channel, double millivolts)
 {
     if (channel >= TWIN_ADC_CHANNELS) {

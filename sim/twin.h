@@ -36,6 +36,9 @@ void twin_uart_set_corruption(twin_t *twin, double probability, uint64_t seed);
 uint64_t twin_uart_corrupted_bytes(const twin_t *twin);
 uint64_t twin_pty_dropped_bytes(const twin_t *twin);
 
+/* A deadlocked firmware (board_hang): 0, or -1 when the image cannot be hung. */
+int twin_hang(twin_t *twin);
+
 /* These return 0, or -1 for a channel or fault out of range. */
 int twin_adc_set_millivolts(twin_t *twin, unsigned channel, double millivolts);
 /* OPEN: the NTC is missing and the 100 k reference pulls the pin to 5 V. SHORT: 0 V. */

@@ -92,6 +92,7 @@ def _load_library(path: Path) -> ctypes.CDLL:
         "twin_uart_set_corruption": (None, [handle, ctypes.c_double, ctypes.c_uint64]),
         "twin_uart_corrupted_bytes": (ctypes.c_uint64, [handle]),
         "twin_pty_dropped_bytes": (ctypes.c_uint64, [handle]),
+        "twin_hang": (ctypes.c_int, [handle]),
         "twin_adc_set_millivolts": (ctypes.c_int, [handle, ctypes.c_uint, ctypes.c_double]),
         "twin_adc_set_fault": (ctypes.c_int, [handle, ctypes.c_uint, ctypes.c_int]),
         "twin_lsm9ds0_attach": (None, [handle]),
@@ -243,6 +244,12 @@ class Board:
     @property
     def pty_dropped_bytes(self) -> int:
         return int(self._lib.twin_pty_dropped_bytes(self._live()))
+
+    def hang(self) -> None:
+        """Deadlocks the firmware: interrupts off, the CPU in an endless
+        loop. Only the firmware's watchdog can bring the board back."""
+        if self._lib.twin_hang(self._live()) != 0:
+            raise TwinError("this firmware image has no _exit loop to hang in")
 
     def _adc_channel(self, channel: int) -> int:
         return _integer_in(channel, range(ADC_CHANNELS), "ADC channel")
