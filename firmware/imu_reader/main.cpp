@@ -22,6 +22,13 @@ const uint32_t DATA_READY_WINDOW_MS = 2;
 const uint32_t SENSOR_RETRY_MS = 1000;
 // Ten periods without data-ready means the sensor stopped, even if it answers.
 const uint32_t SENSOR_SILENT_MS = 100;
+// OUT_TEMP_XM is refreshed at the magnetometer's rate, 50 Hz as CTRL_REG5_XM
+// sets it, and holds its reset value until the first conversion; begin()
+// starts the accelerometer before the temperature sensor, so a first sample
+// can carry that value. Samples are dropped for two magnetometer periods:
+// one for the first conversion, one because the datasheet gives the
+// magnetometer no turn-on time.
+const uint32_t TEMPERATURE_SETTLE_MS = 2 * 20;
 // Longer than a 100 Hz period: a held bus is given up on, never waited for.
 const uint32_t WIRE_TIMEOUT_US = 25000;
 // The LSM9DS0 supports 400 kHz fast mode; a sample's ~20 bus bytes then take
@@ -115,12 +122,22 @@ void sensorLost(const char* why)
     link.report("SENSOR_MISSING", why);
 }
 
+// The ERR code for a block that cannot be used; 0 for a good or blank one.
+const char* blockErrorCode(BlockStatus status)
+{
+    switch (status) {
+    case BlockStatus::BadMagic: return "EEPROM_MAGIC";
+    case BlockStatus::BadVersion: return "EEPROM_VERSION";
+    case BlockStatus::BadCrc: return "EEPROM_CRC";
+    case BlockStatus::BadValues: return "EEPROM_VALUES";
+    default: return 0;
+    }
+}
+
 void loadCoefficients()
 {
     uint8_t block[COEFFICIENT_BLOCK_SIZE];
-    for (uint8_t i = 0; i < COEFFICIENT_BLOCK_SIZE; ++i) {
-        block[i] = EEPROM.read(COEFFICIENTS_EEPROM_ADDRESS + i);
-    }
+    EEPROM.get(COEFFICIENTS_EEPROM_ADDRESS, block);
     BlockStatus status = decodeCoefficients(block, coefficients);
     if (status == BlockStatus::Ok) {
         coefficientSource = FROM_EEPROM;
@@ -129,10 +146,8 @@ void loadCoefficients()
     loadDefaultCoefficients(coefficients);
     coefficientSource = FROM_DEFAULTS;
     // A blank EEPROM (never saved) is normal; a damaged block is worth saying.
-    if (status == BlockStatus::BadCrc) {
-        link.report("EEPROM_CRC", "DEFAULTS");
-    } else if (status == BlockStatus::BadVersion) {
-        link.report("EEPROM_VERSION", "DEFAULTS");
+    if (const char* code = blockErrorCode(status)) {
+        link.report(code, "DEFAULTS");
     }
 }
 
@@ -140,9 +155,8 @@ void saveCoefficients()
 {
     uint8_t block[COEFFICIENT_BLOCK_SIZE];
     encodeCoefficients(coefficients, block);
-    for (uint8_t i = 0; i < COEFFICIENT_BLOCK_SIZE; ++i) {
-        EEPROM.update(COEFFICIENTS_EEPROM_ADDRESS + i, block[i]);
-    }
+    // put() writes only the bytes that changed (EEPROM.update).
+    EEPROM.put(COEFFICIENTS_EEPROM_ADDRESS, block);
     coefficientSource = FROM_EEPROM;
 }
 
@@ -166,12 +180,17 @@ void sendImuFrame(const int16_t raw[AXES], const float filtered[AXES], const flo
     link.send();
 }
 
-void sample()
+void sample(uint32_t now)
 {
     int16_t raw[AXES];
     int16_t temperatureRaw;
     if (!sensor.readAcceleration(raw) || !sensor.readTemperatureRaw(temperatureRaw)) {
         sensorLost("READ_FAILED");
+        return;
+    }
+    // Read all the same, so the sensor hands over its next sample. While the
+    // sensor is ready, the last attempt is the one that configured it.
+    if (now - lastSensorAttemptMs < TEMPERATURE_SETTLE_MS) {
         return;
     }
     // Temperature goes through the same filter as acceleration, so f(T, a)
@@ -249,7 +268,7 @@ void handleCommand()
         link.acknowledge();
     } else if (link.commandIs(Protocol::Tag::SETDEC)) {
         int32_t factor = 0;
-        if (command.fieldCount() != Protocol::FieldCount::SETDEC || !command.fieldInt(0, factor) ||
+        if (command.fieldCount() < Protocol::FieldCount::SETDEC || !command.fieldInt(0, factor) ||
             factor < 1 || factor > 255) {
             link.reject("BAD_ARG", "FACTOR_1_255");
             return;
@@ -257,7 +276,7 @@ void handleCommand()
         decimator.setFactor((uint8_t)factor);
         link.acknowledge();
     } else if (link.commandIs(Protocol::Tag::GETCOE)) {
-        if (command.fieldCount() != Protocol::FieldCount::GETCOE || !parseSetAndAxis(command, set, axis)) {
+        if (command.fieldCount() < Protocol::FieldCount::GETCOE || !parseSetAndAxis(command, set, axis)) {
             link.reject("BAD_ARG", "SET_AXIS");
             return;
         }
@@ -265,12 +284,16 @@ void handleCommand()
         link.acknowledge();
     } else if (link.commandIs(Protocol::Tag::SETCOE)) {
         AxisSurface surface;
-        bool valid = command.fieldCount() == Protocol::FieldCount::SETCOE && parseSetAndAxis(command, set, axis);
+        bool valid = command.fieldCount() >= Protocol::FieldCount::SETCOE && parseSetAndAxis(command, set, axis);
         for (uint8_t term = 0; valid && term < COMP_COEFFICIENT_COUNT; ++term) {
             valid = command.fieldFloat((uint8_t)(2 + term), surface.p[term]) && isfinite(surface.p[term]);
         }
         if (!valid) {
             link.reject("BAD_ARG", "COEFFICIENTS");
+            return;
+        }
+        if (!surfaceOutputFitsFrame(surface)) {
+            link.reject("BAD_ARG", "OUTPUT_TOO_LARGE");
             return;
         }
         coefficients.set[set].axis[axis] = surface;
@@ -314,7 +337,7 @@ void loop()
     } else if (now - lastSampleMs >= SAMPLE_PERIOD_MS - DATA_READY_WINDOW_MS) {
         if (sensor.dataReady()) {
             lastSampleMs = now;
-            sample();
+            sample(now);
         } else if (now - lastSampleMs >= SENSOR_SILENT_MS) {
             sensorLost("NO_DATA");
         }
