@@ -165,7 +165,28 @@ class RunLogWriter:
         self.rows += 1
 
 
+class RunLogError(ValueError):
+    """A file that is not a run.csv; one readable line."""
+
+
 def read_run_log(path: str) -> list[dict[str, str]]:
-    """Rows of a run.csv as text cells (for tools and tests)."""
-    with open(path, newline="") as stream:
-        return list(csv.DictReader(stream))
+    """Rows of a run.csv as text cells (for tools and tests): the header must
+    be the twin's or the logger's and every row must have all its cells."""
+    try:
+        with open(path, newline="", encoding="utf-8") as stream:
+            records = [cells for cells in csv.reader(stream) if cells]
+    except OSError as error:
+        raise RunLogError(f"{path}: cannot read: {error.strerror or error}") from None
+    except UnicodeDecodeError as error:
+        raise RunLogError(f"{path}: not UTF-8 text (byte {error.start})") from None
+    except csv.Error as error:
+        raise RunLogError(f"{path}: not CSV: {error}") from None
+    if not records or tuple(records[0]) not in (COLUMNS, ALL_COLUMNS):
+        raise RunLogError(f"{path}: the header is not run.csv's (docs/run-log.md)")
+    header = records[0]
+    for number, cells in enumerate(records[1:], start=1):
+        if len(cells) != len(header):
+            raise RunLogError(
+                f"{path}: row {number} has {len(cells)} cells, the header {len(header)}"
+            )
+    return [dict(zip(header, cells)) for cells in records[1:]]
