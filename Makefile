@@ -7,15 +7,19 @@ VENV ?= .venv
 PYTHON ?= python3
 JOBS ?= $(shell nproc)
 APT_PACKAGES := cmake make gcc g++ gcc-avr avr-libc binutils-avr arduino-core-avr simavr libsimavr-dev
+# clang 14 and its libFuzzer and sanitizer runtimes, for the fuzz targets.
+FUZZ_APT_PACKAGES := clang libclang-rt-14-dev
 AVR_MCUS := atmega328p atmega2560
 
 NATIVE := $(BUILD)/native
+FUZZ := $(BUILD)/fuzz
+FUZZ_SECONDS ?= 600
 VENV_READY := $(VENV)/.installed
 
 SCENARIO ?= fig8
 RUNS ?= runs
 
-.PHONY: all firmware simulate test deps system-deps python-deps build native avr bench clean
+.PHONY: all firmware simulate test deps system-deps python-deps build native avr bench fuzz fuzz-build clean
 
 all: simulate
 
@@ -23,7 +27,7 @@ deps: system-deps python-deps
 
 # Installs only the Debian packages that are missing; needs root or sudo then.
 system-deps:
-	@missing=""; for package in $(APT_PACKAGES); do \
+	@missing=""; for package in $(APT_PACKAGES) $(FUZZ_APT_PACKAGES); do \
 	  dpkg-query -W -f='$${Status}' $$package 2>/dev/null | grep -q "install ok installed" || missing="$$missing $$package"; \
 	done; \
 	if [ -n "$$missing" ]; then \
@@ -72,7 +76,15 @@ simulate: build python-deps
 bench: build python-deps
 	$(VENV)/bin/python host/tools/bench.py
 
-test: build python-deps
+fuzz-build: system-deps
+	cmake -S fuzz -B $(FUZZ) -DCMAKE_CXX_COMPILER=clang++
+	cmake --build $(FUZZ) -j $(JOBS)
+
+# Every libFuzzer target for FUZZ_SECONDS (make test gives each 20 s).
+fuzz: fuzz-build
+	@bash fuzz/run.sh $(FUZZ) $(FUZZ_SECONDS)
+
+test: build fuzz-build python-deps
 	@BUILD=$(BUILD) VENV=$(VENV) bash cmake/run-tests.sh $(AVR_MCUS)
 
 clean:
