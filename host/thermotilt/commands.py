@@ -6,7 +6,7 @@ the ACK (docs/protocol.md). It reads commands through Serial's 64-byte
 receive buffer and answers at the 115200-baud line rate, so a host that sends
 the next command before the answer came overruns that buffer: in the twin,
 50 GETCOE (about 20 bytes each, each answered by about 110) sent back to back
-got 6 answers, sent 9 ms apart 41, and only from 11 ms apart all 50.
+got 10 answers, sent 9 ms apart 43, and only from 11 ms apart all 50.
 :class:`CommandClient` therefore keeps one command in flight.
 
 Retries: a command that gets no answer within the timeout is sent again with
