@@ -337,7 +337,7 @@ def _number(value: Any, where: str) -> float:
     try:
         return float(value)
     except OverflowError:
-        return math.copysign(math.inf, value)
+        return math.inf if value > 0 else -math.inf
 
 
 def _finite_number(value: Any, where: str) -> float:
