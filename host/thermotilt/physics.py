@@ -53,10 +53,19 @@ FAULT_NAMES: tuple[str, ...] = (
     "outer_open",
     "outer_short",
     "peltier_disconnected",
+    "peltier_reversed",
+    "inner_detached",
+    "heatsink_failed",
+    "chamber_hang",
+    "imu_hang",
     "imu_uart_corrupt",
     "chamber_uart_corrupt",
 )
 _FAULTS_WITH_RATE = frozenset({"imu_uart_corrupt", "chamber_uart_corrupt"})
+# What is left of the heatsink's conductance to ambient when its fan stops or
+# its thermal joint dries: free convection from fins sized for forced air is
+# of the order of a tenth of it or less (assumed; the cell overheats either way).
+FAILED_HEATSINK_FRACTION = 0.05
 
 
 @dataclass(frozen=True)
@@ -465,6 +474,8 @@ class Chamber:
         "outer_c",
         "inner_thermistor_c",
         "outer_thermistor_c",
+        "inner_thermistor_detached",
+        "heatsink_failed",
         "_inner_capacity",
         "_pumping_w",
         "_joule_w",
@@ -524,6 +535,10 @@ class Chamber:
         self.outer_c = float(ambient_c)
         self.inner_thermistor_c = float(ambient_c)
         self.outer_thermistor_c = float(ambient_c)
+        # Faults: the inner thermistor off its face, reading the room; the
+        # heatsink's path to ambient (fan, thermal joint) down to a residue.
+        self.inner_thermistor_detached = False
+        self.heatsink_failed = False
 
     def step(self, dt_s: float, duty: float, direction: int, ambient_c: float) -> None:
         """Advance dt_s with the bridge at this mean duty (0..1); direction +1
@@ -550,6 +565,8 @@ class Chamber:
         cell = self._cell_conductance
         leak = self._leak
         sink = self._heatsink_conductance
+        if self.heatsink_failed:
+            sink *= FAILED_HEATSINK_FRACTION
         for _ in range(substeps):
             through_cell_w = cell * (outer - inner)
             inner_w = inner_drive_w + through_cell_w + leak * (ambient_c - inner)
@@ -560,12 +577,13 @@ class Chamber:
         self.inner_c = inner
         self.outer_c = outer
 
+        inner_sensed = ambient_c if self.inner_thermistor_detached else inner
         if self._thermistor_lag is not None:
             alpha = self._thermistor_lag.of_step(dt_s)
-            self.inner_thermistor_c += alpha * (inner - self.inner_thermistor_c)
+            self.inner_thermistor_c += alpha * (inner_sensed - self.inner_thermistor_c)
             self.outer_thermistor_c += alpha * (outer - self.outer_thermistor_c)
         else:
-            self.inner_thermistor_c = inner
+            self.inner_thermistor_c = inner_sensed
             self.outer_thermistor_c = outer
 
     def thermistor_millivolts(self) -> tuple[float, float]:

@@ -29,7 +29,8 @@ OUTER_THERMISTOR_CHANNEL = 1
 IMU = "imu_reader"
 CHAMBER = "thermal_chamber"
 CHAMBER_FAULTS = {"inner_open", "inner_short", "outer_open", "outer_short",
-                  "peltier_disconnected", "chamber_uart_corrupt"}
+                  "peltier_disconnected", "peltier_reversed", "inner_detached",
+                  "heatsink_failed", "chamber_hang", "chamber_uart_corrupt"}
 
 
 class SimulationError(RuntimeError):
@@ -136,6 +137,8 @@ def run(
             raise SimulationError(
                 f"fault {fault.name} needs the chamber, but {scenario.name} runs the IMU alone"
             )
+        if fault.name == "heatsink_failed" and not model.enabled("heatsink"):
+            raise SimulationError("fault heatsink_failed needs the heatsink term enabled")
     serial_dir = out_dir / "serial"
     serial_dir.mkdir(parents=True, exist_ok=True)
     wall_start = time.perf_counter()
@@ -205,9 +208,22 @@ def _play(
                 on_pty(link.name, path)
     sensor = Sensor(model, seed, scenario.ambient_c(0.0))
 
+    peltier_reversed = False
+
     def apply_fault(fault: Fault, active: bool) -> None:
+        nonlocal peltier_reversed
         name = fault.name
-        if name in ("sensor_absent", "sensor_stuck"):
+        if name == "peltier_reversed":
+            peltier_reversed = active
+        elif name == "inner_detached":
+            chamber.inner_thermistor_detached = active
+        elif name == "heatsink_failed":
+            chamber.heatsink_failed = active
+        elif name.endswith("_hang"):
+            # A deadlock cannot be undone from outside: only the watchdog ends it.
+            if active:
+                (imu if name == "imu_hang" else chamber_link).board.hang()
+        elif name in ("sensor_absent", "sensor_stuck"):
             imu.board.set_lsm9ds0_fault(name.split("_")[1] if active else "none")
         elif name.endswith(("_open", "_short")):
             face, kind = name.split("_")
@@ -238,7 +254,8 @@ def _play(
         environment = ambient
         if chamber is not None:
             drive = chamber_link.board.read_l298n()
-            chamber.step(STEP_S, drive.duty, drive.direction, ambient)
+            current = -drive.direction if peltier_reversed else drive.direction
+            chamber.step(STEP_S, drive.duty, current, ambient)
             inner_mv, outer_mv = chamber.thermistor_millivolts()
             chamber_link.board.set_adc_millivolts(INNER_THERMISTOR_CHANNEL, inner_mv)
             chamber_link.board.set_adc_millivolts(OUTER_THERMISTOR_CHANNEL, outer_mv)
