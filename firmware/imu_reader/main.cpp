@@ -11,6 +11,7 @@
 #include <Protocol.h>
 
 #include "SerialLink.h"
+#include "Watchdog.h"
 
 namespace {
 
@@ -315,17 +316,19 @@ void handleCommand()
 
 void setup()
 {
+    startWatchdog();
     link.begin();
     Wire.begin();
     Wire.setClock(I2C_CLOCK_HZ);
     Wire.setWireTimeout(WIRE_TIMEOUT_US, true);
-    link.sendVersion("imu_reader", FIRMWARE_VERSION);
+    link.announceStart("imu_reader", FIRMWARE_VERSION);
     loadCoefficients();
     connectSensor();
 }
 
 void loop()
 {
+    feedWatchdog();
     if (link.poll()) {
         handleCommand();
     }
