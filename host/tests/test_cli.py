@@ -1,6 +1,3 @@
-import subprocess
-import sys
-
 import pytest
 
 from thermotilt import __version__
@@ -8,24 +5,8 @@ from thermotilt.cli import main
 from thermotilt.coefficients import PAPER_DEFAULTS, decode_block, encode_block
 from thermotilt.protocol import PROTOCOL_VERSION, build_frame
 
-
-def run(*args, stdin=None):
-    return subprocess.run(
-        [sys.executable, "-m", "thermotilt", *args],
-        input=stdin,
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
-
-
-def assert_one_line_error(result, code):
-    assert result.returncode == code
-    assert result.stdout == ""
-    lines = result.stderr.splitlines()
-    assert len(lines) == 1, result.stderr
-    assert lines[0].startswith("thermotilt: error: ")
-    assert "Traceback" not in result.stderr
+from test_bad_input import assert_one_line_error
+from test_bad_input import thermotilt as run
 
 
 def test_version():
@@ -63,7 +44,7 @@ def test_frames_counts(tmp_path, capsys):
 
 
 def test_frames_from_stdin():
-    result = run("frames", "-", stdin=build_frame("START", 1))
+    result = run("frames", "-", input=build_frame("START", 1))
     assert result.returncode == 0
     assert "  START: 1" in result.stdout.splitlines()
 

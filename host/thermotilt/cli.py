@@ -158,7 +158,7 @@ def _command_coefficients(args: argparse.Namespace) -> int:
 def _command_simulate(args: argparse.Namespace) -> int:
     from . import simulate
     from .physics import Model, ModelError, parse_fault
-    from .runlog import read_run_log
+    from .runlog import RunLogError, read_run_log
     from .scenarios import ScenarioError, ScenarioOptions, build
     from .twin import TwinError
 
@@ -208,7 +208,11 @@ def _command_simulate(args: argparse.Namespace) -> int:
             print(f"{board} refused {refusal}")
     if summary["interrupted"]:
         return _interrupted()
-    _print_figures(scenario.name, read_run_log(str(out_dir / "run.csv")))
+    try:
+        rows = read_run_log(str(out_dir / "run.csv"))
+    except RunLogError as error:
+        raise UsageError(str(error)) from None
+    _print_figures(scenario.name, rows)
     return 0
 
 
