@@ -22,6 +22,7 @@ import pytest
 from hypothesis import given, reject, settings
 from hypothesis import strategies as st
 
+from thermotilt import cli
 from thermotilt.physics import (
     CONSTANT_PARAMETERS,
     FAULT_NAMES,
@@ -380,6 +381,15 @@ def test_ctrl_c_in_simulate_keeps_the_run(tmp_path):
     assert len(read_run_log(str(out / "run.csv"))) == summary["rows"]
 
 
+def test_ctrl_c_anywhere_else_is_one_line(monkeypatch, capsys):
+    def interrupted(table):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli, "setcoe_frames", interrupted)
+    assert cli.main(["coefficients"]) == 130
+    assert capsys.readouterr().err == "thermotilt: interrupted\n"
+
+
 # --- properties of the parsers ---------------------------------------------
 
 
@@ -592,3 +602,4 @@ def test_any_bytes_are_a_run_log_or_a_run_log_error(tmp_path_factory, data):
         assert "\n" not in str(error)
     else:
         assert all(tuple(row) in (COLUMNS, ALL_COLUMNS) for row in rows)
+
