@@ -37,7 +37,7 @@ from thermotilt.physics import (
 from thermotilt.protocol import FRAMES, FrameReader, build_frame, format_value, parse_line
 from thermotilt.runlog import ALL_COLUMNS, COLUMNS, RunLogError, read_run_log
 
-from test_log import imu_frame, wait_until_opened
+from test_log import imu_frame, rows_of, wait_for, wait_until_opened
 
 THERMOTILT = [sys.executable, "-m", "thermotilt"]
 DEFAULT_TOML = Path(__file__).resolve().parents[1] / "thermotilt" / "models" / "default.toml"
@@ -322,17 +322,18 @@ def assert_interrupted(process):
     return stdout
 
 
+def unread_bytes(pipe):
+    return int.from_bytes(fcntl.ioctl(pipe, termios.FIONREAD, bytes(4)), sys.byteorder)
+
+
 def test_ctrl_c_in_frames_prints_the_counts_so_far():
     read_end, write_end = os.pipe()
     process = subprocess.Popen([*THERMOTILT, "frames", "-"], stdin=read_end,
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         os.write(write_end, imu_frame(0, 1000).encode() + imu_frame(1, 1100).encode())
-        deadline = time.monotonic() + 20
         # The frames command is reading once the pipe is empty again.
-        while int.from_bytes(fcntl.ioctl(read_end, termios.FIONREAD, b"\0" * 4), "little"):
-            assert time.monotonic() < deadline, "frames never read its input"
-            time.sleep(0.02)
+        wait_for(lambda: unread_bytes(read_end) == 0, "frames read its input")
         time.sleep(0.2)
         process.send_signal(signal.SIGINT)
         stdout = assert_interrupted(process)
@@ -350,10 +351,7 @@ def test_ctrl_c_in_log_keeps_the_rows(tmp_path):
     try:
         wait_until_opened(master)
         os.write(master, "".join(imu_frame(seq, 1000 + 100 * seq) for seq in range(3)).encode())
-        deadline = time.monotonic() + 20
-        while not out.exists() or len(read_run_log(str(out))) < 3:
-            assert time.monotonic() < deadline, "the logger never wrote its rows"
-            time.sleep(0.02)
+        wait_for(lambda: len(rows_of(out)) == 3, "the rows written")
         process.send_signal(signal.SIGINT)
         stdout = assert_interrupted(process)
     finally:
@@ -367,12 +365,13 @@ def test_ctrl_c_in_simulate_keeps_the_run(tmp_path):
     out = tmp_path / "run"
     process = subprocess.Popen([*THERMOTILT, "simulate", "fig8", "--out", out],
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    deadline = time.monotonic() + 60
-    # The twin writes run.csv in blocks: the first one means it is running.
-    while not ((out / "run.csv").exists() and (out / "run.csv").stat().st_size):
+
+    def running():
         assert process.poll() is None, process.communicate()
-        assert time.monotonic() < deadline, "the twin never wrote a row"
-        time.sleep(0.05)
+        return (out / "run.csv").exists() and (out / "run.csv").stat().st_size > 0
+
+    # The twin writes run.csv in blocks: the first one means it is running.
+    wait_for(running, "the twin's first rows", timeout_s=60)
     process.send_signal(signal.SIGINT)
     stdout = assert_interrupted(process)
     summary = json.loads((out / "summary.json").read_text())

@@ -43,15 +43,22 @@ def pty_pair():
             pass
 
 
-def wait_until_opened(master, timeout_s=20.0):
+def wait_for(condition, what, timeout_s=20.0):
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        assert time.monotonic() < deadline, f"waited in vain: {what}"
+        time.sleep(0.02)
+
+
+def wait_until_opened(master):
     """pyserial puts the port in raw mode when it opens it (the master sees
     the same settings), then discards pending input: write only after that."""
-    deadline = time.monotonic() + timeout_s
-    while termios.tcgetattr(master)[3] & termios.ICANON:
-        if time.monotonic() > deadline:
-            raise TimeoutError("the logger never opened its port")
-        time.sleep(0.01)
+    wait_for(lambda: not termios.tcgetattr(master)[3] & termios.ICANON, "the port opened")
     time.sleep(0.3)
+
+
+def rows_of(path):
+    return read_run_log(str(path)) if path.exists() else []
 
 
 def feed_when_opened(master, chunks, then_close=False, after=None):
@@ -158,12 +165,9 @@ def test_a_killed_log_keeps_every_byte_it_received(pty_pair, tmp_path):
         wait_until_opened(imu_master)
         time.sleep(0.3)
         os.write(imu_master, imu_bytes)
-        deadline = time.monotonic() + 20
         # The last row carries the last CHS frame: the logger has read both ports to the end.
-        while not ((rows := read_run_log(str(out)) if out.exists() else [])
-                   and len(rows) == 40 and rows[-1]["setpoint_c"] == "22"):
-            assert time.monotonic() < deadline, "the logger never wrote every row"
-            time.sleep(0.05)
+        wait_for(lambda: [row["setpoint_c"] for row in rows_of(out)][39:] == ["22"],
+                 "every row written")
     finally:
         logger.kill()
         logger.wait(timeout=10)
