@@ -105,18 +105,18 @@ bool surfaceOutputFitsFrame(const AxisSurface& surface)
 {
     // g(T, a) = a - f(T, a) = -p00 - p10 T + (1 - p01) a - p20 T^2 - p11 T a - p02 a^2.
     const float* p = surface.p;
-    const float temperatures[2] = {COMP_TEMPERATURE_MIN_C, COMP_TEMPERATURE_MAX_C};
-    const float accelerations[2] = {COMP_ACCEL_MIN_LSB, COMP_ACCEL_MAX_LSB};
     const float accelSlope = 1.0f - p[P01];
     FrameFitCheck check(surface);
-    for (uint8_t i = 0; i < 2; ++i) {
-        for (uint8_t j = 0; j < 2; ++j) {
-            check.at(temperatures[i], accelerations[j]);
-        }
+    // Not arrays of the two ends: on AVR a constant array is copied to RAM.
+    for (uint8_t end = 0; end < 2; ++end) {
+        float tempC = end == 0 ? COMP_TEMPERATURE_MIN_C : COMP_TEMPERATURE_MAX_C;
+        float accelLsb = end == 0 ? COMP_ACCEL_MIN_LSB : COMP_ACCEL_MAX_LSB;
+        check.at(tempC, COMP_ACCEL_MIN_LSB);
+        check.at(tempC, COMP_ACCEL_MAX_LSB);
         // Vertex along a at fixed T: dg/da = 1 - p01 - p11 T - 2 p02 a = 0.
-        check.at(temperatures[i], (accelSlope - p[P11] * temperatures[i]) / (2.0f * p[P02]));
+        check.at(tempC, (accelSlope - p[P11] * tempC) / (2.0f * p[P02]));
         // Vertex along T at fixed a: dg/dT = -p10 - 2 p20 T - p11 a = 0.
-        check.at(-(p[P10] + p[P11] * accelerations[i]) / (2.0f * p[P20]), accelerations[i]);
+        check.at(-(p[P10] + p[P11] * accelLsb) / (2.0f * p[P20]), accelLsb);
     }
     // Both derivatives zero: [2 p20, p11; p11, 2 p02] (T, a) = (-p10, 1 - p01).
     float determinant = 4.0f * p[P20] * p[P02] - p[P11] * p[P11];
