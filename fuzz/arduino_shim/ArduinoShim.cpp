@@ -1,0 +1,376 @@
+#include "ArduinoShim.h"
+
+#include <Arduino.h>
+#include <EEPROM.h>
+#include <Wire.h>
+#include <avr/io.h>
+#include <avr/wdt.h>
+
+#include <stdio.h>
+#include <string.h>
+
+#include "invariant.h"
+
+HardwareSerial Serial;
+EEPROMClass EEPROM;
+TwoWire Wire;
+volatile uint8_t MCUSR = 0;
+
+namespace {
+
+// Arduino's ring buffer of 64 keeps one slot free.
+const size_t SERIAL_RX_CAPACITY = 63;
+const uint8_t I2C_ADDRESSES = 128;
+const uint8_t ERASED = 0xFF;
+
+struct Mcu {
+    uint64_t clockUs;
+    std::string serialReceived;
+    size_t serialReadAt;
+    std::string serialRead;
+    std::string serialWritten;
+    ArduinoShim::PinState pins[ArduinoShim::PIN_COUNT];
+    bool watchdogOn;
+};
+
+struct Surroundings {
+    uint8_t eeprom[ArduinoShim::EEPROM_SIZE];
+    uint16_t analog[ArduinoShim::ANALOG_CHANNELS];
+    ArduinoShim::I2cDevice* i2c[I2C_ADDRESSES];
+};
+
+Mcu mcu;
+Surroundings surroundings;
+ArduinoShim::PinObserver pinObserver = 0;
+
+ArduinoShim::PinState& pinState(uint8_t number)
+{
+    require(number < ArduinoShim::PIN_COUNT, "the sketch used a pin the board does not have");
+    return mcu.pins[number];
+}
+
+void setPin(uint8_t number, uint8_t mode, uint8_t duty)
+{
+    ArduinoShim::PinState& state = pinState(number);
+    ArduinoShim::PinState before = state;
+    state.mode = mode;
+    state.duty = duty;
+    if (pinObserver) {
+        pinObserver(number, before);
+    }
+}
+
+uint8_t& eepromCell(int address)
+{
+    require(address >= 0 && address < ArduinoShim::EEPROM_SIZE, "EEPROM address outside the EEPROM");
+    return surroundings.eeprom[address];
+}
+
+}  // namespace
+
+void ArduinoShim::powerOn()
+{
+    memset(surroundings.eeprom, ERASED, sizeof surroundings.eeprom);
+    for (uint16_t& value : surroundings.analog) {
+        value = ANALOG_MID_SCALE;
+    }
+    memset(surroundings.i2c, 0, sizeof surroundings.i2c);
+    pinObserver = 0;
+    reset();
+}
+
+void ArduinoShim::reset()
+{
+    mcu.clockUs = 0;
+    mcu.serialReceived.clear();
+    mcu.serialReadAt = 0;
+    mcu.serialRead.clear();
+    mcu.serialWritten.clear();
+    memset(mcu.pins, 0, sizeof mcu.pins);
+    mcu.watchdogOn = false;
+    Wire = TwoWire();
+}
+
+void ArduinoShim::advanceMillis(uint32_t ms)
+{
+    mcu.clockUs += (uint64_t)ms * 1000u;
+}
+
+bool ArduinoShim::receiveSerial(uint8_t value)
+{
+    if (serialBytesWaiting() >= SERIAL_RX_CAPACITY) {
+        return false;
+    }
+    mcu.serialReceived += (char)value;
+    return true;
+}
+
+size_t ArduinoShim::serialBytesWaiting()
+{
+    return mcu.serialReceived.size() - mcu.serialReadAt;
+}
+
+std::string ArduinoShim::takeSerialWritten()
+{
+    std::string written;
+    written.swap(mcu.serialWritten);
+    return written;
+}
+
+std::string ArduinoShim::takeSerialRead()
+{
+    std::string read;
+    read.swap(mcu.serialRead);
+    mcu.serialReceived.erase(0, mcu.serialReadAt);
+    mcu.serialReadAt = 0;
+    return read;
+}
+
+void ArduinoShim::setAnalogInput(uint8_t channel, uint16_t value)
+{
+    require(channel < ANALOG_CHANNELS, "no such analog channel");
+    surroundings.analog[channel] = value;
+}
+
+const ArduinoShim::PinState& ArduinoShim::pin(uint8_t number)
+{
+    return pinState(number);
+}
+
+void ArduinoShim::observePins(PinObserver observer)
+{
+    pinObserver = observer;
+}
+
+uint8_t* ArduinoShim::eeprom()
+{
+    return surroundings.eeprom;
+}
+
+void ArduinoShim::attachI2cDevice(uint8_t address7, I2cDevice* device)
+{
+    require(address7 < I2C_ADDRESSES, "I2C addresses have 7 bits");
+    surroundings.i2c[address7] = device;
+}
+
+bool ArduinoShim::watchdogEnabled()
+{
+    return mcu.watchdogOn;
+}
+
+unsigned long millis()
+{
+    return (uint32_t)(mcu.clockUs / 1000u);
+}
+
+unsigned long micros()
+{
+    return (uint32_t)mcu.clockUs;
+}
+
+void delay(unsigned long ms)
+{
+    ArduinoShim::advanceMillis((uint32_t)ms);
+}
+
+void delayMicroseconds(unsigned int us)
+{
+    mcu.clockUs += us;
+}
+
+void pinMode(uint8_t pin, uint8_t mode)
+{
+    setPin(pin, mode, pinState(pin).duty);
+}
+
+void digitalWrite(uint8_t pin, uint8_t value)
+{
+    setPin(pin, pinState(pin).mode, value == LOW ? 0 : 255);
+}
+
+int digitalRead(uint8_t pin)
+{
+    return pinState(pin).duty == 255 ? HIGH : LOW;
+}
+
+int analogRead(uint8_t pin)
+{
+    uint8_t channel = pin >= A0 ? (uint8_t)(pin - A0) : pin;
+    require(channel < ArduinoShim::ANALOG_CHANNELS, "analogRead of a pin without an ADC channel");
+    return surroundings.analog[channel] & 0x3FF;
+}
+
+void analogWrite(uint8_t pin, int value)
+{
+    uint8_t duty = value <= 0 ? 0 : value >= 255 ? 255 : (uint8_t)value;
+    setPin(pin, OUTPUT, duty);
+}
+
+void wdt_enable(uint8_t)
+{
+    mcu.watchdogOn = true;
+}
+
+void wdt_reset() {}
+
+void wdt_disable()
+{
+    mcu.watchdogOn = false;
+}
+
+void HardwareSerial::begin(unsigned long) {}
+
+void HardwareSerial::end() {}
+
+int HardwareSerial::available()
+{
+    return (int)ArduinoShim::serialBytesWaiting();
+}
+
+int HardwareSerial::peek()
+{
+    return available() > 0 ? (uint8_t)mcu.serialReceived[mcu.serialReadAt] : -1;
+}
+
+int HardwareSerial::read()
+{
+    int value = peek();
+    if (value >= 0) {
+        ++mcu.serialReadAt;
+        mcu.serialRead += (char)value;
+    }
+    return value;
+}
+
+int HardwareSerial::availableForWrite()
+{
+    return (int)SERIAL_RX_CAPACITY;
+}
+
+void HardwareSerial::flush() {}
+
+size_t HardwareSerial::write(uint8_t value)
+{
+    mcu.serialWritten += (char)value;
+    return 1;
+}
+
+size_t HardwareSerial::write(const uint8_t* buffer, size_t size)
+{
+    mcu.serialWritten.append((const char*)buffer, size);
+    return size;
+}
+
+size_t HardwareSerial::write(const char* text)
+{
+    return write((const uint8_t*)text, strlen(text));
+}
+
+uint8_t EEPROMClass::read(int address)
+{
+    return eepromCell(address);
+}
+
+void EEPROMClass::write(int address, uint8_t value)
+{
+    eepromCell(address) = value;
+}
+
+void EEPROMClass::update(int address, uint8_t value)
+{
+    write(address, value);
+}
+
+uint16_t EEPROMClass::length()
+{
+    return ArduinoShim::EEPROM_SIZE;
+}
+
+uint8_t& EEPROMClass::operator[](int address)
+{
+    return eepromCell(address);
+}
+
+void TwoWire::begin() {}
+
+void TwoWire::end() {}
+
+void TwoWire::setClock(uint32_t) {}
+
+void TwoWire::setWireTimeout(uint32_t, bool) {}
+
+bool TwoWire::getWireTimeoutFlag()
+{
+    return false;
+}
+
+void TwoWire::clearWireTimeoutFlag() {}
+
+void TwoWire::beginTransmission(uint8_t address7)
+{
+    txAddress_ = address7;
+    txLength_ = 0;
+    txOverflow_ = false;
+}
+
+size_t TwoWire::write(uint8_t value)
+{
+    if (txLength_ >= BUFFER_LENGTH) {
+        txOverflow_ = true;
+        return 0;
+    }
+    txBuffer_[txLength_++] = value;
+    return 1;
+}
+
+size_t TwoWire::write(const uint8_t* data, size_t length)
+{
+    size_t written = 0;
+    while (written < length && write(data[written]) == 1) {
+        ++written;
+    }
+    return written;
+}
+
+uint8_t TwoWire::endTransmission(uint8_t)
+{
+    if (txOverflow_) {
+        return 1;
+    }
+    ArduinoShim::I2cDevice* device = txAddress_ < I2C_ADDRESSES ? surroundings.i2c[txAddress_] : 0;
+    return device && device->write(txBuffer_, txLength_) ? 0 : 2;
+}
+
+uint8_t TwoWire::requestFrom(uint8_t address7, uint8_t quantity)
+{
+    return requestFrom(address7, quantity, (uint8_t)true);
+}
+
+uint8_t TwoWire::requestFrom(uint8_t address7, uint8_t quantity, uint8_t)
+{
+    rxIndex_ = 0;
+    rxLength_ = 0;
+    if (quantity > BUFFER_LENGTH) {
+        quantity = BUFFER_LENGTH;
+    }
+    ArduinoShim::I2cDevice* device = address7 < I2C_ADDRESSES ? surroundings.i2c[address7] : 0;
+    if (device && device->read(rxBuffer_, quantity)) {
+        rxLength_ = quantity;
+    }
+    return rxLength_;
+}
+
+int TwoWire::available()
+{
+    return rxLength_ - rxIndex_;
+}
+
+int TwoWire::read()
+{
+    return rxIndex_ < rxLength_ ? rxBuffer_[rxIndex_++] : -1;
+}
+
+int TwoWire::peek()
+{
+    return rxIndex_ < rxLength_ ? rxBuffer_[rxIndex_] : -1;
+}
