@@ -10,7 +10,7 @@ set -uo pipefail
 build=$1
 seconds=$2
 fuzz_dir=$(cd "$(dirname "$0")" && pwd)
-targets=(fuzz_frame_parser fuzz_chamber_commands)
+targets=(fuzz_frame_parser fuzz_chamber_commands fuzz_imu_commands)
 failed=0
 total_runs=0
 total_crashes=0

@@ -1,0 +1,244 @@
+// The real imu_reader sketch on the Arduino shim (board_harness.h), with a
+// fake LSM9DS0 on I2C (a new sample every 10 ms) and the EEPROM set by the input:
+//   p  sensor answers (1, the default) or NACKs (0)
+//   w  its WHO_AM_I value (default the right one)
+//   s  stuck: no new samples (1) or running (0)
+//   x, y, z  acceleration readings, LSB;  T  temperature reading (12 bits)
+//   e  what the bytes after '|' are, written to EEPROM address 0 before
+//      boot: 0 the raw block, 1 coefficient floats (little-endian; the
+//      paper's defaults after them) encoded as a valid block by the library
+// Besides the common checks, the state commands set must show in frames:
+// - no IMU frame between an acknowledged STOP and the next START;
+// - coef_source in IMU and ICF frames is U after SETCOE, D after DEFCOE,
+//   E after SAVECOE; ICF's streaming follows START and STOP.
+#include <Compensation.h>
+#include <LSM9DS0.h>
+#include <Protocol.h>
+
+#include <Arduino.h>
+
+#include "arduino_shim/ArduinoShim.h"
+#include "board_harness.h"
+#include "invariant.h"
+
+#include <string.h>
+
+namespace {
+
+const uint32_t SAMPLE_PERIOD_MS = 10;
+const int32_t TEMPERATURE_MIN = -2048;
+const int32_t TEMPERATURE_MAX = 2047;
+const uint8_t IMU_COEF_SOURCE = 12;
+const uint8_t ICF_STREAMING = 1;
+const uint8_t ICF_COEF_SOURCE = 2;
+const char UNKNOWN = 0;
+
+int16_t clampToInt16(int32_t value)
+{
+    return (int16_t)(value < INT16_MIN ? INT16_MIN : value > INT16_MAX ? INT16_MAX : value);
+}
+
+// The XM die's registers; reading the acceleration takes the sample.
+class FakeLsm9ds0 : public ArduinoShim::I2cDevice {
+public:
+    FakeLsm9ds0()
+    {
+        memset(registers_, 0, sizeof registers_);
+        registers_[Lsm9ds0::WHO_AM_I_XM] = Lsm9ds0::WHO_AM_I_XM_VALUE;
+        setAcceleration(0, 0);
+        setAcceleration(1, 0);
+        setAcceleration(2, 16384);
+    }
+
+    bool present = true;
+    bool stuck = false;
+
+    bool write(const uint8_t* data, size_t length) override
+    {
+        if (!present) {
+            return false;
+        }
+        if (length > 0) {
+            selectRegister(data[0]);
+        }
+        for (size_t i = 1; i < length; ++i) {
+            registers_[next()] = data[i];
+        }
+        return true;
+    }
+
+    bool read(uint8_t* out, size_t length) override
+    {
+        if (!present) {
+            return false;
+        }
+        for (size_t i = 0; i < length; ++i) {
+            out[i] = readRegister(next());
+        }
+        return true;
+    }
+
+    void setRegister(uint8_t reg, uint8_t value) { registers_[reg] = value; }
+
+    void setAcceleration(uint8_t axis, int32_t lsb)
+    {
+        uint16_t value = (uint16_t)clampToInt16(lsb);
+        registers_[Lsm9ds0::OUT_X_L_A + 2 * axis] = (uint8_t)value;
+        registers_[Lsm9ds0::OUT_X_L_A + 2 * axis + 1] = (uint8_t)(value >> 8);
+    }
+
+    void setTemperature(int32_t raw)
+    {
+        uint16_t value = (uint16_t)(raw < TEMPERATURE_MIN ? TEMPERATURE_MIN : raw > TEMPERATURE_MAX ? TEMPERATURE_MAX : raw);
+        registers_[Lsm9ds0::OUT_TEMP_L_XM] = (uint8_t)value;
+        registers_[Lsm9ds0::OUT_TEMP_H_XM] = (uint8_t)((value >> 8) & 0x0F);
+    }
+
+private:
+    void selectRegister(uint8_t subAddress)
+    {
+        pointer_ = subAddress & (uint8_t)~Lsm9ds0::AUTO_INCREMENT;
+        autoIncrement_ = (subAddress & Lsm9ds0::AUTO_INCREMENT) != 0;
+    }
+
+    uint8_t next()
+    {
+        uint8_t reg = pointer_;
+        if (autoIncrement_) {
+            pointer_ = (uint8_t)((pointer_ + 1) & 0x7F);
+        }
+        return reg;
+    }
+
+    uint32_t samplePeriod() const { return (uint32_t)millis() / SAMPLE_PERIOD_MS; }
+
+    uint8_t readRegister(uint8_t reg)
+    {
+        bool running = !stuck && (registers_[Lsm9ds0::CTRL_REG1_XM] >> 4) != 0;
+        if (reg == Lsm9ds0::STATUS_REG_A) {
+            return running && samplePeriod() != samplePeriodTaken_ ? Lsm9ds0::STATUS_REG_A_ZYXADA : 0;
+        }
+        if (reg == Lsm9ds0::OUT_X_L_A) {
+            samplePeriodTaken_ = samplePeriod();
+        }
+        return registers_[reg];
+    }
+
+    uint8_t registers_[128];
+    uint8_t pointer_ = 0;
+    bool autoIncrement_ = false;
+    uint32_t samplePeriodTaken_ = UINT32_MAX;
+};
+
+void writeCoefficientBlock(const uint8_t* floats, size_t length)
+{
+    Coefficients coefficients;
+    loadDefaultCoefficients(coefficients);
+    float* terms = &coefficients.set[0].axis[0].p[0];
+    size_t count = COMP_SET_COUNT * COMP_AXIS_COUNT * COMP_COEFFICIENT_COUNT;
+    for (size_t i = 0; i < count && 4 * i + 4 <= length; ++i) {
+        uint32_t bits = (uint32_t)floats[4 * i] | (uint32_t)floats[4 * i + 1] << 8 |
+                        (uint32_t)floats[4 * i + 2] << 16 | (uint32_t)floats[4 * i + 3] << 24;
+        memcpy(&terms[i], &bits, sizeof bits);
+    }
+    encodeCoefficients(coefficients, ArduinoShim::eeprom());
+}
+
+class Imu : public Board {
+public:
+    void powerOn() override
+    {
+        ArduinoShim::attachI2cDevice(Lsm9ds0::ADDRESS_XM_SDO_HIGH, &sensor_);
+    }
+
+    void setWorld(char key, int32_t value, bool) override
+    {
+        switch (key) {
+        case 'p': sensor_.present = value != 0; break;
+        case 'w': sensor_.setRegister(Lsm9ds0::WHO_AM_I_XM, (uint8_t)value); break;
+        case 's': sensor_.stuck = value != 0; break;
+        case 'x': sensor_.setAcceleration(0, value); break;
+        case 'y': sensor_.setAcceleration(1, value); break;
+        case 'z': sensor_.setAcceleration(2, value); break;
+        case 'T': sensor_.setTemperature(value); break;
+        case 'e': eepromAsCoefficients_ = value == 1; break;
+        default: break;
+        }
+    }
+
+    // The EEPROM changes only while the board is off.
+    void setWorldBytes(const uint8_t* data, size_t length, bool booted) override
+    {
+        if (booted) {
+            return;
+        }
+        if (eepromAsCoefficients_) {
+            writeCoefficientBlock(data, length);
+        } else {
+            memcpy(ArduinoShim::eeprom(), data, length < ArduinoShim::EEPROM_SIZE ? length : ArduinoShim::EEPROM_SIZE);
+        }
+    }
+
+    void boot() override
+    {
+        streaming_ = UNKNOWN;
+        coefficientSource_ = UNKNOWN;
+    }
+
+    void sentFrame(const FrameParser& frame) override
+    {
+        if (frame.typeIs(Protocol::Tag::ACK)) {
+            acknowledged(BoardHarness::text(frame, 1));
+        } else if (frame.typeIs(Protocol::Tag::IMU)) {
+            require(streaming_ != '0', "an IMU frame after STOP was acknowledged");
+            requireSource(BoardHarness::text(frame, IMU_COEF_SOURCE));
+        } else if (frame.typeIs(Protocol::Tag::ICF)) {
+            const char* streaming = BoardHarness::text(frame, ICF_STREAMING);
+            require(streaming_ == UNKNOWN || (streaming[0] == streaming_ && streaming[1] == '\0'),
+                    "ICF's streaming differs from the last START or STOP");
+            requireSource(BoardHarness::text(frame, ICF_COEF_SOURCE));
+        }
+    }
+
+private:
+    void acknowledged(const char* command)
+    {
+        if (strcmp(command, Protocol::Tag::START) == 0) {
+            streaming_ = '1';
+        } else if (strcmp(command, Protocol::Tag::STOP) == 0) {
+            streaming_ = '0';
+        } else if (strcmp(command, Protocol::Tag::SETCOE) == 0) {
+            coefficientSource_ = 'U';
+        } else if (strcmp(command, Protocol::Tag::DEFCOE) == 0) {
+            coefficientSource_ = 'D';
+        } else if (strcmp(command, Protocol::Tag::SAVECOE) == 0) {
+            coefficientSource_ = 'E';
+        }
+    }
+
+    void requireSource(const char* source) const
+    {
+        require(coefficientSource_ == UNKNOWN || (source[0] == coefficientSource_ && source[1] == '\0'),
+                "coef_source differs from what the last SETCOE, DEFCOE or SAVECOE made it");
+    }
+
+    FakeLsm9ds0 sensor_;
+    bool eepromAsCoefficients_ = false;
+    char streaming_ = UNKNOWN;
+    char coefficientSource_ = UNKNOWN;
+};
+
+}  // namespace
+
+extern "C" int LLVMFuzzerInitialize(int*, char***)
+{
+    BoardHarness::initialize();
+    return 0;
+}
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size)
+{
+    Imu imu;
+    BoardHarness::run(imu, data, size);
+    return 0;
+}
