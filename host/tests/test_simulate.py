@@ -151,6 +151,17 @@ def test_cycle_at_0_deg_drifts_like_section_4_1(cycle_runs):
 
 
 @pytest.mark.parametrize("angle", [0, 30])
+def test_a_calibration_cycle_never_trips_the_chambers_guard(cycle_runs, angle):
+    # The guard's defaults must leave the paper's own program alone, down to
+    # the -10 degC holds the chamber reaches only slowly (docs/reliability.md).
+    capture = (cycle_runs[angle] / "serial" / "thermal_chamber.txt").read_bytes()
+    frames = FrameReader().feed(capture)
+    assert [frame.line for frame in frames if frame.type == "ERR"] == []
+    phases = {frame["phase"] for frame in frames if frame.type == "CHS"}
+    assert "F" not in phases and {"W", "C", "R"} <= phases
+
+
+@pytest.mark.parametrize("angle", [0, 30])
 def test_cycle_compensated_output_is_flat(cycle_runs, angle):
     rows = settled_rows(read_run_log(str(cycle_runs[angle] / "run.csv")))
     for axis in ("x", "y"):
