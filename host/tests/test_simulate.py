@@ -64,6 +64,7 @@ def test_fig8_writes_the_documented_outputs(fig8_run):
         assert report["rejected"] == 0 and report["sequence_gaps"] == 0
         assert report["cycles"] == pytest.approx(16e6 * 241.5, rel=1e-3)
         assert report["refused_commands"] == [] and report["unanswered_commands"] == []
+        assert report["reported_errors"] == []
     # 10 IMU frames a second, one CHS a second.
     assert summary["boards"]["imu_reader"]["frames_by_type"]["IMU"] == pytest.approx(2415, abs=3)
     assert summary["boards"]["thermal_chamber"]["frames_by_type"]["CHS"] == pytest.approx(241, abs=2)

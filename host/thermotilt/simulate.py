@@ -48,6 +48,8 @@ class BoardLink:
     host_seq: SequenceCounter = field(default_factory=SequenceCounter)
     pending: dict[int, str] = field(default_factory=dict)
     refused: list[str] = field(default_factory=list)
+    # What the board reported on its own (faults, resets), with the time.
+    reported: list[str] = field(default_factory=list)
 
     def receive(self) -> list[Frame]:
         data = self.board.read_uart()
@@ -56,7 +58,9 @@ class BoardLink:
         self.capture.write(data)
         frames = self.reader.feed(data)
         for frame in frames:
-            if frame.type in ("ACK", "ERR"):
+            if frame.type == "ERR" and frame["cmd_seq"] == -1:
+                self.reported.append(f"{frame['code']} {frame['detail']} at {self.board.seconds:.2f} s")
+            elif frame.type in ("ACK", "ERR"):
                 command = self.pending.pop(frame["cmd_seq"], None)
                 if frame.type == "ERR" and command is not None:
                     self.refused.append(f"{command}: {frame['code']} {frame['detail']}")
@@ -78,6 +82,7 @@ class BoardLink:
             "corrupted_bytes": self.board.uart_corrupted_bytes,
             "unanswered_commands": sorted(self.pending.values()),
             "refused_commands": self.refused,
+            "reported_errors": self.reported,
         }
 
 
