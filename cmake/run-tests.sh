@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Runs every test tree of the offline build and the host's pytest suite, then
-# prints how many Unity test cases ran natively and in simavr.
+# Runs every test tree of the offline build, the host's pytest suite and a
+# short run of each fuzz target, then prints how many tests ran.
 # Usage: BUILD=build VENV=.venv cmake/run-tests.sh MCU...
 set -uo pipefail
 
@@ -47,6 +47,27 @@ rm -f "$pytest_log"
 summary+=("host: pytest ${pytest_passed:-0} passed, ${pytest_failed} failed")
 total_passed=$((total_passed + ${pytest_passed:-0}))
 total_failed=$((total_failed + pytest_failed))
+
+# Each libFuzzer target for a bounded time; a crash or sanitizer report fails
+# the step, and each target counts as one test.
+fuzz_seconds=20
+echo "== fuzz: libFuzzer targets, ${fuzz_seconds} s each"
+fuzz_log=$(mktemp)
+bash fuzz/run.sh "$build/fuzz" "$fuzz_seconds" 2>&1 | tee "$fuzz_log"
+fuzz_failed=${PIPESTATUS[0]}
+fuzz_summary=$(grep -E '^fuzz: [0-9]+ targets' "$fuzz_log" | tail -1)
+rm -f "$fuzz_log"
+# fuzz/run.sh exits with the number of targets that failed.
+if [ -n "$fuzz_summary" ]; then
+    fuzz_targets=$(echo "$fuzz_summary" | awk '{print $2}')
+    total_passed=$((total_passed + fuzz_targets - fuzz_failed))
+else
+    fuzz_summary="fuzz: did not run"
+    fuzz_failed=1
+fi
+[ "$fuzz_failed" -eq 0 ] || failed_steps=$((failed_steps + 1))
+summary+=("$fuzz_summary")
+total_failed=$((total_failed + fuzz_failed))
 
 echo
 echo "== summary"

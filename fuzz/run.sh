@@ -37,9 +37,8 @@ for target in "${targets[@]}"; do
     if [ "$status" -ne 0 ] || [ "$crashes" -ne 0 ]; then
         failed=$((failed + 1))
         echo "  FAILED (exit $status); log: $log"
-        grep -E -m1 -A40 'invariant violated|ERROR: (AddressSanitizer|libFuzzer|LeakSanitizer)|runtime error|No such file' "$log" |
-            sed 's/^/  | /'
-        grep -E 'Test unit written to' "$log" | sed 's/^/  /'
+        sed -E -n '/invariant violated|ERROR: (AddressSanitizer|libFuzzer|LeakSanitizer)|runtime error|No such file/,/Test unit written to/p' \
+            "$log" | head -80 | sed 's/^/  | /'
     fi
 done
 
