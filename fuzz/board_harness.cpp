@@ -327,15 +327,18 @@ private:
 
 }  // namespace
 
-void BoardHarness::initialize()
+extern "C" int LLVMFuzzerInitialize(int*, char***)
 {
     LineChecksum::checkAgainstWriter();
     SketchState::capture();
+    return 0;
 }
 
-void BoardHarness::run(Board& board, const uint8_t* data, size_t size)
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size)
 {
-    Runner(board).run(data, size);
+    std::unique_ptr<Board> board = makeBoard();
+    Runner(*board).run(data, size);
+    return 0;
 }
 
 const char* BoardHarness::text(const FrameParser& frame, uint8_t index)

@@ -27,9 +27,11 @@
 
 #include <stddef.h>
 #include <stdint.h>
+#include <memory>
 
 class Board {
 public:
+    virtual ~Board() {}
     // Once per input, after ArduinoShim::powerOn(): attach devices, set defaults.
     virtual void powerOn() {}
     // A world token that is not the harness's; `booted` says whether setup() ran.
@@ -44,18 +46,15 @@ public:
     virtual void sentFrame(const FrameParser& frame) { (void)frame; }
     // After setup() and after each loop pass.
     virtual void afterPass() {}
-
-protected:
-    ~Board() {}
 };
+
+// Each board target's own: a fresh Board for one input. The harness defines
+// the libFuzzer entry points around it.
+std::unique_ptr<Board> makeBoard();
 
 namespace BoardHarness {
 
 const int32_t MAX_REPEAT = 5000;
-
-// From LLVMFuzzerInitialize, before any input.
-void initialize();
-void run(Board& board, const uint8_t* data, size_t size);
 
 // Field `index` of a frame that passed the common checks, as text, or as an
 // integer (the common checks made sure it is one when the table says so).

@@ -230,15 +230,7 @@ private:
 
 }  // namespace
 
-extern "C" int LLVMFuzzerInitialize(int*, char***)
+std::unique_ptr<Board> makeBoard()
 {
-    BoardHarness::initialize();
-    return 0;
-}
-
-extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size)
-{
-    Imu imu;
-    BoardHarness::run(imu, data, size);
-    return 0;
+    return std::unique_ptr<Board>(new Imu);
 }
