@@ -290,11 +290,16 @@ def _read_model_text(path: Path, source: str) -> str:
         raise ModelError(f"{source}: not UTF-8 text (byte {error.start})") from None
 
 
+def _shown(name: str) -> str:
+    """A key from the file as one line of text: control characters escaped."""
+    return name if name.isprintable() else name.encode("unicode_escape").decode("ascii")
+
+
 def _model_from_document(document: Mapping[str, Any], source: str) -> Model:
     known_sections = set(TERMS) | set(CONSTANT_PARAMETERS) | {"faults"}
     for section in document:
         if section not in known_sections:
-            raise ModelError(f"{source}: unknown section [{section}]")
+            raise ModelError(f"{source}: unknown section [{_shown(section)}]")
     constants = {
         section: _read_table(document, section, parameters, source, switchable=False)
         for section, parameters in CONSTANT_PARAMETERS.items()
@@ -329,7 +334,7 @@ def _read_table(
         expected["enabled"] = "bool"
     for name in table:
         if name not in expected:
-            raise ModelError(f"{source}: [{section}] unknown parameter '{name}'")
+            raise ModelError(f"{source}: [{section}] unknown parameter '{_shown(name)}'")
     values: dict[str, Any] = {}
     for name, kind in expected.items():
         if name not in table:
@@ -408,7 +413,7 @@ def _read_faults(entries: Any, source: str) -> tuple[Fault, ...]:
             raise ModelError(f"{where}: expected a table")
         unknown = set(entry) - {"name", "start_s", "end_s", "rate"}
         if unknown:
-            raise ModelError(f"{where}: unknown key '{sorted(unknown)[0]}'")
+            raise ModelError(f"{where}: unknown key '{_shown(sorted(unknown)[0])}'")
         name = entry.get("name")
         if not isinstance(name, str):
             raise ModelError(f"{where}: missing name")
@@ -419,7 +424,10 @@ def _read_faults(entries: Any, source: str) -> tuple[Fault, ...]:
         }
         try:
             fault = Fault(
-                name, numbers.get("start_s", 0.0), numbers.get("end_s"), numbers.get("rate")
+                _shown(name),
+                numbers.get("start_s", 0.0),
+                numbers.get("end_s"),
+                numbers.get("rate"),
             )
         except ModelError as error:
             raise ModelError(f"{where}: {error}") from None
