@@ -130,6 +130,7 @@ def with_parameter(text, section, name, value):
         (with_parameter(default_text(), "temperature_offset", "offset_c", "9" * 400).encode(),
          "[temperature_offset] offset_c: must be >= -20 and <= 20 degC, got 9999"),
         (b"chamber = " + b"[" * 5000, "not valid TOML: nested too deeply"),
+        (b'"a\\nb" = 1\n', "unknown section [a\\nb]"),
     ],
 )
 def test_bad_model_files_are_refused_before_the_twin_starts(tmp_path, content, message):
@@ -267,6 +268,11 @@ def test_log_outputs_that_cannot_be_written(tmp_path, out, raw_dir, message):
     result = thermotilt("log", "--port", "loop://", "--out", out.format(tmp=tmp_path), "--force",
                         *extra)
     assert_one_line_error(result, 1, message.format(tmp=tmp_path))
+
+
+def test_a_line_break_in_a_name_is_escaped(tmp_path):
+    result = thermotilt("log", "--port", "no\nport", "--out", tmp_path / "run.csv")
+    assert_one_line_error(result, 1, "cannot open no\\nport: ")
 
 
 def test_a_port_url_pyserial_cannot_parse(tmp_path):

@@ -51,7 +51,7 @@ class UsageError(Exception):
 class _ArgumentParser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:
         # argparse would print the usage too; one line is easier to read in logs.
-        self.exit(2, f"{PROGRAM}: error: {message} (see --help)\n")
+        self.exit(2, f"{PROGRAM}: error: {_one_line(message)} (see --help)\n")
 
     def _print_message(self, message: str, file: IO[str] | None = None) -> None:
         # argparse drops write errors; --help on a full disk is reported like any output.
@@ -372,8 +372,14 @@ def _run(argv: Sequence[str] | None) -> int:
 
 
 def _error(message: str) -> int:
-    print(f"{PROGRAM}: error: {message}", file=sys.stderr)
+    print(f"{PROGRAM}: error: {_one_line(message)}", file=sys.stderr)
     return 1
+
+
+def _one_line(message: str) -> str:
+    """An error with a file name or argument that holds a line break is
+    still one line: control characters are escaped."""
+    return "".join(char if char.isprintable() else repr(char)[1:-1] for char in message)
 
 
 def _discard_stdout() -> None:
