@@ -56,7 +56,7 @@ enum MalformedReason : uint8_t {
     MALFORMED_TRUNCATED,        // a new '$' arrived before the line ended
     MALFORMED_TOO_LONG,         // more than MAX_LINE characters
     MALFORMED_BAD_CHAR,         // a control or non-ASCII byte inside the line
-    MALFORMED_NO_CHECKSUM,      // no '*' followed by exactly two characters
+    MALFORMED_NO_CHECKSUM,      // no '*' followed by exactly CHECKSUM_DIGITS characters
     MALFORMED_BAD_CHECKSUM,     // checksum digits not hex or not matching
     MALFORMED_BAD_TYPE,         // TYPE is not 2..7 upper-case letters
     MALFORMED_BAD_SEQ,          // SEQ missing, not decimal or above 65535
