@@ -117,7 +117,7 @@ def test_imu_reader_answers_commands(tmp_path):
         build_frame("GETCOE", 2, ["W", "X"]),
         "$GETCOE,3,W,X*0000\r\n",
         build_frame("BOGUS", 4),
-        build_frame("SETCOE", 5, ["C", "Y", 1, 2, 3, 4, 5, 6e-9]),
+        build_frame("SETCOE", 5, ["C", "Y", 1, 2, 3e-3, 4e-4, 5e-5, 6e-9]),
         build_frame("GETCOE", 6, ["C", "Y"]),
         build_frame("STATUS", 7),
         build_frame("SETDEC", 8, [0]),
