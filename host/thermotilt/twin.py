@@ -109,7 +109,10 @@ def _load_library(path: Path) -> ctypes.CDLL:
         "twin_l298n_set_disconnected": (ctypes.c_int, [handle, ctypes.c_int]),
     }
     for name, (result, arguments) in prototypes.items():
-        function = getattr(library, name)
+        try:
+            function = getattr(library, name)
+        except AttributeError:
+            raise TwinError(f"{path} has no {name}: it is older than the host; run `make build`") from None
         function.restype = result
         function.argtypes = arguments
     return library
