@@ -145,6 +145,14 @@ def chamber(inner_c: float = 18.0, outer_c: float = 25.0) -> Board:
     return board
 
 
+def drive_between(board: Board, start_s: float, end_s: float) -> Drive:
+    """What reached the Peltier from start_s to end_s of simulated time."""
+    board.run_until(start_s)
+    board.read_l298n()
+    board.run_until(end_s)
+    return board.read_l298n()
+
+
 def start_heating(board: Board, seq: int = 1) -> None:
     board.write_uart((build_frame("SETPRG", seq, [20, 30, 2, 60, 1200, 1]) + build_frame("START", seq + 1)).encode())
 
@@ -157,12 +165,8 @@ def test_a_hung_loop_resets_into_the_safe_state_and_says_so():
         board.run_until(2.0)
         assert board.read_l298n().pwm == 255
         board.hang()
-        board.run_until(2.45)
-        hung = board.read_l298n()
-        board.run_until(2.6)
-        board.read_l298n()
-        board.run_until(4.0)
-        after = board.read_l298n()
+        hung = drive_between(board, 2.0, 2.45)
+        after = drive_between(board, 2.6, 4.0)
         frames = reader.feed(board.read_uart())
     # A hang leaves the hardware PWM running: only the watchdog (500 ms) stops it.
     assert hung.duty == pytest.approx(1.0)
@@ -200,10 +204,7 @@ def test_a_flood_of_bad_lines_does_not_starve_the_control_loop():
         board.write_uart(b"$\n" * 57600)
         board.run_until(5.0)
         board.set_adc_fault(0, "open")
-        board.run_until(5.1)
-        board.read_l298n()
-        board.run_until(5.4)
-        cut = board.read_l298n()
+        cut = drive_between(board, 5.1, 5.4)
         board.run_until(12.0)
         frames = reader.feed(board.read_uart())
     # The open thermistor is seen on the next 250 ms tick, not seconds later.
@@ -280,14 +281,8 @@ def test_a_silent_host_stops_the_program_when_the_heartbeat_is_on():
         start_heating(board, seq=2)
         board.run_until(3.5)
         board.write_uart(build_frame("STATUS", 4).encode())
-        board.run_until(5.0)
-        board.read_l298n()
-        board.run_until(6.0)
-        alive = board.read_l298n()
-        board.run_until(8.0)
-        board.read_l298n()
-        board.run_until(9.0)
-        silent = board.read_l298n()
+        alive = drive_between(board, 5.0, 6.0)
+        silent = drive_between(board, 8.0, 9.0)
         frames = reader.feed(board.read_uart())
     # The last host frame arrived at ~3.5 s: the heartbeat runs out at ~6.5 s.
     assert alive.duty == pytest.approx(1.0, abs=1e-3)
