@@ -184,6 +184,15 @@ def lines_of(path, text):
     return [line for line in path.read_text(errors="replace").splitlines() if text in line]
 
 
+def test_a_fault_the_chamber_catches_is_printed_and_kept(tmp_path):
+    out = tmp_path / "reversed"
+    result = simulate("fig8", "--out", out, "--hold-seconds", 20, "--fault", "peltier_reversed")
+    reported = [line for line in result.stdout.splitlines() if " reported " in line]
+    assert len(reported) == 1 and reported[0].startswith("thermal_chamber reported RUNAWAY WRONG_WAY at ")
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["boards"]["thermal_chamber"]["reported_errors"] == [reported[0].split(" reported ")[1]]
+
+
 def test_faults_from_the_command_line_show_in_the_frames(tmp_path):
     out = tmp_path / "faults"
     simulate("fig8", "--out", out, "--hold-seconds", 15,

@@ -206,6 +206,8 @@ def _command_simulate(args: argparse.Namespace) -> int:
               f"{report['cycles']} cycles")
         for refusal in report["refused_commands"]:
             print(f"{board} refused {refusal}")
+        for error in report["reported_errors"]:
+            print(f"{board} reported {error}")
     if summary["interrupted"]:
         return _interrupted()
     try:
