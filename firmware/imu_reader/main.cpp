@@ -261,6 +261,11 @@ void handleCommand()
         streaming = link.commandIs(Protocol::Tag::START);
         decimator.restart();
         link.acknowledge();
+    } else if (link.commandIs(Protocol::Tag::RESEED)) {
+        // After a tilt-table move: the filters would take ~90 s to forget the
+        // old angle; seeded again, the next samples average from the new one.
+        resetFilters();
+        link.acknowledge();
     } else if (link.commandIs(Protocol::Tag::VERSION)) {
         link.sendVersion("imu_reader", FIRMWARE_VERSION);
         link.acknowledge();

@@ -124,6 +124,7 @@ def test_table_matches_brief():
         "SETGRD",
         "SETHB",
         "CLEAR",
+        "RESEED",
     }
 
 

@@ -165,6 +165,7 @@ FRAMES = {
             ("factor", "i"),
         ),
     ),
+    "RESEED": ("host", ()),
     "GETCOE": (
         "host",
         (
