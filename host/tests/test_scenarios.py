@@ -56,7 +56,14 @@ def test_campaign_subset_runs_each_position_through_a_cycle():
     cycle_s = build("cycle", options).duration_s
     assert [p.label for p in scenario.positions] == ["0", "X+30"]
     assert scenario.positions[1].at_s == pytest.approx(cycle_s)
-    assert [c.frame_type for c in scenario.commands] == ["SETPRG", "START", "START"]
+    assert [(c.board, c.frame_type) for c in scenario.commands] == [
+        ("imu_reader", "RESEED"),
+        ("thermal_chamber", "SETPRG"),
+        ("thermal_chamber", "START"),
+        ("imu_reader", "RESEED"),
+        ("thermal_chamber", "START"),
+    ]
+    assert [c.at_s for c in scenario.commands] == sorted(c.at_s for c in scenario.commands)
     assert scenario.duration_s == pytest.approx(2 * cycle_s)
 
 

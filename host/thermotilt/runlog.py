@@ -25,9 +25,11 @@ COLUMNS: tuple[str, ...] = (
     "pwm",
     "direction",
     "phase",
+    "chamber_fault",
     "imu_temp_c",
     "incl_x_deg",
     "incl_y_deg",
+    "since_move_s",
     "ax_raw",
     "ay_raw",
     "az_raw",
@@ -86,6 +88,7 @@ _CHS_FIELDS = (
     ("pwm", "pwm"),
     ("dir", "direction"),
     ("phase", "phase"),
+    ("fault", "chamber_fault"),
 )
 
 
@@ -148,14 +151,15 @@ class RunLogWriter:
         truth: Mapping[str, str] | None = None,
     ) -> None:
         """One row for an IMU frame. ``context`` holds ``ambient_c``,
-        ``incl_x_deg`` and ``incl_y_deg`` as text (empty when unknown)."""
+        ``incl_x_deg``, ``incl_y_deg`` and ``since_move_s`` as text (empty
+        when unknown)."""
         row: dict[str, Any] = {column: "" for column in self.columns}
         row["time_s"] = format_number(frame["t_ms"] / 1000.0, 3)
         row["imu_seq"] = str(frame.seq)
         for field_name, column in _IMU_FIELDS:
             row[column] = _raw_field(frame, field_name)
         row.update(chamber.cells)
-        for column in ("ambient_c", "incl_x_deg", "incl_y_deg"):
+        for column in ("ambient_c", "incl_x_deg", "incl_y_deg", "since_move_s"):
             row[column] = context.get(column, "")
         if truth is not None:
             row.update(truth)

@@ -44,6 +44,8 @@ class Command:
     at_s: float
     frame_type: str
     values: tuple = ()
+    # Which firmware it is for: "thermal_chamber" or "imu_reader".
+    board: str = "thermal_chamber"
 
 
 @dataclass(frozen=True)
@@ -179,6 +181,8 @@ def campaign(options: ScenarioOptions) -> Scenario:
         begin = index * length
         x, y = known[label]
         positions.append(TablePosition(begin, label, x, y))
+        # The table has just moved: the IMU's filters start again from the new angle.
+        commands.append(Command(begin, "RESEED", board="imu_reader"))
         if index == 0:
             commands.append(_chamber_program(CALIBRATION_MIN_C, CALIBRATION_MAX_C, options, 1))
         commands.append(Command(begin + PROGRAM_STARTED_S, "START"))

@@ -252,9 +252,9 @@ def _play(
         faults.update(t)
         while positions and positions[0].at_s <= t:
             position = positions.pop(0)
-        while commands and commands[0].at_s <= t and chamber_link is not None:
+        while commands and commands[0].at_s <= t:
             command = commands.pop(0)
-            chamber_link.send(command.frame_type, command.values)
+            links[command.board].send(command.frame_type, command.values)
         ambient = scenario.ambient_c(t)
         environment = ambient
         if chamber is not None:
@@ -281,6 +281,7 @@ def _play(
                 "ambient_c": format_number(ambient, 3),
                 "incl_x_deg": format_number(position.incl_x_deg, 2),
                 "incl_y_deg": format_number(position.incl_y_deg, 2),
+                "since_move_s": format_number(end - position.at_s, 2),
             }
             truth = _truth(sample, chamber, drive)
             for frame in imu_frames:
