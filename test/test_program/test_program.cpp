@@ -24,12 +24,13 @@ static void assertState(ProgramPhase phase, uint32_t cycle, uint16_t step, float
 }
 
 // Figure 8: 16 -> 22 degC in 2 degC steps of 1 minute.
-static TemperatureProgram figure8(uint16_t cycles)
+static TemperatureProgram figure8(uint16_t cycles, HoldStart holdStart = HoldStart::Timed)
 {
     ProgramSettings settings;
     settings.start_c = 16.0f;
     settings.max_c = 22.0f;
     settings.cycles = cycles;
+    settings.hold_start = holdStart;
     TemperatureProgram program;
     TEST_ASSERT_EQUAL(ProgramError::None, program.configure(settings));
     return program;
@@ -202,6 +203,124 @@ static void test_rejected_settings_keep_current(void)
     TEST_ASSERT_EQUAL_UINT16(4, program.warmingSteps());
 }
 
+static const uint32_t kTickMs = 250;
+
+// Ticks of kTickMs with the face at inner_c; the state after the last one.
+static ProgramState runFor(ProgramRun &run, uint32_t ms, float innerC)
+{
+    ProgramState state = {};
+    for (uint32_t done = 0; done < ms; done += kTickMs)
+        state = run.advance(kTickMs, innerC);
+    return state;
+}
+
+static void test_timed_run_follows_the_clock(void)
+{
+    TemperatureProgram program = figure8(1);
+    ProgramRun run(program);
+    // The face far from every setpoint does not stop a timed program.
+    assertState(ProgramPhase::Warming, 0, 0, 16.0f, run.start(30.0f));
+    TEST_ASSERT_FALSE(run.waiting());
+    assertState(ProgramPhase::Warming, 0, 1, 18.0f, runFor(run, kMinute, 30.0f));
+    TEST_ASSERT_EQUAL_UINT32(kMinute, run.programMs());
+    assertState(ProgramPhase::Done, 1, 7, 16.0f, runFor(run, 6 * kMinute, 30.0f));
+    TEST_ASSERT_EQUAL_UINT32(7 * kMinute, run.programMs());
+    // Done stays done.
+    assertState(ProgramPhase::Done, 1, 7, 16.0f, runFor(run, kMinute, 30.0f));
+    TEST_ASSERT_EQUAL_UINT32(7 * kMinute, run.programMs());
+}
+
+static void test_all_steps_wait_for_their_setpoint(void)
+{
+    TemperatureProgram program = figure8(1, HoldStart::AllStepsWait);
+    ProgramRun run(program);
+    // From 19 degC ambient, 16 degC is 3 degC away: the clock stays at 0.
+    assertState(ProgramPhase::Warming, 0, 0, 16.0f, run.start(19.0f));
+    TEST_ASSERT_TRUE(run.waiting());
+    runFor(run, 10 * kMinute, 17.5f);
+    TEST_ASSERT_TRUE(run.waiting());
+    TEST_ASSERT_EQUAL_UINT32(0, run.programMs());
+    // Within kReachedBandC (1 degC, inclusive) the hold starts.
+    run.advance(kTickMs, 17.0f);
+    TEST_ASSERT_FALSE(run.waiting());
+    TEST_ASSERT_EQUAL_UINT32(kTickMs, run.programMs());
+    // A whole hold at the setpoint, then step 1 waits at its start for 18 degC.
+    assertState(ProgramPhase::Warming, 0, 1, 18.0f, runFor(run, kMinute, 16.2f));
+    TEST_ASSERT_TRUE(run.waiting());
+    TEST_ASSERT_EQUAL_UINT32(kMinute, run.programMs());
+    runFor(run, kMinute, 16.99f);
+    TEST_ASSERT_EQUAL_UINT32(kMinute, run.programMs());
+    run.advance(kTickMs, 17.01f);
+    TEST_ASSERT_FALSE(run.waiting());
+    // A failed thermistor (NaN) never counts as reached.
+    runFor(run, kMinute - kTickMs, 18.0f);
+    TEST_ASSERT_EQUAL_UINT32(2 * kMinute, run.programMs());
+    assertState(ProgramPhase::Warming, 0, 2, 20.0f, runFor(run, kMinute, NAN));
+    TEST_ASSERT_TRUE(run.waiting());
+    TEST_ASSERT_EQUAL_UINT32(2 * kMinute, run.programMs());
+}
+
+static void test_a_step_already_reached_does_not_wait(void)
+{
+    TemperatureProgram program = figure8(1, HoldStart::AllStepsWait);
+    ProgramRun run(program);
+    run.start(16.5f);
+    TEST_ASSERT_FALSE(run.waiting());
+    // A face that follows each setpoint: a step waits only for the tick whose
+    // reading sees the new setpoint, and the program ends after 7 holds.
+    for (uint16_t step = 0; step < 7; ++step)
+        runFor(run, kMinute, program.setpointOfStep(step));
+    TEST_ASSERT_EQUAL(ProgramPhase::Done, runFor(run, kTickMs, 16.0f).phase);
+    TEST_ASSERT_EQUAL_UINT32(7 * kMinute, run.programMs());
+}
+
+static void test_first_step_of_each_cycle_waits(void)
+{
+    ProgramSettings settings;
+    settings.start_c = 16.0f;
+    settings.max_c = 20.0f;
+    settings.rest_s = 120;
+    settings.cycles = 2;
+    settings.hold_start = HoldStart::FirstStepWaits;
+    TemperatureProgram program;
+    TEST_ASSERT_EQUAL(ProgramError::None, program.configure(settings));
+    ProgramRun run(program);
+    run.start(22.0f);
+    runFor(run, kMinute, 22.0f);
+    TEST_ASSERT_EQUAL_UINT32(0, run.programMs());
+    run.advance(kTickMs, 16.8f);
+    // Steps 1..4 and the rest run on the clock, the face wherever it is.
+    assertState(ProgramPhase::Warming, 0, 1, 18.0f, runFor(run, kMinute, 16.8f));
+    TEST_ASSERT_FALSE(run.waiting());
+    // 5 steps and 2 min of rest: cycle 1's first step starts at 7 min and waits.
+    assertState(ProgramPhase::Warming, 1, 0, 16.0f, runFor(run, 6 * kMinute, 25.0f));
+    TEST_ASSERT_TRUE(run.waiting());
+    TEST_ASSERT_EQUAL_UINT32(7 * kMinute, run.programMs());
+    run.advance(kTickMs, 15.0f);
+    TEST_ASSERT_FALSE(run.waiting());
+}
+
+static void test_a_long_tick_stops_at_a_waiting_step(void)
+{
+    TemperatureProgram program = figure8(1, HoldStart::AllStepsWait);
+    ProgramRun run(program);
+    run.start(16.0f);
+    // 2.5 min in one call: the clock stops at step 1, whose setpoint is not reached.
+    assertState(ProgramPhase::Warming, 0, 1, 18.0f, run.advance(150000UL, 16.0f));
+    TEST_ASSERT_EQUAL_UINT32(kMinute, run.programMs());
+    TEST_ASSERT_TRUE(run.waiting());
+}
+
+static void test_hold_start_validated(void)
+{
+    ProgramSettings settings;
+    settings.hold_start = (HoldStart)3;
+    TEST_ASSERT_EQUAL(ProgramError::HoldStartUnknown, TemperatureProgram::validate(settings));
+    settings.hold_start = HoldStart::Timed;
+    TEST_ASSERT_EQUAL(ProgramError::None, TemperatureProgram::validate(settings));
+    TEST_ASSERT_EQUAL(HoldStart::AllStepsWait, ProgramSettings().hold_start);
+}
+
 int runUnityTests(void)
 {
     UNITY_BEGIN();
@@ -215,5 +334,11 @@ int runUnityTests(void)
     RUN_TEST(test_validation_errors);
     RUN_TEST(test_validation_overflow);
     RUN_TEST(test_rejected_settings_keep_current);
+    RUN_TEST(test_timed_run_follows_the_clock);
+    RUN_TEST(test_all_steps_wait_for_their_setpoint);
+    RUN_TEST(test_a_step_already_reached_does_not_wait);
+    RUN_TEST(test_first_step_of_each_cycle_waits);
+    RUN_TEST(test_a_long_tick_stops_at_a_waiting_step);
+    RUN_TEST(test_hold_start_validated);
     return UNITY_END();
 }

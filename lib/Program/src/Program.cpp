@@ -5,6 +5,7 @@
 const float TemperatureProgram::kMinCelsius = -10.0f;
 const float TemperatureProgram::kMaxCelsius = 45.0f;
 const uint16_t TemperatureProgram::kMaxWarmingSteps;
+const float TemperatureProgram::kReachedBandC = 1.0f;
 
 static const uint32_t kMaxMs = 0xFFFFFFFFUL;
 static const uint32_t kMsPerSecond = 1000;
@@ -40,6 +41,8 @@ ProgramError TemperatureProgram::validate(const ProgramSettings &settings)
         return ProgramError::StepTooSmall;
     if (settings.hold_s == 0)
         return ProgramError::HoldZero;
+    if ((uint8_t)settings.hold_start > (uint8_t)HoldStart::AllStepsWait)
+        return ProgramError::HoldStartUnknown;
 
     uint32_t steps = 2 * (uint32_t)warming - 1;
     if (settings.hold_s > kMaxMs / kMsPerSecond / steps)
@@ -91,14 +94,14 @@ float TemperatureProgram::setpointOfStep(uint16_t step) const
     return settings_.start_c + (float)level * settings_.step_c;
 }
 
-ProgramState TemperatureProgram::stateAt(uint32_t elapsed_ms) const
+ProgramState TemperatureProgram::stateAt(uint32_t program_ms) const
 {
     ProgramState state;
     state.setpoint_c = settings_.start_c;
     state.driveEnabled = false;
 
     uint32_t total = totalDurationMs();
-    if (total != 0 && elapsed_ms >= total) {
+    if (total != 0 && program_ms >= total) {
         state.phase = ProgramPhase::Done;
         state.cycle = settings_.cycles;
         state.step = stepsPerCycle();
@@ -106,8 +109,8 @@ ProgramState TemperatureProgram::stateAt(uint32_t elapsed_ms) const
     }
 
     uint32_t cycleMs = cycleDurationMs();
-    uint32_t inCycle = elapsed_ms % cycleMs;
-    state.cycle = elapsed_ms / cycleMs;
+    uint32_t inCycle = program_ms % cycleMs;
+    state.cycle = program_ms / cycleMs;
     if (inCycle >= heatingCoolingMs()) {
         state.phase = ProgramPhase::Rest;
         state.step = stepsPerCycle();
@@ -118,4 +121,59 @@ ProgramState TemperatureProgram::stateAt(uint32_t elapsed_ms) const
     state.setpoint_c = setpointOfStep(state.step);
     state.driveEnabled = true;
     return state;
+}
+
+bool TemperatureProgram::holdWaits(const ProgramState &state) const
+{
+    if (!state.driveEnabled)
+        return false;
+    switch (settings_.hold_start) {
+    case HoldStart::AllStepsWait: return true;
+    case HoldStart::FirstStepWaits: return state.step == 0;
+    default: return false;
+    }
+}
+
+uint32_t TemperatureProgram::msToNextStep(uint32_t program_ms) const
+{
+    uint32_t cycleMs = cycleDurationMs();
+    uint32_t inCycle = program_ms % cycleMs;
+    if (inCycle >= heatingCoolingMs())
+        return cycleMs - inCycle;
+    return holdMs() - inCycle % holdMs();
+}
+
+ProgramRun::ProgramRun(const TemperatureProgram &program) : program_(program), programMs_(0), waiting_(false)
+{
+}
+
+bool ProgramRun::reached(const ProgramState &state, float innerC) const
+{
+    return fabsf(state.setpoint_c - innerC) <= TemperatureProgram::kReachedBandC;
+}
+
+ProgramState ProgramRun::start(float innerC)
+{
+    programMs_ = 0;
+    ProgramState state = program_.stateAt(0);
+    waiting_ = program_.holdWaits(state) && !reached(state, innerC);
+    return state;
+}
+
+ProgramState ProgramRun::advance(uint32_t dtMs, float innerC)
+{
+    if (waiting_ && reached(program_.stateAt(programMs_), innerC))
+        waiting_ = false;
+    while (!waiting_ && program_.stateAt(programMs_).phase != ProgramPhase::Done) {
+        uint32_t toNext = program_.msToNextStep(programMs_);
+        if (dtMs < toNext) {
+            programMs_ += dtMs;
+            break;
+        }
+        programMs_ += toNext;
+        dtMs -= toNext;
+        ProgramState next = program_.stateAt(programMs_);
+        waiting_ = program_.holdWaits(next) && !reached(next, innerC);
+    }
+    return program_.stateAt(programMs_);
 }

@@ -15,11 +15,22 @@
 // Defaults (-10..45 degC, 2 degC, 60 s) give 29 warming + 28 cooling = 57
 // steps and a 57 * 60 s + 1200 s = 4 620 000 ms cycle.
 //
-// A step's hold time includes the transition to it (Figure 8: 1-minute steps,
-// each 2 degC change settles in ~13 s), so the program is a pure function of
-// the time since start. Times are uint32_t milliseconds: 1200 s is already
-// 1 200 000 ms. A uint32_t elapsed time (e.g. millis() - start) wraps after
-// 49.7 days; with cycles = 0 the program then jumps within its cycle.
+// stateAt() is a pure function of program time. When that time runs is
+// hold_start's choice (ProgramRun): Timed, a step's hold includes the
+// transition to it (Figure 8: 1-minute steps, each 2 degC change settles in
+// ~13 s) and program time is the time since start; or a step waits (section
+// 3.1, Figure 7: the next step comes "after temperature stabilization for the
+// predefined time interval"): program time stops at the start of its hold
+// until the face is within kReachedBandC of the setpoint. Times are uint32_t
+// milliseconds: 1200 s is already 1 200 000 ms. A uint32_t program time wraps
+// after 49.7 days; with cycles = 0 the program then jumps within its cycle.
+
+// Numeric values are stable; the protocol sends them as T, F, A.
+enum class HoldStart : uint8_t {
+    Timed = 0,          // every hold starts when its step does
+    FirstStepWaits = 1, // step 0 of each cycle waits (the run from ambient or rest)
+    AllStepsWait = 2,   // every driven step waits
+};
 
 struct ProgramSettings {
     float start_c = -10.0f;
@@ -28,6 +39,8 @@ struct ProgramSettings {
     uint32_t hold_s = 60;
     uint32_t rest_s = 1200;
     uint16_t cycles = 0; // 0 = repeat forever
+    // The paper's rule: every hold is hold_s at the temperature.
+    HoldStart hold_start = HoldStart::AllStepsWait;
 };
 
 // Numeric values are stable so firmware can report them over serial.
@@ -41,6 +54,7 @@ enum class ProgramError : uint8_t {
     StepTooSmall = 6,    // more than kMaxWarmingSteps warming steps
     HoldZero = 7,
     CycleTooLong = 8,    // cycles * cycle duration does not fit in uint32_t ms
+    HoldStartUnknown = 9,
 };
 
 enum class ProgramPhase : uint8_t { Warming = 0, Cooling = 1, Rest = 2, Done = 3 };
@@ -58,6 +72,12 @@ public:
     static const float kMinCelsius; // -10, the paper's calibration range
     static const float kMaxCelsius; // 45
     static const uint16_t kMaxWarmingSteps = 1000;
+    // A waiting step counts as reached within this of its setpoint: ThermalGuard's
+    // default band_c, which is wider than the P law's droop at -10 degC (0.6
+    // degC) and than 255 / 350 = 0.73 degC, beyond which the drive is full, so
+    // a target that is never reached leaves the guard's no-response check to
+    // stop it.
+    static const float kReachedBandC;
 
     static ProgramError validate(const ProgramSettings &settings);
 
@@ -77,7 +97,12 @@ public:
 
     // start_c for a step beyond the cycle.
     float setpointOfStep(uint16_t step) const;
-    ProgramState stateAt(uint32_t elapsed_ms) const;
+    ProgramState stateAt(uint32_t program_ms) const;
+
+    // Whether the hold of the step in this state waits for its setpoint.
+    bool holdWaits(const ProgramState &state) const;
+    // Program time from program_ms to the start of the next step (or cycle).
+    uint32_t msToNextStep(uint32_t program_ms) const;
 
 private:
     uint32_t holdMs() const { return settings_.hold_s * (uint32_t)1000; }
@@ -85,6 +110,30 @@ private:
 
     ProgramSettings settings_;
     uint16_t warmingSteps_;
+};
+
+// Runs a program in real time: keeps its program time, which stops while a
+// waiting step has not reached its setpoint. Reads the program it was given,
+// so configure that first and start() again after a change.
+class ProgramRun {
+public:
+    explicit ProgramRun(const TemperatureProgram &program);
+
+    // Program time 0; the first step waits for inner_c if its hold does.
+    ProgramState start(float innerC);
+    // dt_ms of real time passed with the inner face now at inner_c (NaN
+    // never counts as reached).
+    ProgramState advance(uint32_t dtMs, float innerC);
+
+    uint32_t programMs() const { return programMs_; }
+    bool waiting() const { return waiting_; }
+
+private:
+    bool reached(const ProgramState &state, float innerC) const;
+
+    const TemperatureProgram &program_;
+    uint32_t programMs_;
+    bool waiting_;
 };
 
 #endif
