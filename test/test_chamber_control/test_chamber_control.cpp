@@ -145,6 +145,36 @@ static void test_l298n_mapping(void)
     assertPins(0, false, false, l298nPins(heatWithoutDuty));
 }
 
+static DriveCommand rounded(float setpoint, float measured)
+{
+    ChamberController controller;
+    controller.setRoundedError(true);
+    return controller.update(setpoint, measured, 1.0f);
+}
+
+static void test_rounded_error_is_a_half_degree_dead_band(void)
+{
+    TEST_ASSERT_FALSE(ChamberController().roundedError());
+    // |e| < 0.5 rounds to 0: off, where the float law would drive 35..171.
+    assertDrive(0, Direction::Off, rounded(20.0f, 19.9f));
+    assertDrive(0, Direction::Off, rounded(20.0f, 20.49f));
+    assertDrive(0, Direction::Off, rounded(20.0f, 19.51f));
+    // |e| >= 0.5 rounds away from zero to 1: 350 saturates at 255.
+    assertDrive(255, Direction::Heat, rounded(20.0f, 19.5f));
+    assertDrive(255, Direction::Cool, rounded(20.0f, 20.5f));
+    assertDrive(255, Direction::Heat, rounded(-10.0f, -11.2f));
+    // The sign is the error's on both sides of zero and of ambient: truncation
+    // (int) would leave 18.0 - 18.9 = -0.9 off, rounding cools.
+    assertDrive(255, Direction::Cool, rounded(18.0f, 18.9f));
+    // A smaller gain shows the rounded error itself: 100 * round(1.4) = 100.
+    ChamberController controller(100.0f);
+    controller.setRoundedError(true);
+    assertDrive(100, Direction::Heat, controller.update(21.4f, 20.0f, 1.0f));
+    assertDrive(200, Direction::Cool, controller.update(20.0f, 21.6f, 1.0f));
+    controller.setRoundedError(false);
+    assertDrive(160, Direction::Cool, controller.update(20.0f, 21.6f, 1.0f));
+}
+
 int runUnityTests(void)
 {
     UNITY_BEGIN();
@@ -152,6 +182,7 @@ int runUnityTests(void)
     RUN_TEST(test_saturation);
     RUN_TEST(test_near_zero_error);
     RUN_TEST(test_large_errors_saturate_not_wrap);
+    RUN_TEST(test_rounded_error_is_a_half_degree_dead_band);
     RUN_TEST(test_bad_temperature_turns_off);
     RUN_TEST(test_pi_integrates);
     RUN_TEST(test_pi_no_windup_when_saturated);

@@ -17,7 +17,7 @@ static float clampOutput(float value)
 }
 
 ChamberController::ChamberController(float proportionalGain, float integralGain)
-    : proportionalGain_(proportionalGain), integralGain_(integralGain), integral_(0.0f)
+    : proportionalGain_(proportionalGain), integralGain_(integralGain), integral_(0.0f), roundedError_(false)
 {
 }
 
@@ -35,6 +35,8 @@ DriveCommand ChamberController::update(float setpointCelsius, float measuredCels
     float error = setpointCelsius - measuredCelsius;
     if (!isfinite(error))
         return off;
+    if (roundedError_)
+        error = roundf(error);
 
     float proportional = proportionalGain_ * error;
     if (integralGain_ != 0.0f) {

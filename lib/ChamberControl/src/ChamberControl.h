@@ -13,6 +13,14 @@
 // while the output is saturated in the direction of the error, and is
 // clamped to +-255.
 //
+// Rounded error (off by default) is a hypothesis about the paper's own code,
+// not the paper's text: e rounded to whole degC before P = Kp * e, a
+// +-0.5 degC dead band in which the drive is off and outside which it is full
+// (350 * 1 > 255). It is the one candidate found that gives Figure 8's
+// ~0.5 degC offset, with its sign flipping at ambient, in a chamber that
+// still reaches -10 degC (docs/physics-model.md). Truncation instead of
+// rounding gives a +-1 degC band and the wrong sign at 18 degC.
+//
 // All arithmetic is in float: in 16-bit int, 350 * error in centidegrees
 // wraps already at 0.94 degC.
 
@@ -33,6 +41,8 @@ public:
 
     void setProportionalGain(float gain) { proportionalGain_ = gain; }
     void setIntegralGain(float gain);
+    void setRoundedError(bool rounded) { roundedError_ = rounded; }
+    bool roundedError() const { return roundedError_; }
     float proportionalGain() const { return proportionalGain_; }
     float integralGain() const { return integralGain_; }
 
@@ -48,6 +58,7 @@ private:
     float proportionalGain_;
     float integralGain_;
     float integral_;
+    bool roundedError_;
 };
 
 // L298N wiring on the Mega (paper Figure 6): ENA takes the PWM, IN1/IN2 set
