@@ -3,13 +3,16 @@ numbers (Sensors 2018, 18, 2536: "the paper")."""
 
 import math
 import statistics
+import tomllib
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from thermotilt.coefficients import PAPER_DEFAULTS
+from thermotilt.physics import docs
 from thermotilt.physics import (
+    DECLARATIONS,
     FAULT_NAMES,
     TERMS,
     Chamber,
@@ -76,6 +79,13 @@ def test_default_model_has_every_term(model):
     assert set(model.terms) == set(TERMS)
     assert all(model.enabled(term) for term in TERMS)
     assert model.faults == ()
+
+
+def test_the_docs_tables_are_the_declarations():
+    # docs/physics-model.md's tables come from the terms' declarations;
+    # `python -m thermotilt.physics.docs` rewrites them.
+    text = docs.DOC.read_text(encoding="utf-8")
+    assert docs.rendered(text) == text
 
 
 def test_with_terms_switches_only_the_named_term(model):
@@ -167,12 +177,24 @@ def test_bad_model_files_name_file_term_and_problem(tmp_path, edit, message):
     assert "\n" not in text
 
 
-def test_missing_term_section_and_missing_file(tmp_path):
+def test_an_omitted_table_takes_its_registered_defaults(tmp_path, model):
     text = default_text().replace("[tilt]\nenabled = true\n", "")
-    with pytest.raises(ModelError, match=r"missing section \[tilt\]"):
-        Model.load(write_model(tmp_path, text))
+    assert Model.load(write_model(tmp_path, text)).terms["tilt"] == {"enabled": True}
+    empty = Model.load(write_model(tmp_path, ""))
+    assert empty.terms == model.terms and empty.constants == model.constants
     with pytest.raises(ModelError, match="cannot read"):
         Model.load(tmp_path / "absent.toml")
+
+
+def test_the_default_file_states_every_registered_default(model):
+    # default.toml spells out every parameter with its source; the registry
+    # holds the same numbers for files that omit a table.
+    document = tomllib.loads(default_text())
+    assert set(document) == set(DECLARATIONS)
+    for section, parameters in DECLARATIONS.items():
+        assert list(document[section]) == [p.name for p in parameters], section
+        for parameter in parameters:
+            assert document[section][parameter.name] == parameter.default, (section, parameter)
 
 
 def test_explicit_coefficients_replace_the_paper_tables(tmp_path):

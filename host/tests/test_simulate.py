@@ -213,7 +213,7 @@ def test_faults_from_the_command_line_show_in_the_frames(tmp_path):
 
 def test_faults_from_the_model_file(tmp_path):
     model = tmp_path / "broken-rig.toml"
-    default = Path(physics.__file__).parent / "models" / "default.toml"
+    default = Path(physics.__file__).parents[1] / "models" / "default.toml"
     model.write_text(default.read_text() + """
 [[faults]]
 name = "peltier_disconnected"

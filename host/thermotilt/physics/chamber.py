@@ -1,0 +1,167 @@
+"""The chamber integrator: the inner face (capacity from [chamber]), the
+outer face when a term adds it (the heatsink), and the room, with the heat
+flows of every chamber term summed once at construction."""
+
+from __future__ import annotations
+
+import math
+
+from .faults import FAILED_HEATSINK_FRACTION
+from .model import Model
+from .terms import REGISTRY, ChamberTerm, HeatFlows
+from .terms.lag import LagFraction
+
+_ZERO_CELSIUS_K = 273.15
+_CHAMBER_TERMS = tuple(name for name, term in REGISTRY.items() if issubclass(term, ChamberTerm))
+_LINKS = (("inner", "outer"), ("inner", "ambient"), ("outer", "ambient"))
+
+
+def _summed(flows: list[HeatFlows]) -> tuple[dict[str, float], dict[tuple[str, str], float]]:
+    nodes: dict[str, float] = {}
+    links: dict[tuple[str, str], float] = {}
+    for flow in flows:
+        for node, capacity in flow.nodes.items():
+            if node != "outer" or node in nodes:
+                raise ValueError(f"the chamber has no place for a node '{node}'")
+            nodes[node] = capacity
+        for link, conductance in flow.conductances.items():
+            if link not in _LINKS:
+                raise ValueError(f"the chamber has no link {link}")
+            links[link] = links.get(link, 0.0) + conductance
+    return nodes, links
+
+
+class Chamber:
+    """Two faces of the Peltier cell as lumped thermal nodes, and the two
+    thermistors that read them.
+
+    The inner (reference) face carries what the chamber holds; the outer face
+    is the heatsink. Heat into the inner face: the terms' drive (pumped, Joule
+    share) + conduction through the cell + leak to ambient.
+    """
+
+    __slots__ = (
+        "inner_c",
+        "outer_c",
+        "inner_thermistor_c",
+        "outer_thermistor_c",
+        "inner_thermistor_detached",
+        "heatsink_failed",
+        "_inner_capacity",
+        "_drives",
+        "_outer_node",
+        "_outer_capacity",
+        "_cell_conductance",
+        "_leak",
+        "_heatsink_conductance",
+        "_thermistor_lag",
+        "_max_substep",
+        "_supply_mv",
+        "_reference_ohm",
+        "_r25_ohm",
+        "_beta_k",
+    )
+
+    def __init__(self, model: Model, ambient_c: float) -> None:
+        constants = model.constants["chamber"]
+        self._inner_capacity = constants["inner_heat_capacity_j_per_k"]
+        self._supply_mv = constants["supply_mv"]
+        self._reference_ohm = constants["divider_reference_ohm"]
+        self._r25_ohm = constants["thermistor_r25_ohm"]
+        self._beta_k = constants["thermistor_beta_k"]
+
+        terms = [term for term in model.bound(_CHAMBER_TERMS).values()]
+        flows = [term.heat_flows() for term in terms if isinstance(term, ChamberTerm)]
+        nodes, links = _summed(flows)
+        self._drives = tuple(flow.drive for flow in flows if flow.drive is not None)
+        self._outer_node = "outer" in nodes
+        self._outer_capacity = nodes.get("outer", 0.0)
+        self._cell_conductance = links.get(("inner", "outer"), 0.0)
+        self._leak = links.get(("inner", "ambient"), 0.0)
+        self._heatsink_conductance = links.get(("outer", "ambient"), 0.0)
+        lags = [lag for term in terms if isinstance(term, ChamberTerm)
+                if (lag := term.thermistor_lag_s()) is not None]
+        self._thermistor_lag = LagFraction(lags[0]) if lags else None
+
+        # Explicit Euler is stable and accurate for steps well below the
+        # shortest node time constant; longer steps are split.
+        time_constants = [
+            self._inner_capacity / max(self._leak + self._cell_conductance, 1e-12)
+        ]
+        if self._outer_node:
+            time_constants.append(
+                self._outer_capacity
+                / max(self._cell_conductance + self._heatsink_conductance, 1e-12)
+            )
+        self._max_substep = 0.05 * min(time_constants)
+
+        self.inner_c = float(ambient_c)
+        self.outer_c = float(ambient_c)
+        self.inner_thermistor_c = float(ambient_c)
+        self.outer_thermistor_c = float(ambient_c)
+        # Faults: the inner thermistor off its face, reading the room; the
+        # heatsink's path to ambient (fan, thermal joint) down to a residue.
+        self.inner_thermistor_detached = False
+        self.heatsink_failed = False
+
+    def step(self, dt_s: float, duty: float, direction: int, ambient_c: float) -> None:
+        """Advance dt_s with the bridge at this mean duty (0..1); direction +1
+        heats the inner face, -1 cools it, 0 lets no current flow."""
+        if not dt_s > 0.0:
+            raise ValueError(f"dt_s must be > 0, got {dt_s}")
+        if not 0.0 <= duty <= 1.0:
+            raise ValueError(f"duty must be within 0..1, got {duty}")
+        if direction not in (-1, 0, 1):
+            raise ValueError(f"direction must be -1, 0 or +1, got {direction}")
+        if direction == 0:
+            duty = 0.0
+        inner_drive_w = outer_drive_w = 0.0
+        for drive in self._drives:
+            inner_w, outer_w = drive(duty, direction)
+            inner_drive_w += inner_w
+            outer_drive_w += outer_w
+
+        substeps = 1 if dt_s <= self._max_substep else math.ceil(dt_s / self._max_substep)
+        h = dt_s / substeps
+        inner = self.inner_c
+        outer_node = self._outer_node
+        outer = self.outer_c if outer_node else ambient_c
+        inner_capacity = self._inner_capacity
+        outer_capacity = self._outer_capacity
+        cell = self._cell_conductance
+        leak = self._leak
+        sink = self._heatsink_conductance
+        if self.heatsink_failed:
+            sink *= FAILED_HEATSINK_FRACTION
+        for _ in range(substeps):
+            through_cell_w = cell * (outer - inner)
+            inner_w = inner_drive_w + through_cell_w + leak * (ambient_c - inner)
+            if outer_node:
+                outer_w = outer_drive_w - through_cell_w + sink * (ambient_c - outer)
+                outer += h * outer_w / outer_capacity
+            inner += h * inner_w / inner_capacity
+        self.inner_c = inner
+        self.outer_c = outer
+
+        inner_sensed = ambient_c if self.inner_thermistor_detached else inner
+        if self._thermistor_lag is not None:
+            alpha = self._thermistor_lag.of_step(dt_s)
+            self.inner_thermistor_c += alpha * (inner_sensed - self.inner_thermistor_c)
+            self.outer_thermistor_c += alpha * (outer - self.outer_thermistor_c)
+        else:
+            self.inner_thermistor_c = inner_sensed
+            self.outer_thermistor_c = outer
+
+    def thermistor_millivolts(self) -> tuple[float, float]:
+        """Divider voltages at A0 (inner) and A1 (outer): the NTC to ground
+        under the reference resistor from the supply."""
+        return (
+            self._divider_millivolts(self.inner_thermistor_c),
+            self._divider_millivolts(self.outer_thermistor_c),
+        )
+
+    def _divider_millivolts(self, celsius: float) -> float:
+        kelvin = celsius + _ZERO_CELSIUS_K
+        inverse_kelvin_from_25 = 1.0 / kelvin - 1.0 / (25.0 + _ZERO_CELSIUS_K)
+        ohms = self._r25_ohm * math.exp(self._beta_k * inverse_kelvin_from_25)
+        return self._supply_mv * ohms / (ohms + self._reference_ohm)

@@ -1,0 +1,199 @@
+"""The sensor integrator: the LSM9DS0 on the tilt table, running the bound
+functions of its enabled terms stage by stage (terms.SENSOR_STAGES)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .model import Model
+from .terms import REGISTRY, SENSOR_STAGES, SensorContext, SensorTerm
+from .terms.sensor import INT16_MAX, INT16_MIN
+
+# The LSM9DS0 temperature output is 12-bit two's complement.
+_TEMPERATURE_RAW_MIN, _TEMPERATURE_RAW_MAX = -2048, 2047
+_NOISE_BLOCK_SAMPLES = 4096
+_SENSOR_TERMS = tuple(name for name, term in REGISTRY.items() if issubclass(term, SensorTerm))
+
+
+@dataclass(frozen=True, slots=True)
+class SensorSample:
+    """One LSM9DS0 sample: register contents and the model's intermediate values."""
+
+    ax: int
+    ay: int
+    az: int
+    temperature_raw: int
+    die_c: float
+    reported_c: float
+    rate_c_per_s: float
+    drift_set: str
+    ideal_ax: float
+    ideal_ay: float
+    ideal_az: float
+    drift_x: float
+    drift_y: float
+    drift_z: float
+
+
+def _clip_round(value: float, low: int, high: int) -> int:
+    rounded = math.floor(value + 0.5)
+    return low if rounded < low else high if rounded > high else rounded
+
+
+class _BlockDraws:
+    """Seeded draws handed out one at a time from pre-drawn numpy blocks."""
+
+    __slots__ = ("_draw", "_values", "_index")
+
+    def __init__(self, draw: Any) -> None:
+        self._draw = draw
+        self._values: list[float] = []
+        self._index = 0
+
+    def next(self) -> float:
+        if self._index == len(self._values):
+            self._values = self._draw(_NOISE_BLOCK_SAMPLES).tolist()
+            self._index = 0
+        value = self._values[self._index]
+        self._index += 1
+        return value
+
+
+class Sensor:
+    """The LSM9DS0 accelerometer and temperature sensor on the tilt table."""
+
+    __slots__ = (
+        "_temperature_lsb_per_c",
+        "_temperature_zero_c",
+        "_schmitt_band",
+        "_die",
+        "_reported",
+        "_gravity",
+        "_ideal",
+        "_drift",
+        "_errors",
+        "_register",
+        "_die_c",
+        "_trend_set",
+        "_trend_extreme",
+        "_angles",
+        "_acceleration",
+    )
+
+    def __init__(self, model: Model, seed: int, environment_c: float) -> None:
+        constants = model.constants["sensor"]
+        self._temperature_lsb_per_c = constants["temperature_lsb_per_c"]
+        self._temperature_zero_c = constants["temperature_zero_c"]
+        # The warming/cooling choice runs whether or not the drift is on: the
+        # sample always says which set the firmware would pick.
+        self._schmitt_band = model.terms["drift"]["schmitt_band_c"]
+
+        # Separate streams, so switching dither on or off leaves the noise as it was.
+        noise_seed, dither_seed = np.random.SeedSequence(seed).spawn(2)
+        context = SensorContext(
+            lsb_per_g=constants["lsb_per_g"],
+            normal=_BlockDraws(np.random.default_rng(noise_seed).standard_normal).next,
+            uniform=_BlockDraws(np.random.default_rng(dither_seed).random).next,
+        )
+        stages: dict[str, list[Any]] = {stage: [] for stage in SENSOR_STAGES}
+        for term in model.bound(_SENSOR_TERMS).values():
+            assert isinstance(term, SensorTerm)
+            function = term.bind(context)
+            if function is not None:
+                stages[term.stage].append(function)
+        self._die = tuple(stages["die"])
+        self._reported = tuple(stages["reported"])
+        (self._gravity,) = stages["gravity"]
+        self._ideal = tuple(stages["ideal"])
+        self._drift = stages["drift"][0] if stages["drift"] else None
+        self._errors = tuple(stages["error"])
+        self._register = tuple(stages["register"])
+
+        self._die_c = float(environment_c)
+        # Like the firmware's TrendDetector: starts warming, as the paper's cycles do.
+        self._trend_set = "W"
+        self._trend_extreme = self._die_c
+        self._angles: tuple[float, float] | None = None
+        self._acceleration = (0.0, 0.0, 0.0)
+
+    def step(
+        self, dt_s: float, environment_c: float, incl_x_deg: float, incl_y_deg: float
+    ) -> SensorSample:
+        """Advance dt_s and return the sample the registers then hold."""
+        if not dt_s > 0.0:
+            raise ValueError(f"dt_s must be > 0, got {dt_s}")
+        previous_die = self._die_c
+        die = float(environment_c)
+        for lag in self._die:
+            die = lag(previous_die, die, dt_s)
+        self._die_c = die
+        rate = (die - previous_die) / dt_s
+        drift_set = self._update_trend(die)
+        reported = die
+        for offset in self._reported:
+            reported = offset(reported)
+
+        if self._angles != (incl_x_deg, incl_y_deg):
+            self._angles = (incl_x_deg, incl_y_deg)
+            acceleration = self._gravity(incl_x_deg, incl_y_deg)
+            for modify in self._ideal:
+                acceleration = modify(*acceleration)
+            self._acceleration = acceleration
+        ideal_x, ideal_y, ideal_z = self._acceleration
+
+        if self._drift is not None:
+            drift_x, drift_y, drift_z = self._drift(drift_set, reported, ideal_x, ideal_y, ideal_z)
+            raw_x, raw_y, raw_z = ideal_x + drift_x, ideal_y + drift_y, ideal_z + drift_z
+        else:
+            drift_x = drift_y = drift_z = 0.0
+            raw_x, raw_y, raw_z = ideal_x, ideal_y, ideal_z
+        for error in self._errors:
+            error_x, error_y, error_z = error(drift_set, reported, rate)
+            raw_x += error_x
+            raw_y += error_y
+            raw_z += error_z
+
+        temperature_lsb = (reported - self._temperature_zero_c) * self._temperature_lsb_per_c
+        for register in self._register:
+            temperature_lsb = register(temperature_lsb)
+
+        return SensorSample(
+            ax=_clip_round(raw_x, INT16_MIN, INT16_MAX),
+            ay=_clip_round(raw_y, INT16_MIN, INT16_MAX),
+            az=_clip_round(raw_z, INT16_MIN, INT16_MAX),
+            temperature_raw=_clip_round(
+                temperature_lsb, _TEMPERATURE_RAW_MIN, _TEMPERATURE_RAW_MAX
+            ),
+            die_c=die,
+            reported_c=reported,
+            rate_c_per_s=rate,
+            drift_set=drift_set,
+            ideal_ax=ideal_x,
+            ideal_ay=ideal_y,
+            ideal_az=ideal_z,
+            drift_x=drift_x,
+            drift_y=drift_y,
+            drift_z=drift_z,
+        )
+
+    def _update_trend(self, die: float) -> str:
+        # Schmitt trigger on the excursion from the running extreme, as the
+        # firmware's TrendDetector, so the model's set matches the firmware's
+        # choice whenever both see the same temperature.
+        if self._trend_set == "W":
+            if die > self._trend_extreme:
+                self._trend_extreme = die
+            elif self._trend_extreme - die > self._schmitt_band:
+                self._trend_set = "C"
+                self._trend_extreme = die
+        else:
+            if die < self._trend_extreme:
+                self._trend_extreme = die
+            elif die - self._trend_extreme > self._schmitt_band:
+                self._trend_set = "W"
+                self._trend_extreme = die
+        return self._trend_set

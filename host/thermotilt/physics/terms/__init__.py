@@ -1,0 +1,129 @@
+"""The registry of physical effects: every term is a class declaring its
+parameters once (see ..parameters) and what it contributes — a chamber term
+its heat flows into the chamber's nodes, a sensor term the stage of the
+sensor it acts on. Registration order is the order of TERMS, of the model
+file and of the docs tables; within a sensor stage terms act in that order.
+
+Importing this package registers the chamber terms and then the sensor terms.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+from ..parameters import SWITCH, Parameter
+
+
+class Section:
+    """A table of the model file: a name and its declared parameters."""
+
+    name: ClassVar[str]
+    summary: ClassVar[str]
+    parameters: ClassVar[tuple[Parameter, ...]] = ()
+
+    def __init__(self, values: Mapping[str, Any]) -> None:
+        self.values = values
+
+
+class Term(Section):
+    """A switchable physical effect; `enabled` is its first parameter."""
+
+    enabled_by_default: ClassVar[bool] = True
+
+    def __init__(self, values: Mapping[str, Any]) -> None:
+        super().__init__(values)
+        self.enabled: bool = values["enabled"]
+
+    @classmethod
+    def declared(cls) -> tuple[Parameter, ...]:
+        switch = Parameter(
+            "enabled",
+            SWITCH,
+            cls.enabled_by_default,
+            "on by default" if cls.enabled_by_default else "a candidate: off by default",
+        )
+        return (switch, *cls.parameters)
+
+
+@dataclass(frozen=True)
+class HeatFlows:
+    """What a chamber term adds to the chamber's heat balance.
+
+    nodes: heat capacity (J/K) of a node the term adds; conductances: W/K
+    between two nodes ("inner", "outer", "ambient"); drive: W into the inner
+    and outer nodes at a mean duty (0..1) and direction (+1 heats the inner
+    face, -1 cools it), constant over a step."""
+
+    nodes: Mapping[str, float] = field(default_factory=dict)
+    conductances: Mapping[tuple[str, str], float] = field(default_factory=dict)
+    drive: Callable[[float, int], tuple[float, float]] | None = None
+
+
+class ChamberTerm(Term):
+    """A chamber effect: its heat flows, or how the thermistors read."""
+
+    def heat_flows(self) -> HeatFlows:
+        return HeatFlows()
+
+    def thermistor_lag_s(self) -> float | None:
+        """The thermistors' first-order time constant, if this term sets one."""
+        return None
+
+
+# The sensor's stages in the order it runs them, with what a term bound to
+# each stage is called with and returns.
+SENSOR_STAGES: Mapping[str, str] = {
+    "die": "(previous die degC, target degC, dt s) -> die degC",
+    "reported": "(die degC) -> the temperature the sensor reports, degC",
+    "gravity": "(incl x deg, incl y deg) -> acceleration (x, y, z) LSB",
+    "ideal": "(acceleration x, y, z) -> ideal acceleration (x, y, z) LSB",
+    "drift": "(set, reported degC, ideal x, y, z) -> thermal drift (x, y, z) LSB",
+    "error": "(set, reported degC, rate degC/s) -> additive error (x, y, z) LSB",
+    "register": "(temperature LSB, unrounded) -> temperature LSB",
+}
+
+
+@dataclass(frozen=True)
+class SensorContext:
+    """What a sensor term may need to bind: hardware constants and the
+    seeded streams of draws (each a callable giving the next draw)."""
+
+    lsb_per_g: float
+    normal: Callable[[], float]
+    uniform: Callable[[], float]
+
+
+class SensorTerm(Term):
+    """A sensor effect acting on one stage of SENSOR_STAGES."""
+
+    stage: ClassVar[str]
+
+    def bind(self, context: SensorContext) -> Callable[..., Any] | None:
+        """The stage function of this term, or None when it does nothing."""
+        return self.act if self.enabled else None
+
+    def act(self, *args: Any) -> Any:
+        raise NotImplementedError
+
+
+HARDWARE: dict[str, type[Section]] = {}
+REGISTRY: dict[str, type[Term]] = {}
+
+
+def hardware(cls: type[Section]) -> type[Section]:
+    HARDWARE[cls.name] = cls
+    return cls
+
+
+def register(cls: type[Term]) -> type[Term]:
+    if cls.name in REGISTRY or cls.name in HARDWARE:
+        raise ValueError(f"term {cls.name} registered twice")
+    if isinstance(cls, type) and issubclass(cls, SensorTerm) and cls.stage not in SENSOR_STAGES:
+        raise ValueError(f"term {cls.name}: unknown stage {cls.stage}")
+    REGISTRY[cls.name] = cls
+    return cls
+
+
+from . import chamber, sensor  # noqa: E402,F401  (registers the terms)

@@ -1,0 +1,24 @@
+"""A first-order lag's step fraction, shared by the thermistors and the die."""
+
+from __future__ import annotations
+
+import math
+
+
+class LagFraction:
+    """How far a first-order lag moves towards its input in one step,
+    1 - exp(-dt/tau), recomputed only when the step length changes (the twin
+    always steps 10 ms)."""
+
+    __slots__ = ("_tau_s", "_dt_s", "_fraction")
+
+    def __init__(self, tau_s: float) -> None:
+        self._tau_s = tau_s
+        self._dt_s = -1.0
+        self._fraction = 1.0
+
+    def of_step(self, dt_s: float) -> float:
+        if dt_s != self._dt_s:
+            self._dt_s = dt_s
+            self._fraction = -math.expm1(-dt_s / self._tau_s)
+        return self._fraction

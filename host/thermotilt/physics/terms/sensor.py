@@ -1,0 +1,281 @@
+"""The LSM9DS0's effects and hardware, each acting on one stage of the
+sensor (SENSOR_STAGES). "Paper" is Sensors 2018, 18, 2536."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any
+
+from ...coefficients import AXES, PAPER_DEFAULTS, SETS, CoefficientTable, Surface
+from ..parameters import Bounds, Parameter, PerAxis, Surfaces
+from . import SensorContext, SensorTerm, Section, hardware, register
+from .lag import LagFraction
+
+INT16_MIN, INT16_MAX = -32768, 32767
+INT16_SPAN = INT16_MAX - INT16_MIN + 1
+# The LSM9DS0's operating temperature range (datasheet).
+OPERATING_C = Bounds(-40.0, 85.0, "degC")
+
+# A drift surface term alone may add at most the int16 span anywhere the
+# sensor works: over its operating range and at any int16 reading. p<i><j>
+# multiplies T^i a^j.
+_SURFACE_TERM_POWERS = ((0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2))
+SURFACE_TERM_NAMES = tuple(f"p{t}{a}" for t, a in _SURFACE_TERM_POWERS)
+_LARGEST_ABS_C = max(-OPERATING_C.low, OPERATING_C.high)
+SURFACE_TERM_BOUNDS: tuple[Bounds, ...] = tuple(
+    Bounds(-limit, limit)
+    for limit in (
+        INT16_SPAN / (_LARGEST_ABS_C**t * float(-INT16_MIN) ** a) for t, a in _SURFACE_TERM_POWERS
+    )
+)
+
+
+@hardware
+class SensorHardware(Section):
+    name = "sensor"
+    summary = "the accelerometer's scale and the temperature output's encoding"
+    parameters = (
+        Parameter(
+            "lsb_per_g", Bounds(1000.0, INT16_MAX, "LSB"), 16393.442622950820,
+            "1 / 0.061 mg at ±2 g (LSM9DS0 datasheet; paper section 2)",
+            "the LSM9DS0's ±16 g scale gives 1366 LSB/g, ±2 g 16393; an int16 register holds "
+            "no more than 32767",
+        ),
+        Parameter(
+            "temperature_lsb_per_c", Bounds(1.0, 256.0, "LSB"), 8.0, "paper section 2",
+            "the LSM9DS0 gives 8; MEMS temperature outputs use 1 to 256 LSB/°C",
+        ),
+        Parameter(
+            "temperature_zero_c", OPERATING_C, 21.0,
+            "the firmware decodes raw / 8 + 21 (paper section 2)",
+            "the LSM9DS0's operating range: code 0 stands for a temperature the part works at",
+        ),
+    )
+
+
+@register
+class DieLag(SensorTerm):
+    name = "die_lag"
+    stage = "die"
+    summary = "τ of the die behind the chamber temperature it is given"
+    parameters = (
+        Parameter(
+            "time_constant_s", Bounds(0.0, 3600.0, "s", low_exclusive=True), 15.0,
+            "assumed: a 4 × 4 × 1 mm LGA on a breakout inside the chamber",
+            "as `[thermistor_lag]`; a packaged sensor inside a closed box lags minutes, not hours",
+        ),
+    )
+
+    def bind(self, context: SensorContext) -> Callable[..., Any] | None:
+        if not self.enabled:
+            return None
+        fraction = LagFraction(self.values["time_constant_s"]).of_step
+
+        def die(previous_c: float, target_c: float, dt_s: float) -> float:
+            return previous_c + fraction(dt_s) * (target_c - previous_c)
+
+        return die
+
+
+@register
+class Tilt(SensorTerm):
+    name = "tilt"
+    stage = "gravity"
+    summary = (
+        "ax = g sin x, ay = g cos x sin y, az = g cos x cos y; disabled: the sensor lies flat"
+    )
+
+    def bind(self, context: SensorContext) -> Callable[..., Any] | None:
+        g = context.lsb_per_g
+        if not self.enabled:
+            return lambda incl_x_deg, incl_y_deg: (0.0, 0.0, g)
+
+        def gravity(incl_x_deg: float, incl_y_deg: float) -> tuple[float, float, float]:
+            x = math.radians(incl_x_deg)
+            y = math.radians(incl_y_deg)
+            return g * math.sin(x), g * math.cos(x) * math.sin(y), g * math.cos(x) * math.cos(y)
+
+        return gravity
+
+
+def _coefficient_table(value: Any) -> CoefficientTable:
+    if value == "paper":
+        return PAPER_DEFAULTS
+    return CoefficientTable(
+        {(set_, axis): Surface(*value[set_][axis]) for set_ in SETS for axis in AXES}
+    )
+
+
+def _surface(p: tuple[float, ...], temperature_c: float, acceleration: float) -> float:
+    # The paper's equation (3), f(T, a), in the firmware's grouping.
+    return (
+        p[0]
+        + temperature_c * (p[1] + p[3] * temperature_c + p[4] * acceleration)
+        + acceleration * (p[2] + p[5] * acceleration)
+    )
+
+
+@register
+class Drift(SensorTerm):
+    name = "drift"
+    stage = "drift"
+    summary = (
+        "f(T, a) per set and axis, warming set W or cooling set C, T the reported temperature"
+    )
+    parameters = (
+        Parameter(
+            "coefficients", Surfaces(SURFACE_TERM_NAMES, SURFACE_TERM_BOUNDS), "paper",
+            "paper Tables 2 and 3; Z zero",
+            "each term alone may add at most the int16 span (65536 LSB) anywhere the sensor "
+            "works: −40…85 °C and any int16 reading, i.e. 65536 / (85^i · 32768^j) for p_ij",
+        ),
+        Parameter(
+            "schmitt_band_c", Bounds(0.0, 10.0, "degC"), 0.5, "as the firmware's TrendDetector",
+            "the firmware uses 0.5; a band wider than the paper's ±6 °C field swings would "
+            "never switch",
+        ),
+    )
+
+    def bind(self, context: SensorContext) -> Callable[..., Any] | None:
+        if not self.enabled:
+            return None
+        table = _coefficient_table(self.values["coefficients"])
+        surfaces = {
+            set_: tuple(tuple(table.surface(set_, axis)) for axis in AXES) for set_ in SETS
+        }
+
+        def drift(
+            drift_set: str, reported_c: float, ideal_x: float, ideal_y: float, ideal_z: float
+        ) -> tuple[float, float, float]:
+            surface_x, surface_y, surface_z = surfaces[drift_set]
+            return (
+                _surface(surface_x, reported_c, ideal_x),
+                _surface(surface_y, reported_c, ideal_y),
+                _surface(surface_z, reported_c, ideal_z),
+            )
+
+        return drift
+
+
+@register
+class RateSensitivity(SensorTerm):
+    name = "rate_sensitivity"
+    stage = "error"
+    summary = "k·(dT_die/dt) per axis"
+    parameters = (
+        Parameter(
+            "lsb_per_c_per_s", PerAxis(Bounds(-INT16_SPAN, INT16_SPAN, "LSB per degC/s")),
+            {"x": 0.0, "y": 0.0, "z": 1200.0},
+            "tuned: ~110 LSB peaks in 2 °C/60 s staircase steps and ~47 LSB RMS over a "
+            "−10…45 °C cycle, the order of the Z fits' RMS errors (paper section 4.1, "
+            "Tables 4, 5: 34–87 LSB)",
+            "at 1 °C/s, faster than the chamber moves, more would swing the whole int16 span",
+        ),
+    )
+
+    def bind(self, context: SensorContext) -> Callable[..., Any] | None:
+        if not self.enabled:
+            return None
+        gains = self.values["lsb_per_c_per_s"]
+        gain_x, gain_y, gain_z = gains["x"], gains["y"], gains["z"]
+
+        def error(drift_set: str, reported_c: float, rate: float) -> tuple[float, float, float]:
+            return gain_x * rate, gain_y * rate, gain_z * rate
+
+        return error
+
+
+@register
+class TemperatureOffset(SensorTerm):
+    name = "temperature_offset"
+    stage = "reported"
+    summary = "reported = die + offset"
+    parameters = (
+        Parameter(
+            "offset_c", Bounds(-20.0, 20.0, "degC"), -1.0,
+            "assumed: the paper reports a consistent negative offset (section 3.1) without a value",
+            "an uncalibrated die sensor; the paper saw about −1 °C",
+        ),
+    )
+
+    def bind(self, context: SensorContext) -> Callable[..., Any] | None:
+        if not self.enabled:
+            return None
+        offset_c = self.values["offset_c"]
+        return lambda die_c: die_c + offset_c
+
+
+@register
+class TemperatureQuantisation(SensorTerm):
+    name = "temperature_quantisation"
+    stage = "register"
+    summary = (
+        "1/8 °C register steps; disabled: the last bit is dithered so averages carry no "
+        "staircase (a register is an integer either way)"
+    )
+
+    def bind(self, context: SensorContext) -> Callable[..., Any] | None:
+        if self.enabled:
+            return None
+        uniform = context.uniform
+        # Each code is picked with a probability that keeps its mean at the
+        # continuous value.
+        return lambda temperature_lsb: temperature_lsb + (uniform() - 0.5)
+
+
+@register
+class SensitivityLoss(SensorTerm):
+    name = "sensitivity_loss"
+    stage = "ideal"
+    summary = "a → a (1 − k (a/g)²)"
+    parameters = (
+        Parameter(
+            "gain_loss_at_1g", Bounds(0.0, 0.33), 0.01,
+            "assumed: paper section 4.1 notes shrinking line spacing at high inclination "
+            "without a number",
+            "a (1 − k a²) must still grow up to 1 g, which needs k < 1/3",
+        ),
+    )
+
+    def bind(self, context: SensorContext) -> Callable[..., Any] | None:
+        if not self.enabled:
+            return None
+        g = context.lsb_per_g
+        loss = self.values["gain_loss_at_1g"]
+
+        def ideal(ax: float, ay: float, az: float) -> tuple[float, float, float]:
+            return (
+                ax * (1.0 - loss * (ax / g) ** 2),
+                ay * (1.0 - loss * (ay / g) ** 2),
+                az * (1.0 - loss * (az / g) ** 2),
+            )
+
+        return ideal
+
+
+@register
+class Noise(SensorTerm):
+    name = "noise"
+    stage = "error"
+    summary = "Gaussian, per axis, seeded (numpy.random.Generator, blocks of 4096 pre-drawn)"
+    parameters = (
+        Parameter(
+            "sigma_lsb", PerAxis(Bounds(0.0, 1000.0, "LSB")), {"x": 17.4, "y": 17.4, "z": 17.4},
+            "150 µg/√Hz (LSM9DS0 datasheet, ±2 g) over the 50 Hz anti-alias bandwidth = "
+            "1.06 mg = 17.4 LSB",
+            "57 times the datasheet's 17.4 LSB; more is a unit slip (mg or µg/√Hz)",
+        ),
+    )
+
+    def bind(self, context: SensorContext) -> Callable[..., Any] | None:
+        if not self.enabled:
+            return None
+        sigmas = self.values["sigma_lsb"]
+        sigma_x, sigma_y, sigma_z = sigmas["x"], sigmas["y"], sigmas["z"]
+        draw = context.normal
+
+        def error(drift_set: str, reported_c: float, rate: float) -> tuple[float, float, float]:
+            return sigma_x * draw(), sigma_y * draw(), sigma_z * draw()
+
+        return error
