@@ -318,7 +318,7 @@ static void test_hold_start_validated(void)
     TEST_ASSERT_EQUAL(ProgramError::HoldStartUnknown, TemperatureProgram::validate(settings));
     settings.hold_start = HoldStart::Timed;
     TEST_ASSERT_EQUAL(ProgramError::None, TemperatureProgram::validate(settings));
-    TEST_ASSERT_EQUAL(HoldStart::AllStepsWait, ProgramSettings().hold_start);
+    TEST_ASSERT_EQUAL(HoldStart::Timed, ProgramSettings().hold_start);
 }
 
 int runUnityTests(void)

@@ -39,8 +39,10 @@ struct ProgramSettings {
     uint32_t hold_s = 60;
     uint32_t rest_s = 1200;
     uint16_t cycles = 0; // 0 = repeat forever
-    // The paper's rule: every hold is hold_s at the temperature.
-    HoldStart hold_start = HoldStart::AllStepsWait;
+    // Timed by default: a SETPRG without hold_start means what it meant
+    // before the field was appended, and a wait from ambient to -10 degC
+    // outlasts ThermalGuard's default 90 s window (docs/architecture.md).
+    HoldStart hold_start = HoldStart::Timed;
 };
 
 // Numeric values are stable so firmware can report them over serial.
