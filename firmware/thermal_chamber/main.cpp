@@ -50,13 +50,19 @@ SerialLink link;
 Thermistor thermistor;
 ChamberController controller;
 TemperatureProgram program;
+ProgramRun programRun(program);
 ThermalGuard guard;
 // START runs only a program the host set and the board accepted.
 bool programAccepted = false;
 bool running = false;
 uint16_t heartbeatS = 0;
-bool proportionalOnly = true;
-uint32_t programStartMs = 0;
+// SETCTL's modes: the paper's P law, PI, and P on the error rounded to whole
+// degC (a hypothesis about the paper's code, see lib/ChamberControl).
+enum ControlMode : uint8_t { CONTROL_P, CONTROL_PI, CONTROL_PR };
+const char* const CONTROL_MODE_NAMES[] = {"P", "PI", "PR"};
+ControlMode controlMode = CONTROL_P;
+// Program time runs by the real time between control ticks (lib/Program).
+uint32_t lastProgramTickMs = 0;
 uint32_t lastControlMs = 0;
 uint8_t ticksSinceStatus = 0;
 Fault fault = NO_FAULT;
@@ -225,7 +231,8 @@ void controlTick(uint32_t now)
         return;
     }
     if (running) {
-        programState = program.stateAt(now - programStartMs);
+        programState = programRun.advance(now - lastProgramTickMs, inner.celsius);
+        lastProgramTickMs = now;
     }
     bool driving = running && programState.phase != ProgramPhase::Done && programState.driveEnabled;
     Fault detected = presentSensorFault();
@@ -254,6 +261,25 @@ void controlTick(uint32_t now)
     }
 }
 
+// SETPRG's and PRG's hold_start: T timed, F first step of each cycle waits,
+// A all steps wait.
+const char HOLD_START_LETTERS[] = "TFA";
+
+char holdStartLetter(HoldStart value)
+{
+    return HOLD_START_LETTERS[(uint8_t)value];
+}
+
+bool parseHoldStart(const char* text, HoldStart& value)
+{
+    const char* found = text[0] != '\0' && text[1] == '\0' ? strchr(HOLD_START_LETTERS, text[0]) : NULL;
+    if (found == NULL) {
+        return false;
+    }
+    value = (HoldStart)(found - HOLD_START_LETTERS);
+    return true;
+}
+
 void sendProgram()
 {
     const ProgramSettings& settings = program.settings();
@@ -264,10 +290,11 @@ void sendProgram()
     frame.addUnsigned(settings.hold_s);
     frame.addUnsigned(settings.rest_s);
     frame.addUnsigned(settings.cycles);
-    frame.addText(proportionalOnly ? "P" : "PI");
+    frame.addText(CONTROL_MODE_NAMES[controlMode]);
     frame.addFixed(controller.proportionalGain(), 3);
     frame.addFixed(controller.integralGain(), 3);
     frame.addUnsigned(programAccepted ? 1 : 0);
+    frame.addChar(holdStartLetter(settings.hold_start));
     link.send();
 }
 
@@ -299,6 +326,7 @@ const char* programErrorName(ProgramError error)
     case ProgramError::StepTooSmall: return "STEP_TOO_SMALL";
     case ProgramError::HoldZero: return "HOLD_0";
     case ProgramError::CycleTooLong: return "TOO_LONG";
+    case ProgramError::HoldStartUnknown: return "HOLD_START_TFA";
     default: return "OK";
     }
 }
@@ -309,10 +337,14 @@ void setProgram(const FrameParser& command)
     int32_t rest = 0;
     int32_t cycles = 0;
     ProgramSettings settings;
-    bool parsed = command.fieldCount() >= Protocol::FieldCount::SETPRG && command.fieldFloat(0, settings.start_c) &&
+    // hold_start was appended to protocol 2: without it, the default.
+    const uint8_t holdStartField = Protocol::FieldCount::SETPRG - 1;
+    bool parsed = command.fieldCount() >= holdStartField && command.fieldFloat(0, settings.start_c) &&
                   command.fieldFloat(1, settings.max_c) && command.fieldFloat(2, settings.step_c) &&
                   command.fieldInt(3, hold) && command.fieldInt(4, rest) && command.fieldInt(5, cycles) &&
-                  hold >= 0 && rest >= 0 && cycles >= 0 && cycles <= 65535;
+                  hold >= 0 && rest >= 0 && cycles >= 0 && cycles <= 65535 &&
+                  (command.fieldCount() == holdStartField ||
+                   parseHoldStart(command.field(holdStartField), settings.hold_start));
     if (running) {
         link.reject("BUSY", "STOP_FIRST");
         return;
@@ -342,14 +374,18 @@ void setControl(const FrameParser& command)
     float ki = 0.0f;
     bool parsed = command.fieldCount() >= Protocol::FieldCount::SETCTL && command.fieldFloat(1, kp) &&
                   command.fieldFloat(2, ki) && kp >= 0.0f && ki >= 0.0f && isfinite(kp) && isfinite(ki);
-    bool proportional = parsed && strcmp(mode, "P") == 0;
-    if (!parsed || (!proportional && strcmp(mode, "PI") != 0)) {
+    uint8_t chosen = 0;
+    while (parsed && chosen <= CONTROL_PR && strcmp(mode, CONTROL_MODE_NAMES[chosen]) != 0) {
+        ++chosen;
+    }
+    if (!parsed || chosen > CONTROL_PR) {
         link.reject("BAD_ARG", "SETCTL_FIELDS");
         return;
     }
-    proportionalOnly = proportional;
+    controlMode = (ControlMode)chosen;
     controller.setProportionalGain(kp);
-    controller.setIntegralGain(proportional ? 0.0f : ki);
+    controller.setIntegralGain(controlMode == CONTROL_PI ? ki : 0.0f);
+    controller.setRoundedError(controlMode == CONTROL_PR);
     controller.reset();
     link.acknowledge();
 }
@@ -426,9 +462,9 @@ void handleCommand(uint32_t now)
         }
         running = true;
         guard.reset();
-        programStartMs = now;
+        lastProgramTickMs = now;
         controller.reset();
-        programState = program.stateAt(0);
+        programState = programRun.start(inner.celsius);
         link.acknowledge();
     } else if (link.commandIs(Protocol::Tag::STOP)) {
         stopProgram();

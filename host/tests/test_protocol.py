@@ -28,7 +28,8 @@ VECTORS = [
     "$ACK,0,13,STOP*B192",
     "$ACK,65535,12,SETPRG*7DCE",
     "$ERR,8,-1,BAD_CHECKSUM,CMD*9211",
-    "$SETPRG,9,-10.00,45.00,2.00,60,1200,1*A843",
+    # hold_start appended: the C++ test keeps the 6-field line (its parser counts no fields).
+    "$SETPRG,9,-10.00,45.00,2.00,60,1200,1,T*B58A",
     "$GETCOE,3,C,Y*C2AC",
     "$IMU,42,123456,-1650,-388,16012,-1649.75,-388.50,16012.25,-1078.25,-34.50,16011.00,23.50,W,E*BC38",
     "$COE,7,W,X,5.7150e+02,-2.0230e+01,1.5690e-03,-1.0440e-01,-6.9360e-05,6.3270e-09*FCD1",
@@ -98,8 +99,9 @@ def test_table_matches_brief():
         "kp",
         "ki",
         "accepted",
+        "hold_start",
     )
-    assert FRAMES["SETPRG"].field_names == FRAMES["PRG"].field_names[:6]
+    assert FRAMES["SETPRG"].field_names == FRAMES["PRG"].field_names[:6] + ("hold_start",)
     assert FRAMES["VER"].field_names == ("device", "firmware_version", "protocol_version", "reset_cause")
     assert FRAMES["SETGRD"].field_names == FRAMES["GRD"].field_names[:-1]
     assert FRAMES["GRD"].field_names[-1] == "heartbeat_s"

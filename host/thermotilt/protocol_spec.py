@@ -70,6 +70,7 @@ FRAMES = {
             ("kp", "f"),
             ("ki", "f"),
             ("accepted", "i"),
+            ("hold_start", "t"),
         ),
     ),
     "GRD": (
@@ -128,6 +129,7 @@ FRAMES = {
             ("hold_s", "i"),
             ("rest_s", "i"),
             ("cycles", "i"),
+            ("hold_start", "t"),
         ),
     ),
     "SETCTL": (

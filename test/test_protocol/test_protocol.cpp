@@ -44,7 +44,7 @@ static void test_table(void)
     TEST_ASSERT_EQUAL_UINT8(13, Protocol::FieldCount::IMU);
     TEST_ASSERT_EQUAL_UINT8(9, Protocol::FieldCount::CHS);
     TEST_ASSERT_EQUAL_UINT8(8, Protocol::FieldCount::SETCOE);
-    TEST_ASSERT_EQUAL_UINT8(6, Protocol::FieldCount::SETPRG);
+    TEST_ASSERT_EQUAL_UINT8(7, Protocol::FieldCount::SETPRG);
     TEST_ASSERT_EQUAL_UINT8(0, Protocol::FieldCount::START);
     TEST_ASSERT_EQUAL_STRING("SAVECOE", Protocol::Tag::SAVECOE);
 }
