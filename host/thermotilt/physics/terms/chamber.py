@@ -1,7 +1,9 @@
 """The Peltier chamber's effects and hardware: two faces of the cell as
 lumped nodes ("inner", the reference face; "outer", the heatsink face) and
 the room ("ambient"). "Datasheet" is the TEC1-12706's (Vmax 14.4 V, Imax
-6.4 A, dTmax 66 K at Th = 300 K)."""
+6.4 A, dTmax 66 K at Th = 300 K: Seebeck 0.048 V/K, 1.755 Ω, 0.545 W/K); the
+drive is an L298N with both bridges paralleled, 4 A (ST's L298 datasheet:
+2 A DC per bridge, total DC current up to 4 A)."""
 
 from __future__ import annotations
 
@@ -23,8 +25,9 @@ class ChamberHardware(Section):
     summary = "the inner face's heat capacity and the thermistor dividers"
     parameters = (
         Parameter(
-            "inner_heat_capacity_j_per_k", HEAT_CAPACITY, 180.0,
-            "tuned to Figure 8: a 2 °C step reaches 90 % in ~13 s under the paper's P control",
+            "inner_heat_capacity_j_per_k", HEAT_CAPACITY, 400.0,
+            "tuned to Figure 8: a 2 °C step reaches 90 % in ~13 s under the paper's P control "
+            "with the 4 A drive (~440 g of aluminium: plate, mount, sensor board)",
             "the Peltier's own ceramic plate (40 × 40 × 0.8 mm alumina, ≈ 4.4 J/K) is the least "
             "a face carries; 100 000 J/K is ~110 kg of aluminium. The lower bound also keeps the "
             "integrator's substeps (5 % of a time constant) to a few per 10 ms step",
@@ -55,8 +58,9 @@ class PeltierPumping(ChamberTerm):
     summary = "s·P·d pumped from the outer face into the inner one"
     parameters = (
         Parameter(
-            "full_duty_w", HEATER_POWER, 28.1,
-            "datasheet Seebeck 0.048 V/K × the L298N's 2 A × 293 K", HEATER_POWER_WHY,
+            "full_duty_w", HEATER_POWER, 56.3,
+            "datasheet Seebeck 0.048 V/K × the paralleled L298N's 4 A × 293 K; at Imax the "
+            "same model nets the datasheet's Qmax, 56 W", HEATER_POWER_WHY,
         ),
     )
 
@@ -78,7 +82,7 @@ class JouleHeating(ChamberTerm):
     summary = "J·d^n dissipated in the cell, a share f to the inner face"
     parameters = (
         Parameter(
-            "full_duty_w", HEATER_POWER, 7.0, "(2 A)² × 1.755 Ω (datasheet)", HEATER_POWER_WHY,
+            "full_duty_w", HEATER_POWER, 28.1, "(4 A)² × 1.755 Ω (datasheet)", HEATER_POWER_WHY,
         ),
         Parameter(
             "exponent", Bounds(1.0, 2.0), 2.0,
@@ -113,7 +117,7 @@ class AmbientLeak(ChamberTerm):
     parameters = (
         Parameter(
             "conductance_w_per_k", Bounds(0.0, 10.0, "W/K"), 0.1,
-            "assumed (polystyrene cover)",
+            "assumed: 2 cm of polystyrene (0.035 W/mK) over ~0.06 m²",
             "0 is perfect insulation; 10 W/K is a 0.1 m² face in a fan's draught (~100 W/m²K)",
         ),
     )
@@ -142,8 +146,9 @@ class Heatsink(ChamberTerm):
             "single-stage modules",
         ),
         Parameter(
-            "ambient_conductance_w_per_k", Bounds(0.0, 50.0, "W/K"), 2.0,
-            "assumed: a passive finned heatsink of ~0.5 K/W",
+            "ambient_conductance_w_per_k", Bounds(0.0, 50.0, "W/K"), 5.0,
+            "assumed: a fan-cooled heatsink of 0.2 K/W (forced air: 3–10 W/K); a passive one "
+            "(~0.5 K/W) cannot take the ~75 W the cell rejects at full cooling",
             "2 W/K for a passive finned heatsink (0.5 K/W), 10 W/K fan-cooled, 50 W/K a "
             "liquid-cooled cold plate (0.02 K/W)",
         ),
