@@ -1,0 +1,214 @@
+"""The paper's 2nd-order surfaces fitted with statsmodels, with the
+statistics Matlab's cftool gave the paper (section 3.3, Tables 2-5).
+
+f(T, a) = p00 + p10 T + p01 a + p20 T^2 + p11 T a + p02 a^2 per set and
+axis, by ordinary least squares. The rows of a 10 Hz, Kalman-filtered log
+are strongly autocorrelated, so OLS's textbook bounds are far too narrow;
+next to them come Newey-West (HAC) bounds computed within each position
+(statsmodels' ``hac-panel``), with the lag window read off the residuals'
+own autocorrelation (``hac_lags``).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import statsmodels.api as sm
+from statsmodels.tsa.stattools import acf
+
+from ..coefficients import AXES, SETS, TERMS, CoefficientTable, Surface, ZERO_SURFACE, encode_block
+from .dataset import Campaign, CalibrationDataError, SetData
+
+# Powers of (T, a) for p00, p10, p01, p20, p11, p02.
+_POWERS = ((0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2))
+# The design is built on T / 10 degC and a / 10^4 LSB so that its columns
+# are of similar size (a^2 reaches 2.7e8 LSB^2); coefficients and bounds are
+# scaled back exactly.
+_TEMPERATURE_SCALE = 10.0
+_ACCELERATION_SCALE = 1e4
+MIN_POINTS = 7 * len(TERMS)
+CONFIDENCE = 0.95
+# The HAC window is twice the lag at which the residuals' autocorrelation
+# first falls below ACF_CUTOFF: Newey-West's Bartlett weights halve the
+# autocovariance in the middle of the window, and a window of just the
+# decorrelation lag left 95 % bounds holding the truth 89 % of the time on
+# synthetic filtered logs, twice it 93 % (host/tests/test_calibration_fit.py).
+ACF_CUTOFF = 0.05
+LAG_WINDOW_FACTOR = 2
+
+
+@dataclass(frozen=True)
+class SurfaceFit:
+    set_name: str
+    axis: str
+    points: int
+    surface: Surface
+    ols_bounds: tuple[tuple[float, float], ...]  # per term, OLS 95 %
+    hac_bounds: tuple[tuple[float, float], ...]  # per term, HAC 95 % within positions
+    hac_lags: int
+    sse: float
+    r_squared: float
+    adjusted_r_squared: float
+    rmse: float
+    temperature_range_c: tuple[float, float]
+    acceleration_range_lsb: tuple[float, float]
+
+
+def _design(temperature_c: np.ndarray, acceleration: np.ndarray) -> np.ndarray:
+    t = temperature_c / _TEMPERATURE_SCALE
+    a = acceleration / _ACCELERATION_SCALE
+    return np.column_stack([t**i * a**j for i, j in _POWERS])
+
+
+def _unscale() -> np.ndarray:
+    return np.array([1.0 / (_TEMPERATURE_SCALE**i * _ACCELERATION_SCALE**j) for i, j in _POWERS])
+
+
+def hac_lags(residuals: np.ndarray) -> int:
+    """LAG_WINDOW_FACTOR times the first lag at which the residuals'
+    autocorrelation drops below ACF_CUTOFF, within a tenth of the rows."""
+    limit = max(1, min(len(residuals) // 10, 5000))
+    correlations = acf(residuals, nlags=limit, fft=True)
+    below = np.flatnonzero(correlations[1:] < ACF_CUTOFF)
+    decorrelated = int(below[0] + 1) if below.size else limit
+    return min(LAG_WINDOW_FACTOR * decorrelated, limit)
+
+
+def fit_surface(data: SetData, set_name: str, axis: str) -> SurfaceFit:
+    temperature = data.temperature_c
+    acceleration = data.acceleration[axis]
+    residual = data.residual[axis]
+    points = len(residual)
+    if points < MIN_POINTS:
+        raise CalibrationDataError(
+            f"{set_name} set, {axis} axis: {points} points, at least {MIN_POINTS} needed for six coefficients"
+        )
+    design = _design(temperature, acceleration)
+    if np.linalg.matrix_rank(design) < len(TERMS):
+        raise CalibrationDataError(
+            f"{set_name} set, {axis} axis: temperature and acceleration do not vary enough for "
+            "six coefficients (the fit needs several temperatures at several inclinations)"
+        )
+    model = sm.OLS(residual, design)
+    ols = model.fit()
+    lags = hac_lags(ols.resid)
+    hac = model.fit(cov_type="hac-panel", cov_kwds={"groups": data.position, "maxlags": lags})
+    unscale = _unscale()
+    alpha = 1.0 - CONFIDENCE
+
+    def bounds(result) -> tuple[tuple[float, float], ...]:
+        return tuple((float(low * k), float(high * k))
+                     for (low, high), k in zip(result.conf_int(alpha), unscale, strict=True))
+
+    return SurfaceFit(
+        set_name=set_name,
+        axis=axis,
+        points=points,
+        surface=Surface(*(float(value) for value in ols.params * unscale)),
+        ols_bounds=bounds(ols),
+        hac_bounds=bounds(hac),
+        hac_lags=lags,
+        sse=float(ols.ssr),
+        r_squared=float(ols.rsquared),
+        adjusted_r_squared=float(ols.rsquared_adj),
+        rmse=float(math.sqrt(ols.ssr / ols.df_resid)),
+        temperature_range_c=(float(temperature.min()), float(temperature.max())),
+        acceleration_range_lsb=(float(acceleration.min()), float(acceleration.max())),
+    )
+
+
+def fit_campaign(campaign: Campaign) -> list[SurfaceFit]:
+    return [fit_surface(campaign.sets[set_name], set_name, axis)
+            for axis in ("X", "Y") for set_name in SETS]
+
+
+def coefficient_table(fits: list[SurfaceFit]) -> CoefficientTable:
+    """The fitted X and Y surfaces; Z stays uncorrected, as the firmware's
+    defaults leave it (the paper's Z fits explain little: R^2 0.03-0.66)."""
+    surfaces = {(s, a): ZERO_SURFACE for s in SETS for a in AXES}
+    surfaces.update({(fit.set_name, fit.axis): fit.surface for fit in fits})
+    return CoefficientTable(surfaces)
+
+
+def _fit_json(fit: SurfaceFit) -> dict:
+    return {
+        "points": fit.points,
+        "coefficients": {
+            term: {"value": value, "ols_95": list(ols), "hac_95": list(hac)}
+            for term, value, ols, hac in zip(TERMS, fit.surface, fit.ols_bounds, fit.hac_bounds, strict=True)
+        },
+        "hac_lags_rows": fit.hac_lags,
+        "sse": fit.sse,
+        "r_squared": fit.r_squared,
+        "adjusted_r_squared": fit.adjusted_r_squared,
+        "rmse_lsb": fit.rmse,
+        "temperature_range_c": list(fit.temperature_range_c),
+        "acceleration_range_lsb": list(fit.acceleration_range_lsb),
+    }
+
+
+def c_header(table: CoefficientTable) -> str:
+    lines = [
+        "// Thermal-drift surfaces fitted by `thermotilt fit` (docs/calibration.md).",
+        "// f(T, a) = p00 + p10 T + p01 a + p20 T^2 + p11 T a + p02 a^2, LSB;",
+        "// order: set (W, C) x axis (X, Y, Z) x (p00, p10, p01, p20, p11, p02).",
+        "#ifndef THERMOTILT_FITTED_COEFFICIENTS_H",
+        "#define THERMOTILT_FITTED_COEFFICIENTS_H",
+        "",
+        "static const float FITTED_COEFFICIENTS[2][3][6] = {",
+    ]
+    for set_name in SETS:
+        lines.append("    {")
+        for axis in AXES:
+            values = ", ".join(f"{value:.9g}f" for value in table.surfaces[(set_name, axis)])
+            lines.append(f"        {{{values}}},  // {set_name} {axis}")
+        lines.append("    },")
+    lines += ["};", "", "#endif", ""]
+    return "\n".join(lines)
+
+
+def write_outputs(fits: list[SurfaceFit], campaign: Campaign, out_dir: Path) -> CoefficientTable:
+    """coefficients.json, coefficients.bin (the firmware's EEPROM block) and
+    coefficients.h in out_dir."""
+    table = coefficient_table(fits)
+    document = {
+        "positions": list(campaign.positions),
+        "skipped_rows": campaign.skipped_rows,
+        "bounds": {
+            "ols_95": "ordinary least squares: assumes independent rows, too narrow for filtered logs",
+            "hac_95": "Newey-West within each position, lag window hac_lags_rows (statsmodels hac-panel)",
+        },
+        "fits": {f"{fit.set_name}{fit.axis}": _fit_json(fit) for fit in fits},
+        "uncorrected_axes": ["Z"],
+    }
+    out_dir.mkdir(parents=True, exist_ok=True)
+    (out_dir / "coefficients.json").write_text(json.dumps(document, indent=2) + "\n")
+    (out_dir / "coefficients.bin").write_bytes(encode_block(table))
+    (out_dir / "coefficients.h").write_text(c_header(table))
+    return table
+
+
+def format_table(fits: list[SurfaceFit]) -> str:
+    """The fits shaped like the paper's Tables 2 and 3."""
+    lines = []
+    for axis in ("X", "Y"):
+        pair = [fit for fit in fits if fit.axis == axis]
+        lines.append(f"{axis} axis" + "".join(f"  | {('warming' if f.set_name == 'W' else 'cooling'):<44}"
+                                               for f in pair))
+        for index, term in enumerate(TERMS):
+            cells = "".join(
+                f"  | {f.surface[index]:>11.4g} (HAC {f.hac_bounds[index][0]:.4g}, {f.hac_bounds[index][1]:.4g})"
+                .ljust(47) for f in pair
+            )
+            lines.append(f"  {term:<6}{cells}")
+        for label, getter in (("SSE", lambda f: f"{f.sse:.4g}"), ("R2", lambda f: f"{f.r_squared:.4f}"),
+                              ("adj R2", lambda f: f"{f.adjusted_r_squared:.4f}"),
+                              ("RMSE", lambda f: f"{f.rmse:.3f} LSB"), ("points", lambda f: str(f.points)),
+                              ("T range", lambda f: "{:.1f} .. {:.1f} degC".format(*f.temperature_range_c)),
+                              ("a range", lambda f: "{:.0f} .. {:.0f} LSB".format(*f.acceleration_range_lsb))):
+            lines.append(f"  {label:<6}" + "".join(f"  | {getter(f):<44}" for f in pair))
+    return "\n".join(lines)
