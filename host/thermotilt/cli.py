@@ -270,6 +270,29 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--version",
         action="version",
+def _command_fit(args: argparse.Namespace) -> int:
+    from .calibration.dataset import CalibrationDataError, load
+    from .calibration.fit import fit_campaign, format_table, write_outputs
+
+    try:
+        campaign = load(Path(args.campaign), settle_s=args.settle_seconds)
+        fits = fit_campaign(campaign)
+    except CalibrationDataError as error:
+        raise UsageError(str(error)) from None
+    out_dir = Path(args.out)
+    try:
+        write_outputs(fits, campaign, out_dir)
+    except OSError as error:
+        raise UsageError(f"cannot write {out_dir}: {error.strerror or error}") from None
+    print(f"{len(campaign.positions)} positions, {sum(fit.points for fit in fits)} points"
+          + (f" ({campaign.skipped_rows} rows with empty cells skipped)" if campaign.skipped_rows else ""))
+    print(format_table(fits))
+    print("bounds: Newey-West (HAC) 95 % within each position; coefficients.json also has the "
+          "OLS bounds, which ignore the rows' autocorrelation")
+    print(f"wrote {out_dir / 'coefficients.json'}, coefficients.bin (EEPROM block), coefficients.h")
+    return 0
+
+
         version=f"{PROGRAM} {__version__} (protocol {PROTOCOL_VERSION})",
     )
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -334,6 +357,15 @@ def build_parser() -> argparse.ArgumentParser:
     log.add_argument("--ambient", type=ambient, help="ambient temperature to record, degC")
     log.add_argument("--incl-x", type=inclination, help="table angle on X to record, degrees")
     log.add_argument("--incl-y", type=inclination, help="table angle on Y to record, degrees")
+    fit = commands.add_parser(
+        "fit", help="fit the paper's drift surfaces to a campaign's run logs, with statistics"
+    )
+    fit.add_argument("campaign", help="folder of run logs (*/run.csv, *.csv); positions by their incl_x/y_deg")
+    fit.add_argument("--out", required=True, help="folder for coefficients.json, .bin and .h")
+    fit.add_argument("--settle-seconds", type=_within(float, 0.0, 3600.0, " s"),
+                     help="skip rows this soon after a table move (default 120)")
+    fit.set_defaults(run=_command_fit)
+
     log.add_argument("--force", action="store_true", help="overwrite an existing --out")
     log.set_defaults(run=_command_log)
     return parser
