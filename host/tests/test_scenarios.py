@@ -10,6 +10,7 @@ from thermotilt.scenarios import (
     build,
     campaign_positions,
     program_steps,
+    reach_allowance_s,
 )
 
 
@@ -24,9 +25,13 @@ def test_fig8_programs_four_one_minute_steps_from_16_degC():
     scenario = build("fig8", ScenarioOptions())
     setprg, start = scenario.commands
     assert setprg.frame_type == "SETPRG" and start.frame_type == "START"
-    assert setprg.values[:4] == (16.0, 22.0, 2.0, 60)
+    # Every hold waits for its setpoint (the twin's default), so the run lasts
+    # four holds and the approaches.
+    assert setprg.values[:4] == (16.0, 22.0, 2.0, 60) and setprg.values[-1] == "A"
     assert start.at_s > setprg.at_s
-    assert scenario.duration_s == pytest.approx(start.at_s + 4 * 60)
+    allowance = reach_allowance_s(16.0, 4, 19.0, ScenarioOptions())
+    assert allowance > 0
+    assert scenario.duration_s == pytest.approx(start.at_s + 4 * 60 + allowance)
     # The commands are valid frames for the chamber.
     frame = parse_line(build_frame("SETPRG", 0, setprg.values))
     assert frame["start_c"] == 16.0 and frame["hold_s"] == 60
@@ -34,9 +39,26 @@ def test_fig8_programs_four_one_minute_steps_from_16_degC():
     assert 18.0 < scenario.ambient_c(100.0) < 20.0
 
 
+def test_fig8_sends_the_rounded_error_controller_before_start():
+    commands = build("fig8", ScenarioOptions(controller="rounded-error")).commands
+    assert [c.frame_type for c in commands] == ["SETPRG", "SETCTL", "START"]
+    assert commands[1].values == ("PR", 350.0, 0.0)
+    assert commands[0].at_s < commands[1].at_s < commands[2].at_s
+    parse_line(build_frame("SETCTL", 0, commands[1].values))
+
+
 def test_cycle_lasts_57_holds_and_the_rest():
+    timed = build("cycle", ScenarioOptions(hold_s=30, rest_s=100, hold_start="T"))
+    assert timed.duration_s == pytest.approx(1.5 + 57 * 30 + 100)
+    assert [c.frame_type for c in timed.commands] == ["SETPRG", "START"]
     scenario = build("cycle", ScenarioOptions(hold_s=30, rest_s=100, incl_x_deg=30.0))
-    assert scenario.duration_s == pytest.approx(1.5 + 57 * 30 + 100)
+    assert scenario.duration_s == pytest.approx(
+        1.5 + 57 * 30 + 100 + reach_allowance_s(-10.0, 57, 22.0, ScenarioOptions()))
+    # The first step's run from ambient to -10 degC outlasts the guard's
+    # default 90 s window: the cycle widens it first.
+    setgrd = scenario.commands[0]
+    assert setgrd.frame_type == "SETGRD" and setgrd.values[2] > 90
+    parse_line(build_frame("SETGRD", 0, setgrd.values))
     assert scenario.positions[0].incl_x_deg == 30.0
     assert scenario.positions[0].label == "X+30"
 
@@ -58,6 +80,7 @@ def test_campaign_subset_runs_each_position_through_a_cycle():
     assert scenario.positions[1].at_s == pytest.approx(cycle_s)
     assert [(c.board, c.frame_type) for c in scenario.commands] == [
         ("imu_reader", "RESEED"),
+        ("thermal_chamber", "SETGRD"),
         ("thermal_chamber", "SETPRG"),
         ("thermal_chamber", "START"),
         ("imu_reader", "RESEED"),
@@ -88,6 +111,8 @@ def test_field_scenarios_follow_the_papers_profiles():
         ("campaign", ScenarioOptions(positions=("X+7",)), "unknown position"),
         ("cycle", ScenarioOptions(hold_s=0), "--hold-seconds"),
         ("cycle", ScenarioOptions(incl_x_deg=120.0), "outside -90..90"),
+        ("cycle", ScenarioOptions(hold_start="X"), "hold start"),
+        ("fig8", ScenarioOptions(controller="pid"), "unknown controller"),
     ],
 )
 def test_bad_options_are_refused_with_a_reason(name, options, message):

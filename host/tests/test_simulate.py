@@ -1,8 +1,8 @@
 """The digital twin end to end, run as a user runs it (`thermotilt simulate`):
 both real firmware images in simavr against the physics model.
 
-Checks the issue's "done when": Figure 8 reproduced within the README's
-tolerances; a cycle at 0 deg and at 30 deg on X whose raw drift follows the
+Checks the issue's "done when" (Figure 8 feature by feature is in
+test_figure8.py): a cycle at 0 deg and at 30 deg on X whose raw drift follows the
 model's surfaces and whose compensated output is flat; byte-identical
 run.csv for the same seed; faults visible in the frames; the twin read
 through a pseudo-terminal with pyserial and with `thermotilt log`.
@@ -22,9 +22,9 @@ from thermotilt import figures, physics
 from thermotilt.coefficients import PAPER_DEFAULTS
 from thermotilt.protocol import FrameReader, build_frame
 from thermotilt.runlog import ALL_COLUMNS, read_run_log
+from thermotilt.scenarios import ScenarioOptions, build
 
 THERMOTILT = [sys.executable, "-m", "thermotilt"]
-FIG8_AMBIENT_C = 19.0
 # Stated in the README: the cycle's compensated X and Y stay within this many
 # LSB of the tilt alone once each hold has settled.
 COMPENSATED_TOLERANCE_LSB = 10.0
@@ -53,7 +53,8 @@ def test_fig8_writes_the_documented_outputs(fig8_run):
     rows = read_run_log(str(out / "run.csv"))
     assert list(rows[0]) == list(ALL_COLUMNS)
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["sim_seconds"] == pytest.approx(241.5)
+    duration_s = build("fig8", ScenarioOptions()).duration_s
+    assert summary["sim_seconds"] == pytest.approx(duration_s)
     assert summary["wall_seconds"] > 0 and summary["seed"] == 7
     assert summary["speed_x_real_time"] == pytest.approx(
         summary["sim_seconds"] / summary["wall_seconds"], rel=0.01)
@@ -62,12 +63,12 @@ def test_fig8_writes_the_documented_outputs(fig8_run):
     for board in ("imu_reader", "thermal_chamber"):
         report = summary["boards"][board]
         assert report["rejected"] == 0 and report["sequence_gaps"] == 0
-        assert report["cycles"] == pytest.approx(16e6 * 241.5, rel=1e-3)
+        assert report["cycles"] == pytest.approx(16e6 * duration_s, rel=1e-3)
         assert report["refused_commands"] == [] and report["unanswered_commands"] == []
         assert report["reported_errors"] == []
     # 10 IMU frames a second, one CHS a second.
-    assert summary["boards"]["imu_reader"]["frames_by_type"]["IMU"] == pytest.approx(2415, abs=3)
-    assert summary["boards"]["thermal_chamber"]["frames_by_type"]["CHS"] == pytest.approx(241, abs=2)
+    assert summary["boards"]["imu_reader"]["frames_by_type"]["IMU"] == pytest.approx(10 * duration_s, abs=3)
+    assert summary["boards"]["thermal_chamber"]["frames_by_type"]["CHS"] == pytest.approx(duration_s, abs=2)
     assert len(rows) == summary["rows"]
     captured = FrameReader()
     captured.feed((out / "serial" / "imu_reader.txt").read_bytes())
@@ -76,24 +77,19 @@ def test_fig8_writes_the_documented_outputs(fig8_run):
     assert "step 16 -> 18 degC" in stdout and "hold 22 degC" in stdout
 
 
-def test_fig8_steps_take_about_13_seconds(fig8_run):
-    out, _ = fig8_run
-    steps = figures.step_responses(read_run_log(str(out / "run.csv")))
-    assert [(step.from_c, step.to_c) for step in steps] == [(16, 18), (18, 20), (20, 22)]
-    for step in steps:
-        assert step.completion_s == pytest.approx(figures.PAPER_STEP_TIME_S,
-                                                  abs=figures.STEP_TIME_TOLERANCE_S), step
-
-
-def test_fig8_offset_lies_on_the_ambient_side(fig8_run):
-    out, _ = fig8_run
-    holds = figures.holds(read_run_log(str(out / "run.csv")))
-    assert [hold.setpoint_c for hold in holds] == [16, 18, 20, 22]
-    for hold in holds:
-        # Under P-only control the chamber settles between setpoint and ambient.
-        # The paper's ~0.5 degC magnitude is not reproduced (docs/physics-model.md).
-        towards_ambient = 1 if hold.setpoint_c < FIG8_AMBIENT_C else -1
-        assert 0 < towards_ambient * hold.offset_c < figures.MAX_OFFSET_C, hold
+@pytest.mark.parametrize("hold_start, reported", [
+    # Waiting for a setpoint a disconnected Peltier never reaches: full drive
+    # gains nothing, and the guard's no-response window (90 s from START at
+    # 1.5 s, checked every 250 ms) stops the program.
+    ("A", ["RUNAWAY NO_RESPONSE at 92.01 s"]),
+    # Timed 60 s holds give each step a new target before the window ends.
+    ("T", []),
+])
+def test_a_setpoint_never_reached_ends_in_no_response(tmp_path, hold_start, reported):
+    out = tmp_path / hold_start
+    simulate("fig8", "--out", out, "--hold-start", hold_start, "--fault", "peltier_disconnected")
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["boards"]["thermal_chamber"]["reported_errors"] == reported
 
 
 @pytest.fixture(scope="module")

@@ -23,6 +23,7 @@ from .coefficients import (
     setcoe_frames,
 )
 from .protocol import PROTOCOL_VERSION, FrameReader
+from .scenarios import CONTROLLERS, DEFAULT_HOLD_START, HOLD_STARTS
 
 PROGRAM = "thermotilt"
 # 128 + SIGINT, what a shell reports for a command stopped by Ctrl-C.
@@ -176,6 +177,8 @@ def _command_simulate(args: argparse.Namespace) -> int:
                 positions=tuple(args.positions.split(",")) if args.positions else None,
                 ambient_c=args.ambient,
                 duration_s=args.duration,
+                hold_start=args.hold_start,
+                controller=args.controller,
             ),
         )
     except (ModelError, ScenarioError) as error:
@@ -220,16 +223,18 @@ def _command_simulate(args: argparse.Namespace) -> int:
 
 def _print_figures(scenario_name: str, rows: list[dict[str, str]]) -> None:
     """The paper's numbers for the scenarios that have them."""
-    from .figures import drift_figures, fig8_figures, holds
+    from .figures import drift_figures, fig8_figures, fig8_table, holds
 
     if scenario_name == "fig8":
         figures = fig8_figures(rows)
         for hold in figures["holds"]:
             print(f"hold {hold['setpoint_c']:g} degC: settled {hold['settled_c']:.2f}, "
-                  f"offset {hold['offset_c']:+.2f} degC")
+                  f"offset (programmed - measured) {hold['offset_c']:+.2f} degC")
         for step in figures["steps"]:
             print(f"step {step['from_c']:g} -> {step['to_c']:g} degC: {step['completion_s']:.1f} s, "
                   f"overshoot {step['overshoot_c']:.2f} degC")
+        for line in fig8_table(figures):
+            print(line)
     # Holds shorter than the settling window give no drift to measure.
     elif scenario_name == "cycle" and holds(rows):
         figures = drift_figures(rows)
@@ -265,11 +270,6 @@ def _command_log(args: argparse.Namespace) -> int:
     return _interrupted() if result.end_reason == INTERRUPTED else 0
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = _ArgumentParser(prog=PROGRAM, description="ThermoTilt host tools.")
-    parser.add_argument(
-        "--version",
-        action="version",
 def _command_fit(args: argparse.Namespace) -> int:
     from .calibration.dataset import CalibrationDataError, load
     from .calibration.fit import fit_campaign, format_table, write_outputs
@@ -293,6 +293,11 @@ def _command_fit(args: argparse.Namespace) -> int:
     return 0
 
 
+def build_parser() -> argparse.ArgumentParser:
+    parser = _ArgumentParser(prog=PROGRAM, description="ThermoTilt host tools.")
+    parser.add_argument(
+        "--version",
+        action="version",
         version=f"{PROGRAM} {__version__} (protocol {PROTOCOL_VERSION})",
     )
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -341,9 +346,25 @@ def _command_fit(args: argparse.Namespace) -> int:
                           help="switch a model term off (repeatable)")
     simulate.add_argument("--fault", action="append", default=[], metavar="NAME[=RATE][@START[-END]]",
                           help="inject a fault, e.g. inner_open@120-180 or imu_uart_corrupt=0.001")
+    simulate.add_argument("--controller", choices=tuple(CONTROLLERS), default="float",
+                          help="chamber control law: float (the paper's P law, the firmware default) or "
+                               "rounded-error (P on the error rounded to whole degC, a hypothesis about "
+                               "the paper's code)")
+    simulate.add_argument("--hold-start", choices=HOLD_STARTS, default=DEFAULT_HOLD_START,
+                          help="when a step's hold starts: T timed, F the first step of each cycle waits "
+                               "for its setpoint, A every step waits (default)")
     simulate.add_argument("--pty", action="store_true",
                           help="also expose each board's serial port as a pseudo-terminal")
     simulate.set_defaults(run=_command_simulate)
+
+    fit = commands.add_parser(
+        "fit", help="fit the paper's drift surfaces to a campaign's run logs, with statistics"
+    )
+    fit.add_argument("campaign", help="folder of run logs (*/run.csv, *.csv); positions by their incl_x/y_deg")
+    fit.add_argument("--out", required=True, help="folder for coefficients.json, .bin and .h")
+    fit.add_argument("--settle-seconds", type=_within(float, 0.0, 3600.0, " s"),
+                     help="skip rows this soon after a table move (default 120)")
+    fit.set_defaults(run=_command_fit)
 
     log = commands.add_parser("log", help="log real boards (or the twin's --pty ports) to run.csv")
     log.add_argument("--port", required=True, help="the IMU reader's serial port")
@@ -357,15 +378,6 @@ def _command_fit(args: argparse.Namespace) -> int:
     log.add_argument("--ambient", type=ambient, help="ambient temperature to record, degC")
     log.add_argument("--incl-x", type=inclination, help="table angle on X to record, degrees")
     log.add_argument("--incl-y", type=inclination, help="table angle on Y to record, degrees")
-    fit = commands.add_parser(
-        "fit", help="fit the paper's drift surfaces to a campaign's run logs, with statistics"
-    )
-    fit.add_argument("campaign", help="folder of run logs (*/run.csv, *.csv); positions by their incl_x/y_deg")
-    fit.add_argument("--out", required=True, help="folder for coefficients.json, .bin and .h")
-    fit.add_argument("--settle-seconds", type=_within(float, 0.0, 3600.0, " s"),
-                     help="skip rows this soon after a table move (default 120)")
-    fit.set_defaults(run=_command_fit)
-
     log.add_argument("--force", action="store_true", help="overwrite an existing --out")
     log.set_defaults(run=_command_log)
     return parser

@@ -15,7 +15,22 @@ from typing import Callable
 # The firmware prints its version and reads its thermistors first; commands
 # are sent once it runs, as a host would after opening the port.
 PROGRAM_SENT_S = 1.0
+CONTROL_SENT_S = 1.25
 PROGRAM_STARTED_S = 1.5
+
+# SETPRG's hold_start (lib/Program): T timed, F the first step of each cycle
+# waits for its setpoint, A every step does (the paper's rule, the default).
+HOLD_STARTS = ("T", "F", "A")
+DEFAULT_HOLD_START = "A"
+# The guard's defaults (docs/reliability.md) with window_s widened from 90 s:
+# a calibration cycle whose first step waits runs from ambient to within 1 degC
+# of -10 degC at full drive, and the twin's chamber gains its last degrees at
+# about 1 degC per 115 s there (90 s trips NO_RESPONSE at -8.3 degC).
+WAITING_GUARD = (1.0, 1.0, 180.0, 2.0, 120.0, -20.0, 55.0, -20.0, 70.0)
+GUARD_SENT_S = 0.75
+# --controller: the SETCTL a scenario sends before START; "float" sends none
+# and runs the firmware's default, the paper's P law in float.
+CONTROLLERS = {"float": None, "rounded-error": ("PR", 350.0, 0.0)}
 
 # Figure 8 and section 3.2: steps of 2 degC held for one minute.
 PAPER_STEP_C = 2.0
@@ -30,6 +45,17 @@ CALIBRATION_MAX_C = 45.0
 # 19 degC; the calibration runs happen in a lab at 22 degC.
 FIG8_AMBIENT_C = 19.0
 LAB_AMBIENT_C = 22.0
+
+# A waiting step's hold starts within this of its setpoint (lib/Program).
+REACHED_BAND_C = 1.0
+# How long the waits take in the twin's default chamber, measured in a
+# -10..45 degC cycle with every step waiting (seed 7, 22 degC ambient, 60 s
+# holds): the first step took 873 s to come from 22 to -9 degC (28 s per degC,
+# slowest near the chamber's floor), the other 56 steps waited 898 s in all
+# (3-16 s each, up to 161 s for the last -10 degC hold). A scenario is played
+# for a fixed time, so these carry a 25 % margin; what is left over is idle.
+REACH_S_PER_C_FROM_AMBIENT = 35.0
+REACH_S_PER_STEP = 20.0
 
 # Section 3.2: 0 deg, then 5..45 deg in 5 deg steps on each axis, both ways.
 CAMPAIGN_ANGLES_DEG = tuple(range(5, 50, 5))
@@ -78,6 +104,8 @@ class ScenarioOptions:
     positions: tuple[str, ...] | None = None
     ambient_c: float | None = None
     duration_s: float | None = None
+    hold_start: str = DEFAULT_HOLD_START
+    controller: str = "float"
 
 
 def program_steps(start_c: float, max_c: float, step_c: float) -> int:
@@ -92,17 +120,41 @@ def _constant(value: float) -> Callable[[float], float]:
     return lambda _t: value
 
 
-def _chamber_program(start_c: float, max_c: float, options: ScenarioOptions, cycles: int) -> Command:
-    return Command(
-        PROGRAM_SENT_S, "SETPRG", (start_c, max_c, PAPER_STEP_C, options.hold_s, options.rest_s, cycles)
-    )
+def _chamber_program(start_c: float, max_c: float, options: ScenarioOptions, cycles: int) -> list[Command]:
+    """SETPRG, and SETCTL when the controller is not the firmware's default."""
+    commands = [Command(PROGRAM_SENT_S, "SETPRG", (start_c, max_c, PAPER_STEP_C, options.hold_s,
+                                                   options.rest_s, cycles, options.hold_start))]
+    control = CONTROLLERS[options.controller]
+    if control is not None:
+        commands.append(Command(CONTROL_SENT_S, "SETCTL", control))
+    return commands
+
+
+def _calibration_program(options: ScenarioOptions) -> list[Command]:
+    """The -10..45 degC program, with the guard's wider window when it waits."""
+    commands = _chamber_program(CALIBRATION_MIN_C, CALIBRATION_MAX_C, options, 1)
+    if options.hold_start != "T":
+        commands.insert(0, Command(GUARD_SENT_S, "SETGRD", WAITING_GUARD))
+    return commands
+
+
+def reach_allowance_s(start_c: float, steps: int, ambient_c: float, options: ScenarioOptions) -> float:
+    """Time a program's waiting steps add to its holds in the twin's default
+    chamber: the first step's run from ambient to within the reached band,
+    and each later 2 degC step's approach."""
+    if options.hold_start == "T":
+        return 0.0
+    first = max(0.0, abs(ambient_c - start_c) - REACHED_BAND_C) * REACH_S_PER_C_FROM_AMBIENT
+    if options.hold_start == "F":
+        return first
+    return first + (steps - 1) * REACH_S_PER_STEP
 
 
 def fig8(options: ScenarioOptions) -> Scenario:
     """Figure 8: four warming steps, 16 to 22 degC, one minute each."""
     steps = 4
-    duration = PROGRAM_STARTED_S + steps * options.hold_s
     ambient = FIG8_AMBIENT_C if options.ambient_c is None else options.ambient_c
+    duration = PROGRAM_STARTED_S + steps * options.hold_s + reach_allowance_s(16.0, steps, ambient, options)
     return Scenario(
         name="fig8",
         description="Figure 8: warming steps 16-18-20-22 degC",
@@ -111,16 +163,17 @@ def fig8(options: ScenarioOptions) -> Scenario:
         ambient_c=_constant(ambient),
         positions=(TablePosition(0.0, "table", options.incl_x_deg, options.incl_y_deg),),
         commands=(
-            _chamber_program(16.0, 16.0 + PAPER_STEP_C * (steps - 1), options, 1),
+            *_chamber_program(16.0, 16.0 + PAPER_STEP_C * (steps - 1), options, 1),
             Command(PROGRAM_STARTED_S, "START"),
         ),
         marks={"program_start_s": PROGRAM_STARTED_S},
     )
 
 
-def _cycle_length_s(options: ScenarioOptions) -> float:
+def _cycle_length_s(options: ScenarioOptions, ambient_c: float) -> float:
     steps = program_steps(CALIBRATION_MIN_C, CALIBRATION_MAX_C, PAPER_STEP_C)
-    return PROGRAM_STARTED_S + steps * options.hold_s + options.rest_s
+    return (PROGRAM_STARTED_S + steps * options.hold_s + options.rest_s
+            + reach_allowance_s(CALIBRATION_MIN_C, steps, ambient_c, options))
 
 
 def cycle(options: ScenarioOptions) -> Scenario:
@@ -130,13 +183,13 @@ def cycle(options: ScenarioOptions) -> Scenario:
     return Scenario(
         name="cycle",
         description="one calibration cycle -10..45..-10 degC and rest",
-        duration_s=_cycle_length_s(options),
+        duration_s=_cycle_length_s(options, ambient),
         uses_chamber=True,
         ambient_c=_constant(ambient),
         positions=(TablePosition(0.0, _label(options.incl_x_deg, options.incl_y_deg),
                                  options.incl_x_deg, options.incl_y_deg),),
         commands=(
-            _chamber_program(CALIBRATION_MIN_C, CALIBRATION_MAX_C, options, 1),
+            *_calibration_program(options),
             Command(PROGRAM_STARTED_S, "START"),
         ),
         marks={"program_start_s": PROGRAM_STARTED_S},
@@ -175,7 +228,7 @@ def campaign(options: ScenarioOptions) -> Scenario:
             f"unknown position(s) {', '.join(unknown)}; use labels like 0, X+5, X-45, Y+30"
         )
     ambient = LAB_AMBIENT_C if options.ambient_c is None else options.ambient_c
-    length = _cycle_length_s(options)
+    length = _cycle_length_s(options, ambient)
     positions, commands = [], []
     for index, label in enumerate(labels):
         begin = index * length
@@ -184,7 +237,7 @@ def campaign(options: ScenarioOptions) -> Scenario:
         # The table has just moved: the IMU's filters start again from the new angle.
         commands.append(Command(begin, "RESEED", board="imu_reader"))
         if index == 0:
-            commands.append(_chamber_program(CALIBRATION_MIN_C, CALIBRATION_MAX_C, options, 1))
+            commands += _calibration_program(options)
         commands.append(Command(begin + PROGRAM_STARTED_S, "START"))
     return Scenario(
         name="campaign",
@@ -263,6 +316,10 @@ def build(name: str, options: ScenarioOptions) -> Scenario:
         raise ScenarioError(f"unknown scenario {name!r}; choose from {', '.join(SCENARIOS)}")
     if options.hold_s < 1 or options.rest_s < 0:
         raise ScenarioError("--hold-seconds must be at least 1 and --rest-seconds not negative")
+    if options.hold_start not in HOLD_STARTS:
+        raise ScenarioError(f"hold start {options.hold_start!r} is not one of {', '.join(HOLD_STARTS)}")
+    if options.controller not in CONTROLLERS:
+        raise ScenarioError(f"unknown controller {options.controller!r}; choose from {', '.join(CONTROLLERS)}")
     if options.duration_s is not None and options.duration_s <= 0:
         raise ScenarioError("--duration must be positive")
     for angle in (options.incl_x_deg, options.incl_y_deg):

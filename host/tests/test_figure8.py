@@ -1,0 +1,139 @@
+"""Figure 8 in the twin under both controllers (`thermotilt simulate fig8
+--controller float|rounded-error`), feature by feature beside the paper
+(section 3.1): (a) a 2 degC step completes in about 13 s, (b) an offset of
+about 0.5 degC between programmed and measured, negative below the outside
+temperature and positive above, (c) an overshoot when the inside crosses the
+outside, (d) a consistently negative offset of the LSM9DS0's own temperature.
+Also the default hold start: every hold is hold_s at its setpoint.
+"""
+
+import subprocess
+import sys
+
+import pytest
+
+from thermotilt import figures
+from thermotilt.protocol import FrameReader
+from thermotilt.runlog import read_run_log
+from thermotilt.scenarios import FIG8_AMBIENT_C, PAPER_HOLD_S
+
+THERMOTILT = [sys.executable, "-m", "thermotilt"]
+CONTROLLERS = ("float", "rounded-error")
+
+# (a) The README's tolerance for the paper's "approximately 13 s"; the
+# chamber temperature arrives once a second (CHS), so a step time is read to 1 s.
+STEP_TIME_TOLERANCE_S = 3.0
+# (b) float: with a P law the settled error is 255/350 * d_hold degC, and a
+# chamber that holds -10 degC at 22 degC ambient needs d_hold <= 0.1 within
+# 3 K of ambient (docs/physics-model.md): at most 0.073 degC, doubled for the
+# thermistor lag and noise. The paper's 0.5 degC cannot come from it.
+FLOAT_MAX_OFFSET_C = 0.15
+# (b) rounded-error: the +-0.5 degC dead band lets the face drift towards the
+# outside until the band's edge; 3 K from the outside (16 and 22 degC) it gets
+# there within a hold, so the paper's "about 0.5" is read as 0.5 +- 0.15.
+# Nearer the outside (18, 20 degC) the drift is slower than a hold: inside the
+# band, on the outside's side. The edge plus one CHS reading of lag bounds all.
+ROUNDED_OFFSET_FAR_C = (0.35, 0.65)
+ROUNDED_MAX_OFFSET_C = 0.6
+FAR_FROM_OUTSIDE_C = 2.5
+# (d) The model's LSM9DS0 temperature offset is -1.0 degC (assumed: the paper
+# gives the sign, not a value); the die's lag and the 1/8 degC register add
+# less than 0.5 degC once a hold has settled.
+IMU_OFFSET_RANGE_C = (-1.5, -0.5)
+# The default hold start: a hold starts once the face is within 1 degC of its
+# setpoint (lib/Program kReachedBandC) and lasts hold_s; CHS frames come once a
+# second and the program ticks every 250 ms.
+REACHED_BAND_C = 1.0
+HOLD_TIMING_TOLERANCE_S = 1.5
+
+
+@pytest.fixture(scope="module")
+def fig8_runs(tmp_path_factory):
+    """Both controllers side by side (two cores), seed 7 as the README."""
+    runs, processes = {}, {}
+    for controller in CONTROLLERS:
+        out = tmp_path_factory.mktemp(controller)
+        processes[controller] = (out, subprocess.Popen(
+            [*THERMOTILT, "simulate", "fig8", "--seed", "7", "--controller", controller, "--out", str(out)],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True))
+    for controller, (out, process) in processes.items():
+        stdout, stderr = process.communicate(timeout=900)
+        assert process.returncode == 0, stderr
+        rows = read_run_log(str(out / "run.csv"))
+        runs[controller] = {"out": out, "stdout": stdout, "rows": rows,
+                            "figures": figures.fig8_figures(rows)}
+    return runs
+
+
+@pytest.mark.parametrize("controller", CONTROLLERS)
+def test_the_command_prints_the_four_features_beside_the_paper(fig8_runs, controller):
+    stdout = fig8_runs[controller]["stdout"]
+    assert f"Figure 8 (outside {FIG8_AMBIENT_C:g} degC; offsets programmed - measured)" in stdout
+    for feature in ("(a) 2 degC step time", "(b) offset below outside", "offset above outside",
+                    "(c) overshoot, crossing", "(d) IMU temperature offset"):
+        assert feature in stdout
+    assert "thermal_chamber reported" not in stdout and "refused" not in stdout
+
+
+@pytest.mark.parametrize("controller", CONTROLLERS)
+def test_a_step_completes_in_about_13_seconds(fig8_runs, controller):
+    steps = fig8_runs[controller]["figures"]["steps"]
+    assert [(step["from_c"], step["to_c"]) for step in steps] == [(16, 18), (18, 20), (20, 22)]
+    for step in steps:
+        assert step["completion_s"] == pytest.approx(figures.PAPER_STEP_TIME_S, abs=STEP_TIME_TOLERANCE_S), step
+
+
+def side_of_outside(hold):
+    """The paper's sign of programmed - measured: -1 below the outside, +1 above."""
+    return -1 if hold["setpoint_c"] < FIG8_AMBIENT_C else 1
+
+
+def test_float_offset_has_the_papers_sign_but_not_its_size(fig8_runs):
+    holds = fig8_runs["float"]["figures"]["holds"]
+    assert [hold["setpoint_c"] for hold in holds] == [16, 18, 20, 22]
+    for hold in holds:
+        assert 0 < side_of_outside(hold) * hold["offset_c"] < FLOAT_MAX_OFFSET_C, hold
+
+
+def test_rounded_error_offset_is_about_half_a_degree_with_the_papers_sign(fig8_runs):
+    holds = fig8_runs["rounded-error"]["figures"]["holds"]
+    assert [hold["setpoint_c"] for hold in holds] == [16, 18, 20, 22]
+    low, high = ROUNDED_OFFSET_FAR_C
+    for hold in holds:
+        size = side_of_outside(hold) * hold["offset_c"]
+        assert 0 < size < ROUNDED_MAX_OFFSET_C, hold
+        if abs(hold["setpoint_c"] - FIG8_AMBIENT_C) > FAR_FROM_OUTSIDE_C:
+            assert low < size < high, hold
+
+
+@pytest.mark.parametrize("controller", CONTROLLERS)
+def test_the_crossing_step_is_the_one_across_the_outside_temperature(fig8_runs, controller):
+    # (c) is reported, not asserted: neither mode overshoots more at the
+    # crossing than elsewhere (docs/physics-model.md).
+    result = fig8_runs[controller]["figures"]
+    assert result["ambient_c"] == pytest.approx(FIG8_AMBIENT_C)
+    crossing = figures.crossing_step(figures.step_responses(figures.warming_rows(fig8_runs[controller]["rows"])),
+                                     result["ambient_c"])
+    assert (crossing.from_c, crossing.to_c) == (18, 20)
+    assert result["crossing_overshoot_c"] == pytest.approx(crossing.overshoot_c, abs=1e-3)
+
+
+@pytest.mark.parametrize("controller", CONTROLLERS)
+def test_the_imu_reads_below_the_chamber(fig8_runs, controller):
+    low, high = IMU_OFFSET_RANGE_C
+    assert low < fig8_runs[controller]["figures"]["imu_temperature_offset_c"] < high
+
+
+@pytest.mark.parametrize("controller", CONTROLLERS)
+def test_each_hold_lasts_a_minute_from_reaching_its_setpoint(fig8_runs, controller):
+    capture = (fig8_runs[controller]["out"] / "serial" / "thermal_chamber.txt").read_bytes()
+    status = [f for f in FrameReader().feed(capture) if f.type == "CHS" and f["phase"] in ("W", "C")]
+    starts = [i for i, f in enumerate(status) if i == 0 or f["step"] != status[i - 1]["step"]]
+    for first, after in zip(starts, starts[1:]):
+        frames = status[first:after]
+        reached = next(f for f in frames if abs(f["inner_c"] - f["setpoint_c"]) <= REACHED_BAND_C)
+        held_s = (status[after]["t_ms"] - reached["t_ms"]) / 1000
+        assert held_s == pytest.approx(PAPER_HOLD_S, abs=HOLD_TIMING_TOLERANCE_S), frames[0]
+    # The first hold waited for the run from 19 degC down to 17 degC.
+    first_step_s = (status[starts[1]]["t_ms"] - status[0]["t_ms"]) / 1000
+    assert first_step_s > PAPER_HOLD_S + 5
