@@ -17,7 +17,11 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
 from thermotilt import simulate
+from thermotilt.calibration.dataset import SetData
+from thermotilt.calibration.fit import fit_surface
 from thermotilt.physics import Chamber, Model, Sensor
 from thermotilt.scenarios import ScenarioOptions, build
 from thermotilt.twin import build_dir
@@ -36,6 +40,24 @@ def physics_step_us(model: Model, steps: int = 20000) -> tuple[float, float]:
         sensor.step(0.01, chamber.inner_c, 30.0, 0.0)
     end = time.perf_counter()
     return (middle - begin) / steps * 1e6, (end - middle) / steps * 1e6
+
+
+FIT_POINTS = 500_000
+
+
+def fit_seconds() -> float:
+    """One set and axis of `thermotilt fit` (OLS, HAC bounds, statistics) on
+    synthetic rows: 10 positions through -10..45 degC with noise."""
+    rng = np.random.default_rng(1)
+    per_position = FIT_POINTS // 10
+    temperature = np.tile(np.linspace(-10.0, 45.0, per_position), 10)
+    acceleration = np.repeat(np.linspace(-11592.0, 11592.0, 10), per_position)
+    residual = -20.0 * (temperature - 25.0) + 1e-4 * (temperature - 25.0) * acceleration
+    residual += rng.standard_normal(FIT_POINTS)
+    data = SetData(temperature, {"X": acceleration}, {"X": residual}, np.repeat(np.arange(10), per_position))
+    begin = time.perf_counter()
+    fit_surface(data, "W", "X")
+    return time.perf_counter() - begin
 
 
 def main() -> None:
@@ -58,6 +80,8 @@ def main() -> None:
                   f"({verdict} the {TARGET_X_REAL_TIME:.0f}x target)")
 
 
+    print(f"fit: {fit_seconds():.2f} s for one surface with statistics over {FIT_POINTS} points "
+          f"(target <= 1 s)")
     print(subprocess.run([str(build_dir() / "native" / "integrity_bench")], check=True,
                          capture_output=True, text=True).stdout, end="")
     print("integrity target: at most 1 corrupted frame accepted per million at 0.1 % byte errors")

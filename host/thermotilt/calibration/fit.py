@@ -88,15 +88,16 @@ def fit_surface(data: SetData, set_name: str, axis: str) -> SurfaceFit:
             f"{set_name} set, {axis} axis: {points} points, at least {MIN_POINTS} needed for six coefficients"
         )
     design = _design(temperature, acceleration)
-    if np.linalg.matrix_rank(design) < len(TERMS):
+    # The scaled design is well conditioned, so its 6 x 6 normal matrix
+    # shows a missing direction as well as the tall matrix itself, faster.
+    if np.linalg.matrix_rank(design.T @ design) < len(TERMS):
         raise CalibrationDataError(
             f"{set_name} set, {axis} axis: temperature and acceleration do not vary enough for "
             "six coefficients (the fit needs several temperatures at several inclinations)"
         )
-    model = sm.OLS(residual, design)
-    ols = model.fit()
+    ols = sm.OLS(residual, design).fit(method="qr")
     lags = hac_lags(ols.resid)
-    hac = model.fit(cov_type="hac-panel", cov_kwds={"groups": data.position, "maxlags": lags})
+    hac = ols.get_robustcov_results(cov_type="hac-panel", groups=data.position, maxlags=lags)
     unscale = _unscale()
     alpha = 1.0 - CONFIDENCE
 
