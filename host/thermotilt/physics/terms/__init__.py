@@ -65,6 +65,13 @@ class ChamberTerm(Term):
     """A chamber effect: its heat flows, or how the thermistors read."""
 
     def heat_flows(self) -> HeatFlows:
+        return self.flows() if self.enabled else self.flows_when_off()
+
+    def flows(self) -> HeatFlows:
+        """The term's heat flows while it is enabled."""
+        return HeatFlows()
+
+    def flows_when_off(self) -> HeatFlows:
         return HeatFlows()
 
     def thermistor_lag_s(self) -> float | None:
@@ -102,9 +109,10 @@ class SensorTerm(Term):
 
     def bind(self, context: SensorContext) -> Callable[..., Any] | None:
         """The stage function of this term, or None when it does nothing."""
-        return self.act if self.enabled else None
+        return self.bound(context) if self.enabled else None
 
-    def act(self, *args: Any) -> Any:
+    def bound(self, context: SensorContext) -> Callable[..., Any]:
+        """The stage function of this term while it is enabled."""
         raise NotImplementedError
 
 

@@ -64,9 +64,7 @@ class PeltierPumping(ChamberTerm):
         ),
     )
 
-    def heat_flows(self) -> HeatFlows:
-        if not self.enabled:
-            return HeatFlows()
+    def flows(self) -> HeatFlows:
         full_duty_w = self.values["full_duty_w"]
 
         def drive(duty: float, direction: int) -> tuple[float, float]:
@@ -95,9 +93,7 @@ class JouleHeating(ChamberTerm):
         ),
     )
 
-    def heat_flows(self) -> HeatFlows:
-        if not self.enabled:
-            return HeatFlows()
+    def flows(self) -> HeatFlows:
         full_duty_w = self.values["full_duty_w"]
         exponent = self.values["exponent"]
         inner_fraction = self.values["inner_fraction"]
@@ -122,9 +118,7 @@ class AmbientLeak(ChamberTerm):
         ),
     )
 
-    def heat_flows(self) -> HeatFlows:
-        if not self.enabled:
-            return HeatFlows()
+    def flows(self) -> HeatFlows:
         return HeatFlows(conductances={("inner", "ambient"): self.values["conductance_w_per_k"]})
 
 
@@ -154,14 +148,18 @@ class Heatsink(ChamberTerm):
         ),
     )
 
-    def heat_flows(self) -> HeatFlows:
-        cell = {("inner", "outer"): self.values["inner_conductance_w_per_k"]}
-        if not self.enabled:
-            return HeatFlows(conductances=cell)
+    def flows(self) -> HeatFlows:
         return HeatFlows(
             nodes={"outer": self.values["heat_capacity_j_per_k"]},
-            conductances={**cell, ("outer", "ambient"): self.values["ambient_conductance_w_per_k"]},
+            conductances={
+                **self.flows_when_off().conductances,
+                ("outer", "ambient"): self.values["ambient_conductance_w_per_k"],
+            },
         )
+
+    def flows_when_off(self) -> HeatFlows:
+        # Conduction through the cell stays when the heatsink is ideal.
+        return HeatFlows(conductances={("inner", "outer"): self.values["inner_conductance_w_per_k"]})
 
 
 @register

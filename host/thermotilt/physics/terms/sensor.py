@@ -67,9 +67,7 @@ class DieLag(SensorTerm):
         ),
     )
 
-    def bind(self, context: SensorContext) -> Callable[..., Any] | None:
-        if not self.enabled:
-            return None
+    def bound(self, context: SensorContext) -> Callable[..., Any]:
         fraction = LagFraction(self.values["time_constant_s"]).of_step
 
         def die(previous_c: float, target_c: float, dt_s: float) -> float:
@@ -137,9 +135,7 @@ class Drift(SensorTerm):
         ),
     )
 
-    def bind(self, context: SensorContext) -> Callable[..., Any] | None:
-        if not self.enabled:
-            return None
+    def bound(self, context: SensorContext) -> Callable[..., Any]:
         table = _coefficient_table(self.values["coefficients"])
         surfaces = {
             set_: tuple(tuple(table.surface(set_, axis)) for axis in AXES) for set_ in SETS
@@ -174,9 +170,7 @@ class RateSensitivity(SensorTerm):
         ),
     )
 
-    def bind(self, context: SensorContext) -> Callable[..., Any] | None:
-        if not self.enabled:
-            return None
+    def bound(self, context: SensorContext) -> Callable[..., Any]:
         gains = self.values["lsb_per_c_per_s"]
         gain_x, gain_y, gain_z = gains["x"], gains["y"], gains["z"]
 
@@ -199,9 +193,7 @@ class TemperatureOffset(SensorTerm):
         ),
     )
 
-    def bind(self, context: SensorContext) -> Callable[..., Any] | None:
-        if not self.enabled:
-            return None
+    def bound(self, context: SensorContext) -> Callable[..., Any]:
         offset_c = self.values["offset_c"]
         return lambda die_c: die_c + offset_c
 
@@ -238,9 +230,7 @@ class SensitivityLoss(SensorTerm):
         ),
     )
 
-    def bind(self, context: SensorContext) -> Callable[..., Any] | None:
-        if not self.enabled:
-            return None
+    def bound(self, context: SensorContext) -> Callable[..., Any]:
         g = context.lsb_per_g
         loss = self.values["gain_loss_at_1g"]
 
@@ -268,9 +258,7 @@ class Noise(SensorTerm):
         ),
     )
 
-    def bind(self, context: SensorContext) -> Callable[..., Any] | None:
-        if not self.enabled:
-            return None
+    def bound(self, context: SensorContext) -> Callable[..., Any]:
         sigmas = self.values["sigma_lsb"]
         sigma_x, sigma_y, sigma_z = sigmas["x"], sigmas["y"], sigmas["z"]
         draw = context.normal
@@ -279,3 +267,4 @@ class Noise(SensorTerm):
             return sigma_x * draw(), sigma_y * draw(), sigma_z * draw()
 
         return error
+
