@@ -40,8 +40,7 @@ struct ProgramSettings {
     uint32_t rest_s = 1200;
     uint16_t cycles = 0; // 0 = repeat forever
     // Timed by default: a SETPRG without hold_start means what it meant
-    // before the field was appended, and a wait from ambient to -10 degC
-    // outlasts ThermalGuard's default 90 s window (docs/architecture.md).
+    // before the field was appended (docs/architecture.md).
     HoldStart hold_start = HoldStart::Timed;
 };
 
