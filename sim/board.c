@@ -117,6 +117,12 @@ int board_load(board_t *board, const char *elf_path, const char *mcu, uint32_t f
     board->avr->aref = SUPPLY_MILLIVOLTS;
     avr_load_firmware(board->avr, &firmware);
     board->exit_address = symbol_address(&firmware, "_exit");
+    /* Data-space symbols carry avr-gcc's 0x800000 offset. */
+    board->stack_floor = (uint16_t)(symbol_address(&firmware, "_end") & 0xFFFF);
+    if (board->stack_floor != 0) {
+        memset(board->avr->data + board->stack_floor, BOARD_STACK_PAINT,
+               (size_t)board->avr->ramend + 1 - board->stack_floor);
+    }
     free_flash_image(&firmware);
     board->avr->sleep = skip_sleep;
     count_phase_correct_pwm_to_top(board->avr);
@@ -135,6 +141,22 @@ int board_hang(board_t *board)
         avr->state = cpu_Running;
     }
     return 0;
+}
+
+size_t board_stack_untouched(const board_t *board, size_t *capacity)
+{
+    *capacity = 0;
+    if (board->stack_floor == 0) {
+        return 0;
+    }
+    const avr_t *avr = board->avr;
+    *capacity = (size_t)avr->ramend + 1 - board->stack_floor;
+    size_t untouched = 0;
+    /* The stack grows down from RAMEND: count painted bytes from the floor up. */
+    while (untouched < *capacity && avr->data[board->stack_floor + untouched] == BOARD_STACK_PAINT) {
+        ++untouched;
+    }
+    return untouched;
 }
 
 void board_free(board_t *board)

@@ -20,6 +20,7 @@ typedef struct board {
     size_t uart_input_length;
     size_t uart_input_sent;
     avr_flashaddr_t exit_address; /* libgcc's _exit: cli, then an endless loop; 0 if none */
+    uint16_t stack_floor;         /* first SRAM byte above .data/.bss/.noinit (_end) */
 } board_t;
 
 /*
@@ -36,6 +37,14 @@ int board_load(board_t *board, const char *elf_path, const char *mcu, uint32_t f
  * back. Returns 0, or -1 when the image has no such loop.
  */
 int board_hang(board_t *board);
+
+/*
+ * The SRAM between the static data and RAMEND, painted at load with
+ * BOARD_STACK_PAINT: how many of its bytes the stack has never reached, and
+ * how many it holds in all (both 0 when the image has no _end symbol).
+ */
+enum { BOARD_STACK_PAINT = 0xA5 };
+size_t board_stack_untouched(const board_t *board, size_t *capacity);
 
 /* Releases the MCU; the board can be loaded again afterwards. */
 void board_free(board_t *board);

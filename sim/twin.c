@@ -143,6 +143,11 @@ static void apply_adc(twin_t *twin, unsigned channel)
     board_set_adc_millivolts(&twin->board, (uint8_t)channel, millivolts);
 }
 
+size_t twin_stack_untouched(const twin_t *twin, size_t *capacity)
+{
+    return board_stack_untouched(&twin->board, capacity);
+}
+
 int twin_hang(twin_t *twin)
 {
     return board_hang(&twin->board);

@@ -39,6 +39,9 @@ uint64_t twin_pty_dropped_bytes(const twin_t *twin);
 /* A deadlocked firmware (board_hang): 0, or -1 when the image cannot be hung. */
 int twin_hang(twin_t *twin);
 
+/* SRAM bytes between the static data and RAMEND that the stack never reached; capacity gets their count. */
+size_t twin_stack_untouched(const twin_t *twin, size_t *capacity);
+
 /* These return 0, or -1 for a channel or fault out of range. */
 int twin_adc_set_millivolts(twin_t *twin, unsigned channel, double millivolts);
 /* OPEN: the NTC is missing and the 100 k reference pulls the pin to 5 V. SHORT: 0 V. */

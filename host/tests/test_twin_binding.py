@@ -433,3 +433,16 @@ def test_bad_images_and_missing_builds_are_explained(tmp_path, monkeypatch):
         firmware_elf("imu_reader")
     with pytest.raises(TwinError, match="run `make build` first"):
         Board(garbage, "atmega328p")
+
+
+def test_the_stack_high_water_mark_is_measured_on_painted_sram():
+    with imu_with_sensor() as board:
+        board.run_until(0.001)
+        untouched_at_start, capacity = board.stack_headroom()
+        board.run_until(2.0)
+        untouched, same_capacity = board.stack_headroom()
+    # The Nano's 2 KB SRAM ends at 0x8FF; above the ~1.5 KB of static data
+    # lie a few hundred bytes, which the running firmware's stack eats into.
+    assert same_capacity == capacity and 300 < capacity < 700
+    assert untouched < untouched_at_start <= capacity
+    assert capacity - untouched > 100

@@ -93,6 +93,7 @@ def _load_library(path: Path) -> ctypes.CDLL:
         "twin_uart_corrupted_bytes": (ctypes.c_uint64, [handle]),
         "twin_pty_dropped_bytes": (ctypes.c_uint64, [handle]),
         "twin_hang": (ctypes.c_int, [handle]),
+        "twin_stack_untouched": (ctypes.c_size_t, [handle, ctypes.POINTER(ctypes.c_size_t)]),
         "twin_adc_set_millivolts": (ctypes.c_int, [handle, ctypes.c_uint, ctypes.c_double]),
         "twin_adc_set_fault": (ctypes.c_int, [handle, ctypes.c_uint, ctypes.c_int]),
         "twin_lsm9ds0_attach": (None, [handle]),
@@ -247,6 +248,14 @@ class Board:
     @property
     def pty_dropped_bytes(self) -> int:
         return int(self._lib.twin_pty_dropped_bytes(self._live()))
+
+    def stack_headroom(self) -> tuple[int, int]:
+        """(bytes of SRAM above the static data the stack has never
+        reached, bytes there in all): the stack's high-water mark, measured
+        by painting that SRAM at load."""
+        capacity = ctypes.c_size_t(0)
+        untouched = self._lib.twin_stack_untouched(self._live(), ctypes.byref(capacity))
+        return int(untouched), int(capacity.value)
 
     def hang(self) -> None:
         """Deadlocks the firmware: interrupts off, the CPU in an endless

@@ -22,6 +22,8 @@ import numpy as np
 from thermotilt import simulate
 from thermotilt.calibration.dataset import SetData
 from thermotilt.calibration.fit import fit_surface
+from thermotilt.protocol import build_frame
+from thermotilt.twin import Board
 from thermotilt.physics import Chamber, Model, Sensor
 from thermotilt.scenarios import ScenarioOptions, build
 from thermotilt.twin import build_dir
@@ -40,6 +42,35 @@ def physics_step_us(model: Model, steps: int = 20000) -> tuple[float, float]:
         sensor.step(0.01, chamber.inner_c, 30.0, 0.0)
     end = time.perf_counter()
     return (middle - begin) / steps * 1e6, (end - middle) / steps * 1e6
+
+
+STACK_HEADROOM_TARGET_B = 300
+
+
+def stack_use() -> list[tuple[str, int, int]]:
+    """Each board's stack high-water mark (painted SRAM, sim/board.c) after
+    10 s of streaming and controlling, with the commands a host sends."""
+    imu = Board.imu_reader()
+    imu.attach_lsm9ds0()
+    imu.set_lsm9ds0(-1700, -400, 16000, 32)
+    imu.run_until(1.0)
+    imu.write_uart("".join([build_frame("GETCOE", 1, ["W", "X"]), build_frame("STATUS", 2),
+                            build_frame("SETCOE", 3, ["W", "X", 571.5, -20.23, 1.569e-3, -0.1044,
+                                                      -6.936e-5, 6.327e-9]),
+                            build_frame("RESEED", 4)]).encode())
+    imu.run_until(10.0)
+    chamber = Board.thermal_chamber()
+    chamber.attach_l298n()
+    for channel in (0, 1):
+        chamber.set_adc_millivolts(channel, 2500.0)
+    chamber.run_until(1.0)
+    chamber.write_uart("".join([build_frame("SETPRG", 1, [20, 30, 2, 60, 1200, 1, "A"]),
+                                build_frame("START", 2), build_frame("STATUS", 3)]).encode())
+    chamber.run_until(10.0)
+    use = [(name, *board.stack_headroom()) for name, board in (("imu_reader", imu), ("thermal_chamber", chamber))]
+    for board in (imu, chamber):
+        board.close()
+    return use
 
 
 FIT_POINTS = 500_000
@@ -80,6 +111,9 @@ def main() -> None:
                   f"({verdict} the {TARGET_X_REAL_TIME:.0f}x target)")
 
 
+    for name, untouched, capacity in stack_use():
+        print(f"{name}: the stack reached {capacity - untouched} of the {capacity} B above the static "
+              f"data; {untouched} B never touched (target >= {STACK_HEADROOM_TARGET_B} B)")
     print(f"fit: {fit_seconds():.2f} s for one surface with statistics over {FIT_POINTS} points "
           f"(target <= 1 s)")
     print(subprocess.run([str(build_dir() / "native" / "integrity_bench")], check=True,
