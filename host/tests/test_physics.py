@@ -35,6 +35,7 @@ SENSOR_EFFECTS_OFF = {
     "temperature_offset": False,
     "sensitivity_loss": False,
     "noise": False,
+    "measuring_offset": False,
 }
 
 
@@ -475,7 +476,10 @@ def test_drift_set_follows_the_trend_with_a_schmitt_band(model):
 
 def test_firmware_compensation_recovers_the_tilt(model):
     # The firmware computes raw - f(T, raw) with T = raw_temperature / 8 + 21.
-    quiet = model.with_terms({"noise": False, "rate_sensitivity": False, "die_lag": False})
+    # The measuring offset, which the surfaces leave alone, is off here.
+    quiet = model.with_terms(
+        {"noise": False, "rate_sensitivity": False, "die_lag": False, "measuring_offset": False}
+    )
     rising = [-10.0 + 0.05 * i for i in range(1101)]
     for sample in sweep(quiet, rising, incl_x=20.0, incl_y=-15.0)[::50]:
         reported = sample.temperature_raw / 8 + 21
@@ -542,6 +546,34 @@ def test_rate_sensitivity_adds_gain_times_rate_on_z(model):
     assert ramp[-1].ax == 0
     flat = sweep(model.with_terms(SENSOR_EFFECTS_OFF), [20.0 + 0.001 * i for i in range(100)])
     assert flat[-1].az == round(LSB_PER_G)
+
+
+def test_measuring_offset_shifts_each_axis_by_the_papers_set(model):
+    # Paper section 4.1: X -1823 LSB warming, -1857 cooling; Y -143, -110.
+    offset_only = model.with_terms(SENSOR_EFFECTS_OFF | {"measuring_offset": True})
+    path = [25.0, 26.0, 25.0, 24.0]  # the last two are more than 0.5 degC below the peak
+    samples = sweep(offset_only, path)
+    assert [s.drift_set for s in samples] == ["W", "W", "C", "C"]
+    assert [(s.ax, s.ay, s.az) for s in samples] == [
+        (-1823, -143, round(LSB_PER_G)),
+        (-1823, -143, round(LSB_PER_G)),
+        (-1857, -110, round(LSB_PER_G)),
+        (-1857, -110, round(LSB_PER_G)),
+    ]
+    assert all((s.ideal_ax, s.drift_x) == (0.0, 0.0) for s in samples)
+
+
+def test_the_paper_surfaces_leave_the_measuring_offset_in_the_compensated_reading(model):
+    # Section 3.3: the surfaces compensate the thermal drift only; the
+    # firmware's raw - f(T, raw) keeps the offset, within a few LSB (f is
+    # evaluated at the offset reading).
+    quiet = model.with_terms({"noise": False, "rate_sensitivity": False, "die_lag": False})
+    offset = model.terms["measuring_offset"]["warming_lsb"]
+    for sample in sweep(quiet, [-10.0 + 0.05 * i for i in range(1101)], incl_x=20.0)[::100]:
+        reported = sample.temperature_raw / 8 + 21
+        for raw, ideal, axis in ((sample.ax, sample.ideal_ax, "X"), (sample.ay, sample.ideal_ay, "Y")):
+            compensated = raw - PAPER_DEFAULTS.surface("W", axis).evaluate(reported, raw)
+            assert compensated - ideal == pytest.approx(offset[axis.lower()], abs=6.0), axis
 
 
 def test_noise_is_seeded_and_has_the_datasheet_sigma(model):

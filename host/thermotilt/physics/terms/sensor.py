@@ -268,3 +268,45 @@ class Noise(SensorTerm):
 
         return error
 
+
+# An offset larger than ±2 g would hold a level sensor's ±2 g register at
+# one of its ends.
+_OFFSET = PerAxis(Bounds(-INT16_SPAN / 2, INT16_SPAN / 2, "LSB"))
+_OFFSET_WHY = (
+    "±2 g at the ±2 g scale: a larger offset would hold a level sensor's register at one of "
+    "its ends"
+)
+
+
+@register
+class MeasuringOffset(SensorTerm):
+    name = "measuring_offset"
+    stage = "error"
+    summary = (
+        "a constant offset of the reading per axis, one set while warming (W), one while "
+        "cooling (C); the drift surfaces do not remove it"
+    )
+    parameters = (
+        Parameter(
+            "warming_lsb", _OFFSET, {"x": -1823.0, "y": -143.0, "z": 0.0},
+            "paper section 4.1: the shift of Figure 10's lines, X −1823 and Y −143 LSB while "
+            "warming; Z none given",
+            _OFFSET_WHY,
+        ),
+        Parameter(
+            "cooling_lsb", _OFFSET, {"x": -1857.0, "y": -110.0, "z": 0.0},
+            "paper section 4.1: X −1857 and Y −110 LSB while cooling; Z none given",
+            _OFFSET_WHY,
+        ),
+    )
+
+    def bound(self, context: SensorContext) -> Callable[..., Any]:
+        by_set = {
+            "W": tuple(self.values["warming_lsb"][axis] for axis in "xyz"),
+            "C": tuple(self.values["cooling_lsb"][axis] for axis in "xyz"),
+        }
+
+        def error(drift_set: str, reported_c: float, rate: float) -> tuple[float, float, float]:
+            return by_set[drift_set]
+
+        return error
