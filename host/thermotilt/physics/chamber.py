@@ -8,11 +8,10 @@ import math
 
 from .faults import FAILED_HEATSINK_FRACTION
 from .model import Model
-from .terms import REGISTRY, ChamberTerm, HeatFlows
+from .terms import ChamberTerm, HeatFlows
 from .terms.lag import LagFraction
 
 _ZERO_CELSIUS_K = 273.15
-_CHAMBER_TERMS = tuple(name for name, term in REGISTRY.items() if issubclass(term, ChamberTerm))
 _LINKS = (("inner", "outer"), ("inner", "ambient"), ("outer", "ambient"))
 
 
@@ -70,8 +69,8 @@ class Chamber:
         self._r25_ohm = constants["thermistor_r25_ohm"]
         self._beta_k = constants["thermistor_beta_k"]
 
-        terms = [term for term in model.bound(_CHAMBER_TERMS).values()]
-        flows = [term.heat_flows() for term in terms if isinstance(term, ChamberTerm)]
+        terms = model.bound_terms(ChamberTerm)
+        flows = [term.heat_flows() for term in terms]
         nodes, links = _summed(flows)
         self._drives = tuple(flow.drive for flow in flows if flow.drive is not None)
         self._outer_node = "outer" in nodes
@@ -79,8 +78,7 @@ class Chamber:
         self._cell_conductance = links.get(("inner", "outer"), 0.0)
         self._leak = links.get(("inner", "ambient"), 0.0)
         self._heatsink_conductance = links.get(("outer", "ambient"), 0.0)
-        lags = [lag for term in terms if isinstance(term, ChamberTerm)
-                if (lag := term.thermistor_lag_s()) is not None]
+        lags = [lag for term in terms if (lag := term.thermistor_lag_s()) is not None]
         self._thermistor_lag = LagFraction(lags[0]) if lags else None
 
         # Explicit Euler is stable and accurate for steps well below the

@@ -10,13 +10,14 @@ from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
 from types import MappingProxyType
-from typing import Any
+from typing import Any, TypeVar
 
 from .faults import Fault, read_faults, shown
 from .parameters import ModelError, Parameter
 from .terms import HARDWARE, REGISTRY, Section, Term
 
 TERMS: tuple[str, ...] = tuple(REGISTRY)
+AnyTerm = TypeVar("AnyTerm", bound=Term)
 # A model file is a few kB; this stops a device file from being read forever.
 _MAX_MODEL_BYTES = 1 << 20
 
@@ -94,11 +95,14 @@ class Model:
         """A copy with these faults appended."""
         return replace(self, faults=self.faults + tuple(faults))
 
-    def bound(self, names: Iterable[str]) -> dict[str, Term | Section]:
-        """The named terms and hardware sections as objects holding their values."""
-        registered = {**HARDWARE, **REGISTRY}
-        values = {**self.constants, **self.terms}
-        return {name: registered[name](values[name]) for name in names}
+    def bound_terms(self, kind: type[AnyTerm]) -> list[AnyTerm]:
+        """Every registered term of this kind (enabled or not), in registry
+        order, as an object holding this model's values."""
+        return [
+            term(self.terms[name])
+            for name, term in REGISTRY.items()
+            if issubclass(term, kind)
+        ]
 
     def _check_term(self, term: str) -> None:
         if term not in TERMS:

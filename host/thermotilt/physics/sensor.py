@@ -10,13 +10,12 @@ from typing import Any
 import numpy as np
 
 from .model import Model
-from .terms import REGISTRY, SENSOR_STAGES, SensorContext, SensorTerm
+from .terms import SENSOR_STAGES, SensorContext, SensorTerm
 from .terms.sensor import INT16_MAX, INT16_MIN
 
 # The LSM9DS0 temperature output is 12-bit two's complement.
 _TEMPERATURE_RAW_MIN, _TEMPERATURE_RAW_MAX = -2048, 2047
 _NOISE_BLOCK_SAMPLES = 4096
-_SENSOR_TERMS = tuple(name for name, term in REGISTRY.items() if issubclass(term, SensorTerm))
 
 
 @dataclass(frozen=True, slots=True)
@@ -100,8 +99,7 @@ class Sensor:
             uniform=_BlockDraws(np.random.default_rng(dither_seed).random).next,
         )
         stages: dict[str, list[Any]] = {stage: [] for stage in SENSOR_STAGES}
-        for term in model.bound(_SENSOR_TERMS).values():
-            assert isinstance(term, SensorTerm)
+        for term in model.bound_terms(SensorTerm):
             function = term.bind(context)
             if function is not None:
                 stages[term.stage].append(function)
