@@ -54,11 +54,7 @@ def test_cycle_lasts_57_holds_and_the_rest():
     scenario = build("cycle", ScenarioOptions(hold_s=30, rest_s=100, incl_x_deg=30.0))
     assert scenario.duration_s == pytest.approx(
         1.5 + 57 * 30 + 100 + reach_allowance_s(-10.0, 57, 22.0, ScenarioOptions()))
-    # The first step's run from ambient to -10 degC outlasts the guard's
-    # default 90 s window: the cycle widens it first.
-    setgrd = scenario.commands[0]
-    assert setgrd.frame_type == "SETGRD" and setgrd.values[2] > 90
-    parse_line(build_frame("SETGRD", 0, setgrd.values))
+    assert [c.frame_type for c in scenario.commands] == ["SETPRG", "START"]
     assert scenario.positions[0].incl_x_deg == 30.0
     assert scenario.positions[0].label == "X+30"
 
@@ -80,7 +76,6 @@ def test_campaign_subset_runs_each_position_through_a_cycle():
     assert scenario.positions[1].at_s == pytest.approx(cycle_s)
     assert [(c.board, c.frame_type) for c in scenario.commands] == [
         ("imu_reader", "RESEED"),
-        ("thermal_chamber", "SETGRD"),
         ("thermal_chamber", "SETPRG"),
         ("thermal_chamber", "START"),
         ("imu_reader", "RESEED"),

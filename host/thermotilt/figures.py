@@ -142,17 +142,17 @@ def fig8_figures(rows: list[dict[str, str]]) -> dict:
 
 def fig8_table(figures: dict) -> list[str]:
     """Figure 8's four features beside the paper's statements."""
-    def listed(values, unit):
-        return ", ".join(f"{value:+.2f}" if unit == "degC" else f"{value:.1f}" for value in values) + f" {unit}"
+    def listed(values, form, unit):
+        return ", ".join(format(value, form) for value in values) + f" {unit}"
 
     below = [hold["offset_c"] for hold in figures["holds"] if hold["setpoint_c"] < figures["ambient_c"]]
     above = [hold["offset_c"] for hold in figures["holds"] if hold["setpoint_c"] > figures["ambient_c"]]
     crossing = figures["crossing_overshoot_c"]
-    rows = [
+    features = [
         ("(a) 2 degC step time", f"about {PAPER_STEP_TIME_S:g} s",
-         listed([step["completion_s"] for step in figures["steps"]], "s")),
-        ("(b) offset below outside", f"about -{PAPER_OFFSET_C:g} degC", listed(below, "degC")),
-        ("    offset above outside", f"about +{PAPER_OFFSET_C:g} degC", listed(above, "degC")),
+         listed([step["completion_s"] for step in figures["steps"]], ".1f", "s")),
+        ("(b) offset below outside", f"about -{PAPER_OFFSET_C:g} degC", listed(below, "+.2f", "degC")),
+        ("    offset above outside", f"about +{PAPER_OFFSET_C:g} degC", listed(above, "+.2f", "degC")),
         ("(c) overshoot, crossing", "a transient overshoot",
          "no crossing step" if crossing is None else
          f"{crossing:.2f} degC (others at most {figures['other_overshoot_c']:.2f})"),
@@ -160,7 +160,7 @@ def fig8_table(figures: dict) -> list[str]:
          f"{figures['imu_temperature_offset_c']:+.2f} degC"),
     ]
     lines = [f"Figure 8 (outside {figures['ambient_c']:g} degC; offsets programmed - measured)"]
-    lines += [f"{feature:<28} paper: {paper:<22} twin: {twin}" for feature, paper, twin in rows]
+    lines += [f"{feature:<28} paper: {paper:<22} run: {measured}" for feature, paper, measured in features]
     return lines
 
 
