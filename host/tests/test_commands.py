@@ -86,7 +86,7 @@ def test_a_refused_command_raises_with_the_boards_code_and_is_not_retried(imu):
         client.command("SETDEC", [0])
     assert (refused.value.command, refused.value.code, refused.value.detail) == ("SETDEC", "BAD_ARG", "FACTOR_1_255")
     with pytest.raises(CommandRefused, match="UNKNOWN_CMD SETPRG"):
-        client.command("SETPRG", [20, 30, 2, 60, 1200, 1])
+        client.command("SETPRG", [20, 30, 2, 60, 1200, 1, "T"])
     assert [parse_line(line).type for line in imu.written] == ["SETDEC", "SETPRG"]
     # The client goes on after a refusal.
     assert client.command("SETDEC", [20]).ack["cmd_type"] == "SETDEC"

@@ -155,10 +155,10 @@ def test_chamber_reads_both_thermistors_and_idles_without_a_program():
 
 def test_chamber_runs_a_program_and_drives_the_peltier_by_the_p_law(tmp_path):
     commands = [
-        build_frame("SETPRG", 1, [-20, 22, 2, 60, 1200, 1]),
-        build_frame("SETPRG", 2, [18, 22, 2, 60, 1200, 1]),
+        build_frame("SETPRG", 1, [-20, 22, 2, 60, 1200, 1, "T"]),
+        build_frame("SETPRG", 2, [18, 22, 2, 60, 1200, 1, "T"]),
         build_frame("START", 3),
-        build_frame("SETPRG", 4, [16, 22, 2, 60, 1200, 1]),
+        build_frame("SETPRG", 4, [16, 22, 2, 60, 1200, 1, "T"]),
         build_frame("STATUS", 5),
     ]
     # avr_run holds an input at whole millivolts.

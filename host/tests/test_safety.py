@@ -43,7 +43,7 @@ def program(start_c: float, max_c: float, duration_s: float, extra: tuple[Comman
         positions=(TablePosition(0.0, "table", 0.0, 0.0),),
         commands=extra
         + (
-            Command(1.0, "SETPRG", (start_c, max_c, 2.0, 600, 60, 1)),
+            Command(1.0, "SETPRG", (start_c, max_c, 2.0, 600, 60, 1, "T")),
             Command(PROGRAM_STARTED_S, "START"),
         ),
     )
@@ -154,7 +154,7 @@ def drive_between(board: Board, start_s: float, end_s: float) -> Drive:
 
 
 def start_heating(board: Board, seq: int = 1) -> None:
-    board.write_uart((build_frame("SETPRG", seq, [20, 30, 2, 60, 1200, 1]) + build_frame("START", seq + 1)).encode())
+    board.write_uart((build_frame("SETPRG", seq, [20, 30, 2, 60, 1200, 1, "T"]) + build_frame("START", seq + 1)).encode())
 
 
 def test_a_hung_loop_resets_into_the_safe_state_and_says_so():
@@ -236,8 +236,8 @@ def test_start_needs_an_accepted_program():
         board.write_uart(
             (
                 build_frame("START", 1)
-                + build_frame("SETPRG", 2, [20, 30, 2, 60, 1200, 1])
-                + build_frame("SETPRG", 3, [20, 90, 2, 60, 1200, 1])
+                + build_frame("SETPRG", 2, [20, 30, 2, 60, 1200, 1, "T"])
+                + build_frame("SETPRG", 3, [20, 90, 2, 60, 1200, 1, "T"])
                 + build_frame("START", 4)
                 + build_frame("STATUS", 5)
             ).encode()

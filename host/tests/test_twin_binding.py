@@ -44,7 +44,7 @@ def chamber(inner_c: float, outer_c: float = 25.0) -> Board:
 
 def start_program(board: Board, start_c: float) -> None:
     """The staircase from start_c; its first step holds start_c for 60 s."""
-    commands = build_frame("SETPRG", 1, [start_c, start_c + 10, 2, 60, 1200, 1]) + build_frame("START", 2)
+    commands = build_frame("SETPRG", 1, [start_c, start_c + 10, 2, 60, 1200, 1, "T"]) + build_frame("START", 2)
     board.write_uart(commands.encode())
 
 
