@@ -31,8 +31,9 @@ FLOAT_MAX_OFFSET_C = 0.15
 # (b) rounded-error: the +-0.5 degC dead band lets the face drift towards the
 # outside until the band's edge; 3 K from the outside (16 and 22 degC) it gets
 # there within a hold, so the paper's "about 0.5" is read as 0.5 +- 0.15.
-# Nearer the outside (18, 20 degC) the drift is slower than a hold: inside the
-# band, on the outside's side. The edge plus one CHS reading of lag bounds all.
+# Nearer the outside (18, 20 degC) the drift is slower than a hold, and the
+# offset is wherever the step's approach left the face inside the band; the
+# band's edge plus one CHS reading of lag bounds its size.
 ROUNDED_OFFSET_FAR_C = (0.35, 0.65)
 ROUNDED_MAX_OFFSET_C = 0.6
 FAR_FROM_OUTSIDE_C = 2.5
@@ -95,21 +96,39 @@ def test_float_offset_has_the_papers_sign_but_not_its_size(fig8_runs):
         assert 0 < side_of_outside(hold) * hold["offset_c"] < FLOAT_MAX_OFFSET_C, hold
 
 
-def test_rounded_error_offset_is_about_half_a_degree_with_the_papers_sign(fig8_runs):
+def rounded_holds(fig8_runs, far_from_outside):
     holds = fig8_runs["rounded-error"]["figures"]["holds"]
     assert [hold["setpoint_c"] for hold in holds] == [16, 18, 20, 22]
+    return [hold for hold in holds
+            if (abs(hold["setpoint_c"] - FIG8_AMBIENT_C) > FAR_FROM_OUTSIDE_C) == far_from_outside]
+
+
+def test_rounded_error_offset_is_about_half_a_degree_far_from_the_outside(fig8_runs):
     low, high = ROUNDED_OFFSET_FAR_C
-    for hold in holds:
-        size = side_of_outside(hold) * hold["offset_c"]
-        assert 0 < size < ROUNDED_MAX_OFFSET_C, hold
-        if abs(hold["setpoint_c"] - FIG8_AMBIENT_C) > FAR_FROM_OUTSIDE_C:
-            assert low < size < high, hold
+    for hold in rounded_holds(fig8_runs, far_from_outside=True):
+        assert low < side_of_outside(hold) * hold["offset_c"] < high, hold
+    for hold in rounded_holds(fig8_runs, far_from_outside=False):
+        assert abs(hold["offset_c"]) < ROUNDED_MAX_OFFSET_C, hold
+
+
+@pytest.mark.xfail(strict=True, reason="1 K from the outside the face drifts too slowly to reach the dead "
+                   "band's edge within a minute; at 18 degC it settles at the setpoint "
+                   "(docs/physics-model.md)")
+def test_rounded_error_offset_has_the_papers_sign_near_the_outside(fig8_runs):
+    for hold in rounded_holds(fig8_runs, far_from_outside=False):
+        assert side_of_outside(hold) * hold["offset_c"] > 0, hold
+
+
+@pytest.mark.parametrize("controller", CONTROLLERS)
+@pytest.mark.xfail(strict=True, reason="neither controller overshoots more at the crossing than at the "
+                   "other steps: nothing in the twin's chamber is crossing-specific (docs/physics-model.md)")
+def test_the_crossing_step_overshoots_most(fig8_runs, controller):
+    result = fig8_runs[controller]["figures"]
+    assert result["crossing_overshoot_c"] > result["other_overshoot_c"]
 
 
 @pytest.mark.parametrize("controller", CONTROLLERS)
 def test_the_crossing_step_is_the_one_across_the_outside_temperature(fig8_runs, controller):
-    # (c) is reported, not asserted: neither mode overshoots more at the
-    # crossing than elsewhere (docs/physics-model.md).
     result = fig8_runs[controller]["figures"]
     assert result["ambient_c"] == pytest.approx(FIG8_AMBIENT_C)
     crossing = figures.crossing_step(figures.step_responses(figures.warming_rows(fig8_runs[controller]["rows"])),
