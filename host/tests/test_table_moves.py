@@ -7,6 +7,7 @@ from __future__ import annotations
 import subprocess
 import sys
 
+from thermotilt.physics import Model
 from thermotilt.protocol import FrameReader, build_frame
 from thermotilt.runlog import read_run_log
 from thermotilt.twin import Board
@@ -47,7 +48,7 @@ def test_the_campaign_reseeds_at_every_move_and_logs_the_time_since(tmp_path):
     out = tmp_path / "campaign"
     result = subprocess.run(
         [sys.executable, "-m", "thermotilt", "simulate", "campaign", "--positions", "0,X+45",
-         "--hold-seconds", "2", "--rest-seconds", "0", "--out", str(out)],
+         "--hold-seconds", "2", "--rest-seconds", "0", "--hold-start", "T", "--out", str(out)],
         capture_output=True, text=True, timeout=900, check=False,
     )
     assert result.returncode == 0, result.stderr
@@ -60,10 +61,13 @@ def test_the_campaign_reseeds_at_every_move_and_logs_the_time_since(tmp_path):
     since = [float(row["since_move_s"]) for row in tilted]
     assert since[0] < 0.2 and all(b > a for a, b in zip(since, since[1:]))
     # From 2 s after the move the filtered X axis is the new angle plus the
-    # model's drift, within the noise of a 200-sample mean and the die's
-    # slow temperature change (a stale filter would be ~11 600 LSB off).
+    # model's drift and measuring offset (of the set the model is in), within
+    # the noise of a 200-sample mean and the die's slow temperature change
+    # (a stale filter would be ~11 600 LSB off).
+    offsets = Model.load().terms["measuring_offset"]
+    offset_x = {"W": offsets["warming_lsb"]["x"], "C": offsets["cooling_lsb"]["x"]}
     settled = [row for row in tilted if 2.0 <= float(row["since_move_s"]) <= 10.0]
     assert len(settled) >= 70
     for row in settled:
-        expected = float(row["true_ax"]) + float(row["true_drift_x"])
+        expected = float(row["true_ax"]) + float(row["true_drift_x"]) + offset_x[row["true_drift_set"]]
         assert abs(float(row["ax_filt"]) - expected) < 30, row["time_s"]
