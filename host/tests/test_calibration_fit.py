@@ -87,6 +87,11 @@ def test_too_little_data_is_refused():
     tiny = synthetic_set(rng, rows_per_position=5)
     with pytest.raises(CalibrationDataError, match="at least 42 needed"):
         fit_surface(tiny, "W", "X")
+    two = synthetic_set(rng)
+    first_two = two.position < 2
+    with pytest.raises(CalibrationDataError, match="at least 3 inclinations"):
+        fit_surface(SetData(two.temperature_c[first_two], {"X": two.acceleration["X"][first_two]},
+                            {"X": two.residual["X"][first_two]}, two.position[first_two]), "W", "X")
     flat = synthetic_set(rng)
     one_angle = SetData(flat.temperature_c, {"X": np.full_like(flat.temperature_c, 100.0)},
                         flat.residual, flat.position)

@@ -31,6 +31,8 @@ _POWERS = ((0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2))
 _TEMPERATURE_SCALE = 10.0
 _ACCELERATION_SCALE = 1e4
 MIN_POINTS = 7 * len(TERMS)
+# A quadratic in the acceleration needs three distinct levels of it.
+MIN_POSITIONS = 3
 CONFIDENCE = 0.95
 # The HAC window is twice the lag at which the residuals' autocorrelation
 # first falls below ACF_CUTOFF: Newey-West's Bartlett weights halve the
@@ -86,6 +88,12 @@ def fit_surface(data: SetData, set_name: str, axis: str) -> SurfaceFit:
     if points < MIN_POINTS:
         raise CalibrationDataError(
             f"{set_name} set, {axis} axis: {points} points, at least {MIN_POINTS} needed for six coefficients"
+        )
+    positions = np.unique(data.position).size
+    if positions < MIN_POSITIONS:
+        raise CalibrationDataError(
+            f"{set_name} set, {axis} axis: {positions} position(s); a surface of 2nd order in the "
+            f"acceleration needs at least {MIN_POSITIONS} inclinations"
         )
     design = _design(temperature, acceleration)
     # The scaled design is well conditioned, so its 6 x 6 normal matrix
