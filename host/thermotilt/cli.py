@@ -276,7 +276,7 @@ def _command_fit(args: argparse.Namespace) -> int:
 
     try:
         campaign = load(Path(args.campaign), settle_s=args.settle_seconds)
-        fits = fit_campaign(campaign)
+        fits = fit_campaign(campaign, tuple(args.axes))
     except CalibrationDataError as error:
         raise UsageError(str(error)) from None
     out_dir = Path(args.out)
@@ -364,6 +364,8 @@ def build_parser() -> argparse.ArgumentParser:
     fit.add_argument("--out", required=True, help="folder for coefficients.json, .bin and .h")
     fit.add_argument("--settle-seconds", type=_within(float, 0.0, 3600.0, " s"),
                      help="skip rows this soon after a table move (default 120)")
+    fit.add_argument("--axes", nargs="+", choices=("X", "Y"), default=["X", "Y"],
+                     help="axes to fit (default X Y); the others stay uncorrected")
     fit.set_defaults(run=_command_fit)
 
     log = commands.add_parser("log", help="log real boards (or the twin's --pty ports) to run.csv")

@@ -21,7 +21,7 @@ import statsmodels.api as sm
 from statsmodels.tsa.stattools import acf
 
 from ..coefficients import AXES, SETS, TERMS, CoefficientTable, Surface, ZERO_SURFACE, encode_block
-from .dataset import Campaign, CalibrationDataError, SetData
+from .dataset import FIT_AXES, Campaign, CalibrationDataError, SetData
 
 # Powers of (T, a) for p00, p10, p01, p20, p11, p02.
 _POWERS = ((0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2))
@@ -130,14 +130,15 @@ def fit_surface(data: SetData, set_name: str, axis: str) -> SurfaceFit:
     )
 
 
-def fit_campaign(campaign: Campaign) -> list[SurfaceFit]:
+def fit_campaign(campaign: Campaign, axes: tuple[str, ...] = FIT_AXES) -> list[SurfaceFit]:
     return [fit_surface(campaign.sets[set_name], set_name, axis)
-            for axis in ("X", "Y") for set_name in SETS]
+            for axis in axes for set_name in SETS]
 
 
 def coefficient_table(fits: list[SurfaceFit]) -> CoefficientTable:
-    """The fitted X and Y surfaces; Z stays uncorrected, as the firmware's
-    defaults leave it (the paper's Z fits explain little: R^2 0.03-0.66)."""
+    """The fitted surfaces; the others stay uncorrected (zero): Z always, as
+    the firmware's defaults leave it (the paper's Z fits explain little:
+    R^2 0.03-0.66), and an axis the campaign did not tilt."""
     surfaces = {(s, a): ZERO_SURFACE for s in SETS for a in AXES}
     surfaces.update({(fit.set_name, fit.axis): fit.surface for fit in fits})
     return CoefficientTable(surfaces)
@@ -192,7 +193,7 @@ def write_outputs(fits: list[SurfaceFit], campaign: Campaign, out_dir: Path) -> 
             "hac_95": "Newey-West within each position, lag window hac_lags_rows (statsmodels hac-panel)",
         },
         "fits": {f"{fit.set_name}{fit.axis}": _fit_json(fit) for fit in fits},
-        "uncorrected_axes": ["Z"],
+        "uncorrected_axes": [axis for axis in AXES if axis not in {fit.axis for fit in fits}],
     }
     out_dir.mkdir(parents=True, exist_ok=True)
     (out_dir / "coefficients.json").write_text(json.dumps(document, indent=2) + "\n")
@@ -204,7 +205,7 @@ def write_outputs(fits: list[SurfaceFit], campaign: Campaign, out_dir: Path) -> 
 def format_table(fits: list[SurfaceFit]) -> str:
     """The fits shaped like the paper's Tables 2 and 3."""
     lines = []
-    for axis in ("X", "Y"):
+    for axis in dict.fromkeys(fit.axis for fit in fits):
         pair = [fit for fit in fits if fit.axis == axis]
         lines.append(f"{axis} axis" + "".join(f"  | {('warming' if f.set_name == 'W' else 'cooling'):<44}"
                                                for f in pair))
