@@ -9,9 +9,12 @@ import json
 import subprocess
 import sys
 
+from importlib import resources
+
 import numpy as np
 import pytest
 
+from thermotilt.calibration.compare import compare, read_fit, reference_surfaces
 from thermotilt.calibration.dataset import CalibrationDataError, SetData, load
 from thermotilt.calibration.fit import fit_surface
 from thermotilt.calibration.paper import PRINTING_ERRORS, TABLES
@@ -220,3 +223,54 @@ def test_the_papers_tables_are_the_firmwares_defaults():
     printed = TABLES[("X", "C")].coefficients["p01"]
     assert not printed.lower <= printed.value <= printed.upper
     assert printed.lower <= PRINTING_ERRORS[("X", "C", "p01", "value")] <= printed.upper
+
+
+# ---- thermotilt compare ---------------------------------------------------
+
+
+def model_with_drift(path, surface: Surface) -> None:
+    """The default model with `surface` as every X and Y drift surface."""
+    text = resources.files("thermotilt").joinpath("models/default.toml").read_text()
+    rows = ", ".join(f"{value!r}" for value in surface)
+    table = "{ " + ", ".join(
+        f"{set_name} = {{ X = [{rows}], Y = [{rows}], Z = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0] }}" for set_name in ("W", "C")
+    ) + " }"
+    path.write_text(text.replace('coefficients = "paper"', f"coefficients = {table}", 1))
+
+
+def test_compare_against_the_model_that_made_the_data_finds_no_gap(tmp_path):
+    temperatures, sets = cycle()
+    campaign = tmp_path / "campaign"
+    for angle in ANGLES_DEG:
+        write_run_log(campaign / f"{angle}.csv", angle, temperatures, sets)
+    fit_dir = tmp_path / "fit"
+    assert subprocess.run([sys.executable, "-m", "thermotilt", "fit", str(campaign), "--out", str(fit_dir)],
+                          capture_output=True, text=True, timeout=120).returncode == 0
+    model = tmp_path / "model.toml"
+    model_with_drift(model, TRUE)
+    comparisons = {c.key: c for c in compare(read_fit(fit_dir), str(model))}
+    assert set(comparisons) == {"WX", "CX", "WY", "CY"}
+    # Noise-free data: only the regressor separates the fitted surface from
+    # the truth. The fit is a function of the measured acceleration, which
+    # carries the 300 LSB offset and the drift g (up to ~600 LSB); the truth
+    # is written in the nominal one: p11 * T * (300 + g) = 7e-5 * 45 * 900,
+    # at most ~2.8 LSB, about 1 LSB RMS over the domain.
+    assert all(c.rms_lsb < 1.5 and c.max_lsb < 3.0 for c in comparisons.values())
+    assert comparisons["WX"].temperature_range_c == (-10.0, 45.0)
+    # Against the paper, whose X surface differs from TRUE in its terms in a.
+    paper = {c.key: c for c in compare(read_fit(fit_dir), "paper")}
+    assert paper["WX"].rms_lsb > 1.0 and paper["WX"].half_width_from == "paper"
+
+
+def test_compare_uses_the_consistent_reading_of_table_2s_misprints():
+    surfaces, widths = reference_surfaces("paper")
+    assert surfaces["CX"].p01 == PRINTING_ERRORS[("X", "C", "p01", "value")]
+    assert widths["CX"]["p02"] == pytest.approx((-7.144e-8 - -7.563e-8) / 2)
+
+
+def test_compare_refuses_what_fit_did_not_write(tmp_path):
+    (tmp_path / "coefficients.json").write_text('{"fits": {"WX": {}}}')
+    result = subprocess.run([sys.executable, "-m", "thermotilt", "compare", str(tmp_path)],
+                            capture_output=True, text=True, timeout=60, check=False)
+    assert result.returncode == 1 and result.stderr.count("\n") == 1
+    assert "not a coefficients.json written by thermotilt fit" in result.stderr

@@ -293,6 +293,18 @@ def _command_fit(args: argparse.Namespace) -> int:
     return 0
 
 
+def _command_compare(args: argparse.Namespace) -> int:
+    from .calibration.compare import compare, format_comparison, read_fit
+    from .calibration.dataset import CalibrationDataError
+
+    try:
+        comparisons = compare(read_fit(Path(args.fit_dir)), args.reference)
+    except CalibrationDataError as error:
+        raise UsageError(str(error)) from None
+    print(format_comparison(comparisons, args.reference))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _ArgumentParser(prog=PROGRAM, description="ThermoTilt host tools.")
     parser.add_argument(
@@ -367,6 +379,14 @@ def build_parser() -> argparse.ArgumentParser:
     fit.add_argument("--axes", nargs="+", choices=("X", "Y"), default=["X", "Y"],
                      help="axes to fit (default X Y); the others stay uncorrected")
     fit.set_defaults(run=_command_fit)
+
+    compare = commands.add_parser(
+        "compare", help="a fit beside the paper's Tables 2-3 or a model's surfaces: surface and coefficient differences"
+    )
+    compare.add_argument("fit_dir", help="a folder written by thermotilt fit")
+    compare.add_argument("--reference", default="paper",
+                         help="paper (default) or a model file (TOML) whose drift surfaces to compare with")
+    compare.set_defaults(run=_command_compare)
 
     log = commands.add_parser("log", help="log real boards (or the twin's --pty ports) to run.csv")
     log.add_argument("--port", required=True, help="the IMU reader's serial port")

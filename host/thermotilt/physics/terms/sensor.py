@@ -97,7 +97,8 @@ class Tilt(SensorTerm):
         return gravity
 
 
-def _coefficient_table(value: Any) -> CoefficientTable:
+def coefficient_table_of(value: Any) -> CoefficientTable:
+    """The drift term's coefficients parameter ("paper" or a table) as surfaces."""
     if value == "paper":
         return PAPER_DEFAULTS
     return CoefficientTable(
@@ -136,7 +137,7 @@ class Drift(SensorTerm):
     )
 
     def bound(self, context: SensorContext) -> Callable[..., Any]:
-        table = _coefficient_table(self.values["coefficients"])
+        table = coefficient_table_of(self.values["coefficients"])
         surfaces = {
             set_: tuple(tuple(table.surface(set_, axis)) for axis in AXES) for set_ in SETS
         }

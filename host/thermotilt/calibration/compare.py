@@ -1,0 +1,130 @@
+"""A fit beside a reference: the paper's Tables 2-3 or the surfaces a twin
+model was given (`thermotilt compare`).
+
+Single coefficients of a polynomial are strongly collinear, so the measure
+that matters is the difference of the two surfaces over the calibrated
+domain (T -10..45 degC x the fit's acceleration range), in LSB. Both
+surfaces are taken relative to their value at 25 degC, because that is all
+a fit to residuals against the 25 degC reading can know (docs/calibration.md):
+g(T, a) = f(T, a) - f(25, a). Per coefficient, the difference is also given
+in units of a 95 % half-width: the paper's own bounds, or, against a model
+(which has none), the fit's HAC bounds.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..coefficients import TERMS, Surface
+from ..physics import Model, ModelError
+from ..physics.terms.sensor import coefficient_table_of
+from .dataset import CalibrationDataError, REFERENCE_C
+from .paper import PRINTING_ERRORS, TABLES
+
+CALIBRATED_C = (-10.0, 45.0)
+GRID_POINTS = 60
+
+
+@dataclass(frozen=True)
+class SurfaceComparison:
+    key: str  # e.g. "WX"
+    temperature_range_c: tuple[float, float]
+    rms_lsb: float
+    max_lsb: float
+    coefficient_sigmas: dict[str, float]  # difference / 95 % half-width
+    half_width_from: str  # "paper" or "fit"
+
+
+def calibrated_domain(fit: dict) -> tuple[float, float]:
+    """-10..45 degC, narrowed to what the fit saw: a surface is not
+    compared where it was extrapolated."""
+    low, high = fit["temperature_range_c"]
+    return max(CALIBRATED_C[0], low), min(CALIBRATED_C[1], high)
+
+
+def _relative(surface: Surface, temperature: np.ndarray, acceleration: np.ndarray) -> np.ndarray:
+    return surface.evaluate(temperature, acceleration) - surface.evaluate(REFERENCE_C, acceleration)
+
+
+def read_fit(fit_dir: Path) -> dict:
+    path = fit_dir / "coefficients.json"
+    try:
+        document = json.loads(path.read_text())
+        fits = document["fits"]
+        for fit in fits.values():
+            Surface(*(float(fit["coefficients"][term]["value"]) for term in TERMS))
+            fit["acceleration_range_lsb"][1]
+            fit["temperature_range_c"][1]
+    except OSError as error:
+        raise CalibrationDataError(f"{path}: cannot read: {error.strerror or error}") from None
+    except (ValueError, KeyError, TypeError, IndexError):
+        raise CalibrationDataError(f"{path}: not a coefficients.json written by thermotilt fit") from None
+    return fits
+
+
+def reference_surfaces(reference: str) -> tuple[dict[str, Surface], dict[str, dict[str, float]] | None]:
+    """Surfaces by key ("WX", ...) and, for the paper, each coefficient's
+    95 % half-width; `reference` is "paper" or a model file."""
+    if reference == "paper":
+        surfaces, widths = {}, {}
+        for (axis, set_name), published in TABLES.items():
+            if axis not in ("X", "Y"):
+                continue
+
+            def part(term: str, name: str) -> float:
+                printed = getattr(published.coefficients[term], name)
+                return PRINTING_ERRORS.get((axis, set_name, term, name), printed)
+
+            key = f"{set_name}{axis}"
+            surfaces[key] = Surface(*(part(term, "value") for term in TERMS))
+            widths[key] = {term: (part(term, "upper") - part(term, "lower")) / 2 for term in TERMS}
+        return surfaces, widths
+    try:
+        model = Model.load(reference)
+    except ModelError as error:
+        raise CalibrationDataError(str(error)) from None
+    table = coefficient_table_of(model.terms["drift"]["coefficients"])
+    return {f"{s}{a}": table.surfaces[(s, a)] for s in ("W", "C") for a in ("X", "Y")}, None
+
+
+def compare(fits: dict, reference: str) -> list[SurfaceComparison]:
+    surfaces, widths = reference_surfaces(reference)
+    comparisons = []
+    for key, fit in fits.items():
+        if key not in surfaces:
+            continue
+        fitted = Surface(*(float(fit["coefficients"][term]["value"]) for term in TERMS))
+        low, high = fit["acceleration_range_lsb"]
+        domain = calibrated_domain(fit)
+        temperature, acceleration = np.meshgrid(np.linspace(*domain, GRID_POINTS),
+                                                np.linspace(low, high, GRID_POINTS))
+        difference = _relative(fitted, temperature, acceleration) - _relative(surfaces[key], temperature, acceleration)
+        if widths is not None:
+            half = widths[key]
+        else:
+            half = {term: (fit["coefficients"][term]["hac_95"][1] - fit["coefficients"][term]["hac_95"][0]) / 2
+                    for term in TERMS}
+        sigmas = {term: (getattr(fitted, term) - getattr(surfaces[key], term)) / half[term]
+                  if half[term] > 0 else float("inf") for term in TERMS}
+        comparisons.append(SurfaceComparison(key, domain, float(np.sqrt(np.mean(difference**2))),
+                                             float(np.max(np.abs(difference))), sigmas,
+                                             "paper" if widths is not None else "fit"))
+    if not comparisons:
+        raise CalibrationDataError("the fit has no X or Y surface to compare")
+    return comparisons
+
+
+def format_comparison(comparisons: list[SurfaceComparison], reference: str) -> str:
+    lines = [f"against {reference}: surfaces relative to 25 degC over the fit's acceleration range and "
+             f"its part of {CALIBRATED_C[0]:g}..{CALIBRATED_C[1]:g} degC",
+             f"  {'fit':<4}{'degC':>14}{'RMS LSB':>10}{'max LSB':>10}   coefficient difference / 95 % half-width"]
+    for comparison in comparisons:
+        sigmas = "  ".join(f"{term} {value:+.1f}" for term, value in comparison.coefficient_sigmas.items())
+        span = "{:.1f}..{:.1f}".format(*comparison.temperature_range_c)
+        lines.append(f"  {comparison.key:<4}{span:>14}{comparison.rms_lsb:>10.2f}{comparison.max_lsb:>10.2f}   "
+                     f"{sigmas} (half-widths: {comparison.half_width_from})")
+    return "\n".join(lines)
