@@ -198,17 +198,10 @@ void sendStatus(uint32_t now)
     link.send();
 }
 
-// A fault present now, in the order a person would look for it.
-Fault presentSensorFault()
+Fault presentThermistorFault()
 {
     Fault found = thermistorFaultOf(inner, INNER_OPEN, INNER_SHORT);
-    if (found == NO_FAULT) {
-        found = thermistorFaultOf(outer, OUTER_OPEN, OUTER_SHORT);
-    }
-    if (found == NO_FAULT) {
-        found = faultOf(guard.limitFault(inner.celsius, outer.celsius));
-    }
-    return found;
+    return found != NO_FAULT ? found : thermistorFaultOf(outer, OUTER_OPEN, OUTER_SHORT);
 }
 
 void trip(Fault detected)
@@ -235,9 +228,9 @@ void controlTick(uint32_t now)
         lastProgramTickMs = now;
     }
     bool driving = running && programState.phase != ProgramPhase::Done && programState.driveEnabled;
-    Fault detected = presentSensorFault();
+    Fault detected = presentThermistorFault();
     if (detected == NO_FAULT) {
-        // Judged with the drive that produced these readings.
+        // Limits and runaway, judged with the drive that produced these readings.
         detected = faultOf(guard.update(driving ? programState.setpoint_c : NAN, inner.celsius, outer.celsius,
                                         drive, CONTROL_PERIOD_S));
     }
@@ -298,19 +291,28 @@ void sendProgram()
     link.send();
 }
 
+// GRD's and SETGRD's guard fields, in their order in ProtocolFrames.def,
+// with the decimals GRD reports them with.
+struct GuardField {
+    float GuardSettings::*member;
+    uint8_t decimals;
+};
+const GuardField GUARD_FIELDS[] = {
+    {&GuardSettings::band_c, 2},        {&GuardSettings::gain_c, 2},        {&GuardSettings::window_s, 1},
+    {&GuardSettings::wrong_way_c, 2},   {&GuardSettings::max_error_c_s, 1}, {&GuardSettings::inner_min_c, 2},
+    {&GuardSettings::inner_max_c, 2},   {&GuardSettings::outer_min_c, 2},   {&GuardSettings::outer_max_c, 2},
+};
+const uint8_t GUARD_FIELD_COUNT = sizeof GUARD_FIELDS / sizeof GUARD_FIELDS[0];
+static_assert(GUARD_FIELD_COUNT == Protocol::FieldCount::SETGRD, "SETGRD carries the guard fields");
+static_assert(GUARD_FIELD_COUNT + 1 == Protocol::FieldCount::GRD, "GRD carries them and heartbeat_s");
+
 void sendGuard()
 {
     const GuardSettings& settings = guard.settings();
     FrameWriter& frame = link.start(Protocol::Tag::GRD);
-    frame.addFixed(settings.band_c, 2);
-    frame.addFixed(settings.gain_c, 2);
-    frame.addFixed(settings.window_s, 1);
-    frame.addFixed(settings.wrong_way_c, 2);
-    frame.addFixed(settings.max_error_c_s, 1);
-    frame.addFixed(settings.inner_min_c, 2);
-    frame.addFixed(settings.inner_max_c, 2);
-    frame.addFixed(settings.outer_min_c, 2);
-    frame.addFixed(settings.outer_max_c, 2);
+    for (uint8_t i = 0; i < GUARD_FIELD_COUNT; ++i) {
+        frame.addFixed(settings.*GUARD_FIELDS[i].member, GUARD_FIELDS[i].decimals);
+    }
     frame.addUnsigned(heartbeatS);
     link.send();
 }
@@ -403,13 +405,9 @@ const char* guardErrorName(GuardError error)
 void setGuard(const FrameParser& command)
 {
     GuardSettings settings;
-    float* values[] = {&settings.band_c,      &settings.gain_c,      &settings.window_s,
-                       &settings.wrong_way_c, &settings.max_error_c_s, &settings.inner_min_c,
-                       &settings.inner_max_c, &settings.outer_min_c, &settings.outer_max_c};
-    const uint8_t count = sizeof values / sizeof values[0];
     bool parsed = command.fieldCount() >= Protocol::FieldCount::SETGRD;
-    for (uint8_t i = 0; parsed && i < count; ++i) {
-        parsed = command.fieldFloat(i, *values[i]);
+    for (uint8_t i = 0; parsed && i < GUARD_FIELD_COUNT; ++i) {
+        parsed = command.fieldFloat(i, settings.*GUARD_FIELDS[i].member);
     }
     if (!parsed) {
         link.reject("BAD_ARG", "SETGRD_FIELDS");
@@ -438,7 +436,10 @@ void setHeartbeat(const FrameParser& command)
 // A latched fault clears only on request, and only once its cause is gone.
 void clearFault()
 {
-    Fault present = presentSensorFault();
+    Fault present = presentThermistorFault();
+    if (present == NO_FAULT) {
+        present = faultOf(guard.limitFault(inner.celsius, outer.celsius));
+    }
     if (present != NO_FAULT) {
         link.reject("FAULT", faultName(present));
         return;
