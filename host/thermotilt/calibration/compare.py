@@ -39,10 +39,20 @@ class SurfaceComparison:
     half_width_from: str  # "paper" or "fit"
 
 
-def calibrated_domain(fit: dict) -> tuple[float, float]:
+@dataclass(frozen=True)
+class FittedSurface:
+    """One surface of a coefficients.json, as `thermotilt fit` wrote it."""
+
+    surface: Surface
+    hac_half_widths: dict[str, float]
+    temperature_range_c: tuple[float, float]
+    acceleration_range_lsb: tuple[float, float]
+
+
+def calibrated_domain(fit: FittedSurface) -> tuple[float, float]:
     """-10..45 degC, narrowed to what the fit saw: a surface is not
     compared where it was extrapolated."""
-    low, high = fit["temperature_range_c"]
+    low, high = fit.temperature_range_c
     return max(CALIBRATED_C[0], low), min(CALIBRATED_C[1], high)
 
 
@@ -50,18 +60,30 @@ def _relative(surface: Surface, temperature: np.ndarray, acceleration: np.ndarra
     return surface.evaluate(temperature, acceleration) - surface.evaluate(REFERENCE_C, acceleration)
 
 
-def read_fit(fit_dir: Path) -> dict:
+def _pair(values) -> tuple[float, float]:
+    low, high = values
+    return float(low), float(high)
+
+
+def _fitted_surface(fit: dict) -> FittedSurface:
+    coefficients = fit["coefficients"]
+    hac = {term: _pair(coefficients[term]["hac_95"]) for term in TERMS}
+    return FittedSurface(
+        surface=Surface(*(float(coefficients[term]["value"]) for term in TERMS)),
+        hac_half_widths={term: (high - low) / 2 for term, (low, high) in hac.items()},
+        temperature_range_c=_pair(fit["temperature_range_c"]),
+        acceleration_range_lsb=_pair(fit["acceleration_range_lsb"]),
+    )
+
+
+def read_fit(fit_dir: Path) -> dict[str, FittedSurface]:
+    """The surfaces of FIT_DIR/coefficients.json by key ("WX", ...)."""
     path = fit_dir / "coefficients.json"
     try:
-        document = json.loads(path.read_text())
-        fits = document["fits"]
-        for fit in fits.values():
-            Surface(*(float(fit["coefficients"][term]["value"]) for term in TERMS))
-            fit["acceleration_range_lsb"][1]
-            fit["temperature_range_c"][1]
+        fits = {key: _fitted_surface(fit) for key, fit in json.loads(path.read_text())["fits"].items()}
     except OSError as error:
         raise CalibrationDataError(f"{path}: cannot read: {error.strerror or error}") from None
-    except (ValueError, KeyError, TypeError, IndexError):
+    except (ValueError, KeyError, TypeError, IndexError, AttributeError):
         raise CalibrationDataError(f"{path}: not a coefficients.json written by thermotilt fit") from None
     return fits
 
@@ -91,23 +113,18 @@ def reference_surfaces(reference: str) -> tuple[dict[str, Surface], dict[str, di
     return {f"{s}{a}": table.surfaces[(s, a)] for s in ("W", "C") for a in ("X", "Y")}, None
 
 
-def compare(fits: dict, reference: str) -> list[SurfaceComparison]:
+def compare(fits: dict[str, FittedSurface], reference: str) -> list[SurfaceComparison]:
     surfaces, widths = reference_surfaces(reference)
     comparisons = []
     for key, fit in fits.items():
         if key not in surfaces:
             continue
-        fitted = Surface(*(float(fit["coefficients"][term]["value"]) for term in TERMS))
-        low, high = fit["acceleration_range_lsb"]
+        fitted = fit.surface
         domain = calibrated_domain(fit)
         temperature, acceleration = np.meshgrid(np.linspace(*domain, GRID_POINTS),
-                                                np.linspace(low, high, GRID_POINTS))
+                                                np.linspace(*fit.acceleration_range_lsb, GRID_POINTS))
         difference = _relative(fitted, temperature, acceleration) - _relative(surfaces[key], temperature, acceleration)
-        if widths is not None:
-            half = widths[key]
-        else:
-            half = {term: (fit["coefficients"][term]["hac_95"][1] - fit["coefficients"][term]["hac_95"][0]) / 2
-                    for term in TERMS}
+        half = widths[key] if widths is not None else fit.hac_half_widths
         sigmas = {term: (getattr(fitted, term) - getattr(surfaces[key], term)) / half[term]
                   if half[term] > 0 else float("inf") for term in TERMS}
         comparisons.append(SurfaceComparison(key, domain, float(np.sqrt(np.mean(difference**2))),
