@@ -17,7 +17,7 @@ from thermotilt.protocol import FrameReader, build_frame
 from thermotilt.scenarios import Command, Scenario, TablePosition
 from thermotilt.twin import Board, Drive
 
-from firmware_helpers import divider_millivolts, of_type
+from firmware_helpers import chamber, of_type, start_program
 
 AMBIENT_C = 22.0
 PROGRAM_STARTED_S = 1.5
@@ -138,14 +138,6 @@ def test_a_failed_heatsink_stops_at_the_outer_limit(tmp_path):
 # ---- the firmware alone, without physics ------------------------------------
 
 
-def chamber(inner_c: float = 18.0, outer_c: float = 25.0) -> Board:
-    board = Board.thermal_chamber()
-    board.attach_l298n()
-    board.set_adc_millivolts(0, divider_millivolts(inner_c))
-    board.set_adc_millivolts(1, divider_millivolts(outer_c))
-    return board
-
-
 def drive_between(board: Board, start_s: float, end_s: float) -> Drive:
     """What reached the Peltier from start_s to end_s of simulated time."""
     board.run_until(start_s)
@@ -154,15 +146,11 @@ def drive_between(board: Board, start_s: float, end_s: float) -> Drive:
     return board.read_l298n()
 
 
-def start_heating(board: Board, seq: int = 1) -> None:
-    board.write_uart((build_frame("SETPRG", seq, [20, 30, 2, 60, 1200, 1, "T"]) + build_frame("START", seq + 1)).encode())
-
-
 def test_a_hung_loop_resets_into_the_safe_state_and_says_so():
     reader = FrameReader()
-    with chamber() as board:
+    with chamber(inner_c=18.0) as board:
         board.run_until(1.0)
-        start_heating(board)
+        start_program(board, 20.0)
         board.run_until(2.0)
         assert board.read_l298n().pwm == 255
         board.hang()
@@ -198,9 +186,9 @@ def test_the_imu_reader_resets_from_a_hang_too():
 def test_a_flood_of_bad_lines_does_not_starve_the_control_loop():
     # 10 s of "$\n" at the line rate: 57 600 malformed lines.
     reader = FrameReader()
-    with chamber() as board:
+    with chamber(inner_c=18.0) as board:
         board.run_until(1.0)
-        start_heating(board)
+        start_program(board, 20.0)
         board.run_until(2.0)
         board.write_uart(b"$\n" * 57600)
         board.run_until(5.0)
@@ -220,7 +208,7 @@ def test_a_flood_of_bad_lines_does_not_starve_the_control_loop():
 
 def test_an_echo_of_the_boards_own_frames_is_not_answered():
     reader = FrameReader()
-    with chamber() as board:
+    with chamber(inner_c=18.0) as board:
         board.run_until(3.0)
         sent = board.read_uart()
         board.write_uart(sent * 3)
@@ -232,7 +220,7 @@ def test_an_echo_of_the_boards_own_frames_is_not_answered():
 
 def test_start_needs_an_accepted_program():
     reader = FrameReader()
-    with chamber() as board:
+    with chamber(inner_c=18.0) as board:
         board.run_until(1.0)
         board.write_uart(
             (
@@ -254,7 +242,7 @@ def test_start_needs_an_accepted_program():
 
 def test_guard_settings_are_reported_and_checked():
     reader = FrameReader()
-    with chamber() as board:
+    with chamber(inner_c=18.0) as board:
         board.run_until(1.0)
         board.write_uart(
             (
@@ -276,10 +264,10 @@ def test_guard_settings_are_reported_and_checked():
 
 def test_a_silent_host_stops_the_program_when_the_heartbeat_is_on():
     reader = FrameReader()
-    with chamber() as board:
+    with chamber(inner_c=18.0) as board:
         board.run_until(1.0)
         board.write_uart(build_frame("SETHB", 1, [3]).encode())
-        start_heating(board, seq=2)
+        start_program(board, 20.0, seq=2)
         board.run_until(3.5)
         board.write_uart(build_frame("STATUS", 4).encode())
         alive = drive_between(board, 5.0, 6.0)

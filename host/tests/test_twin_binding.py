@@ -18,7 +18,7 @@ import serial
 from thermotilt.protocol import FrameReader, build_frame
 from thermotilt.twin import Board, Drive, TwinError, build_dir, firmware_elf
 
-from firmware_helpers import divider_millivolts, of_type
+from firmware_helpers import chamber, divider_millivolts, of_type, start_program
 
 KP = 350.0
 BYTE_SECONDS = 10 / 115200
@@ -32,20 +32,6 @@ def measured_celsius(millivolts: float) -> float:
     code = math.floor(millivolts * 1024 / 5000)
     ntc = 100e3 * code / (1024 - code)
     return 1.0 / (math.log(ntc / 100e3) / 3950.0 + 1.0 / 298.15) - 273.15
-
-
-def chamber(inner_c: float, outer_c: float = 25.0) -> Board:
-    board = Board.thermal_chamber()
-    board.attach_l298n()
-    board.set_adc_millivolts(0, divider_millivolts(inner_c))
-    board.set_adc_millivolts(1, divider_millivolts(outer_c))
-    return board
-
-
-def start_program(board: Board, start_c: float) -> None:
-    """The staircase from start_c; its first step holds start_c for 60 s."""
-    commands = build_frame("SETPRG", 1, [start_c, start_c + 10, 2, 60, 1200, 1, "T"]) + build_frame("START", 2)
-    board.write_uart(commands.encode())
 
 
 def imu_with_sensor() -> Board:
