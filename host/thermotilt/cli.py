@@ -270,6 +270,62 @@ def _command_log(args: argparse.Namespace) -> int:
     return _interrupted() if result.end_reason == INTERRUPTED else 0
 
 
+def _command_campaign(args: argparse.Namespace) -> int:
+    from .calibration.campaign import (
+        DONE,
+        FAILED,
+        CampaignError,
+        PositionRecord,
+        TwinCampaign,
+        TwinSetup,
+        select_positions,
+    )
+    from .scenarios import ScenarioOptions
+
+    if not args.twin:
+        raise UsageError("campaign needs --twin (real boards: not yet supported)")
+    setup = TwinSetup(
+        ScenarioOptions(hold_s=args.hold_seconds, rest_s=args.rest_seconds, ambient_c=args.ambient,
+                        hold_start=args.hold_start, controller=args.controller),
+        seed=args.seed, model_path=args.model, enable=tuple(args.enable), disable=tuple(args.disable),
+    )
+    out_dir = Path(args.out)
+    try:
+        campaign = TwinCampaign(out_dir, select_positions(args.positions), setup,
+                                resume=args.resume, force=args.force)
+    except CampaignError as error:
+        raise UsageError(str(error)) from None
+    done = len(campaign.positions) - len(campaign.todo)
+    jobs = min(args.jobs, max(1, len(campaign.todo)))
+    print(f"campaign of {len(campaign.positions)} positions -> {out_dir}"
+          + (f" ({done} already done)" if done else "")
+          + f": {len(campaign.todo)} to run, {campaign.position_seconds:.0f} s simulated each, "
+            f"{jobs} at a time", flush=True)
+
+    def report(record: PositionRecord) -> None:
+        line = f"{record.label}: {record.status}"
+        if record.status == DONE:
+            line += f" in {record.wall_seconds:.0f} s"
+        if record.error:
+            line += f" ({record.error})"
+        tqdm.write(line, file=sys.stdout)
+        for error in record.reported_errors:
+            tqdm.write(f"{record.label}: reported {error}", file=sys.stdout)
+
+    total = round(len(campaign.todo) * campaign.position_seconds)
+    with tqdm(total=total, unit="sim s", disable=None, file=sys.stderr) as bar:
+        outcome = campaign.run(jobs, progress=bar.update, on_position=report)
+    if outcome.interrupted:
+        print("kept every finished position; add --resume to run the others")
+        return _interrupted()
+    failed = [record for record in outcome.records if record.status == FAILED]
+    if failed:
+        raise UsageError(f"{len(failed)} position(s) failed: "
+                         + "; ".join(f"{record.label}: {record.error}" for record in failed))
+    print(f"all {len(outcome.records)} positions done; fit them with: thermotilt fit {out_dir} --out FIT_DIR")
+    return 0
+
+
 def _command_fit(args: argparse.Namespace) -> int:
     from .calibration.dataset import CalibrationDataError, load
     from .calibration.fit import fit_campaign, format_table, write_outputs
@@ -305,6 +361,32 @@ def _command_compare(args: argparse.Namespace) -> int:
     return 0
 
 
+def _add_model_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--seed", type=_within(int, *SEED_RANGE), default=1,
+                        help="noise seed (default 1)")
+    parser.add_argument("--model", help="physics model file (default: the packaged default.toml)")
+    parser.add_argument("--enable", action="append", default=[], metavar="TERM",
+                        help="switch a model term on (repeatable)")
+    parser.add_argument("--disable", action="append", default=[], metavar="TERM",
+                        help="switch a model term off (repeatable)")
+
+
+def _add_program_options(parser: argparse.ArgumentParser, ambient: Callable[[str], float]) -> None:
+    """The chamber program's settings, shared by simulate and campaign."""
+    parser.add_argument("--hold-seconds", type=_within(int, *HOLD_SECONDS_RANGE), default=60,
+                        help="time per chamber step (default 60, the paper's)")
+    parser.add_argument("--rest-seconds", type=_within(int, *REST_SECONDS_RANGE), default=1200,
+                        help="Peltier-off rest after each cycle (default 1200)")
+    parser.add_argument("--ambient", type=ambient, help="ambient temperature for chamber scenarios")
+    parser.add_argument("--controller", choices=tuple(CONTROLLERS), default="float",
+                        help="chamber control law: float (the paper's P law, the firmware default) or "
+                             "rounded-error (P on the error rounded to whole degC, a hypothesis about "
+                             "the paper's code)")
+    parser.add_argument("--hold-start", choices=HOLD_STARTS, default=DEFAULT_HOLD_START,
+                        help="when a step's hold starts: T timed, F the first step of each cycle waits "
+                             "for its setpoint, A every step waits (default)")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _ArgumentParser(prog=PROGRAM, description="ThermoTilt host tools.")
     parser.add_argument(
@@ -337,37 +419,37 @@ def build_parser() -> argparse.ArgumentParser:
                           "or field-alternating")
     simulate.add_argument("--out", help="output folder (default runs/SCENARIO-DATE-TIME)")
     simulate.add_argument("--force", action="store_true", help="overwrite an earlier run in --out")
-    simulate.add_argument("--seed", type=_within(int, *SEED_RANGE), default=1,
-                          help="noise seed (default 1)")
-    simulate.add_argument("--model", help="physics model file (default: the packaged default.toml)")
-    simulate.add_argument("--hold-seconds", type=_within(int, *HOLD_SECONDS_RANGE), default=60,
-                          help="time per chamber step (default 60, the paper's)")
-    simulate.add_argument("--rest-seconds", type=_within(int, *REST_SECONDS_RANGE), default=1200,
-                          help="Peltier-off rest after each cycle (default 1200)")
+    _add_model_options(simulate)
+    _add_program_options(simulate, ambient)
     simulate.add_argument("--incl-x", type=inclination, default=0.0,
                           help="table angle on X, degrees")
     simulate.add_argument("--incl-y", type=inclination, default=0.0,
                           help="table angle on Y, degrees")
     simulate.add_argument("--positions", help="campaign subset, e.g. 0,X+30,Y-15")
-    simulate.add_argument("--ambient", type=ambient, help="ambient temperature for chamber scenarios")
     simulate.add_argument("--duration", type=board_seconds,
                           help="field scenarios: compress the day's profile into this many seconds")
-    simulate.add_argument("--enable", action="append", default=[], metavar="TERM",
-                          help="switch a model term on (repeatable)")
-    simulate.add_argument("--disable", action="append", default=[], metavar="TERM",
-                          help="switch a model term off (repeatable)")
     simulate.add_argument("--fault", action="append", default=[], metavar="NAME[=RATE][@START[-END]]",
                           help="inject a fault, e.g. inner_open@120-180 or imu_uart_corrupt=0.001")
-    simulate.add_argument("--controller", choices=tuple(CONTROLLERS), default="float",
-                          help="chamber control law: float (the paper's P law, the firmware default) or "
-                               "rounded-error (P on the error rounded to whole degC, a hypothesis about "
-                               "the paper's code)")
-    simulate.add_argument("--hold-start", choices=HOLD_STARTS, default=DEFAULT_HOLD_START,
-                          help="when a step's hold starts: T timed, F the first step of each cycle waits "
-                               "for its setpoint, A every step waits (default)")
     simulate.add_argument("--pty", action="store_true",
                           help="also expose each board's serial port as a pseudo-terminal")
     simulate.set_defaults(run=_command_simulate)
+
+    campaign = commands.add_parser(
+        "campaign", help="the paper's calibration: every tilt position through a -10..45..-10 degC cycle"
+    )
+    campaign.add_argument("--out", required=True, help="campaign folder: one run folder per position "
+                          "and campaign.json")
+    campaign.add_argument("--twin", action="store_true", help="run it in the digital twin")
+    campaign.add_argument("--positions", default="all",
+                          help="all (default, the paper's 37) or labels, e.g. 0,X+15,X-15,Y+30")
+    campaign.add_argument("--jobs", type=_within(int, 1, 256), default=os.cpu_count() or 1,
+                          help="twin positions run at once (default: the CPU count)")
+    campaign.add_argument("--resume", action="store_true",
+                          help="finish an interrupted campaign in --out, keeping its finished positions")
+    campaign.add_argument("--force", action="store_true", help="start --out again from nothing")
+    _add_model_options(campaign)
+    _add_program_options(campaign, ambient)
+    campaign.set_defaults(run=_command_campaign)
 
     fit = commands.add_parser(
         "fit", help="fit the paper's drift surfaces to a campaign's run logs, with statistics"

@@ -1,0 +1,387 @@
+"""``thermotilt campaign``: the paper's calibration (section 3.2) — the tilt
+table at each position, each through a full -10 -> 45 -> -10 degC staircase.
+
+Every position is its own run folder, ``DIR/<label>/`` with run.csv,
+serial/ and summary.json, written under ``DIR/.partial/`` and moved into
+place only when the position is complete, so a folder named after a position
+always holds a whole run and ``thermotilt fit DIR`` never sees half of one.
+``DIR/campaign.json`` records the plan, the settings, and per position its
+status, seed, start time and the firmware versions the boards reported;
+it is rewritten after every position, so an interrupted campaign keeps every
+finished position and ``--resume`` redoes only the others.
+
+In the twin positions are independent runs, so they run in parallel worker
+processes. Each position's noise seed is the campaign's seed plus the
+position's index among the paper's 37, so a subset reproduces the same
+positions of the full campaign.
+"""
+
+from __future__ import annotations
+
+import json
+import multiprocessing
+import os
+import queue
+import shutil
+import signal
+import time
+from collections.abc import Callable, Iterable
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from ..protocol import FrameReader
+from ..scenarios import (
+    CALIBRATION_MAX_C,
+    CALIBRATION_MIN_C,
+    PAPER_STEP_C,
+    ScenarioError,
+    ScenarioOptions,
+    campaign_positions,
+    cycle,
+)
+
+CAMPAIGN_FILE = "campaign.json"
+PARTIAL_DIR = ".partial"
+FORMAT = 1
+SEED_MODULUS = 2**64
+DONE, PENDING, INTERRUPTED, FAILED = "done", "pending", "interrupted", "failed"
+
+
+class CampaignError(RuntimeError):
+    """A campaign that cannot start or resume; one readable line."""
+
+
+@dataclass(frozen=True)
+class Position:
+    label: str
+    incl_x_deg: float
+    incl_y_deg: float
+    index: int  # among the paper's 37 positions: the seed offset
+
+
+@dataclass(frozen=True)
+class TwinSetup:
+    """Everything a worker process needs to run one position in the twin;
+    plain data, because a loaded model does not cross process boundaries."""
+
+    options: ScenarioOptions
+    seed: int = 1
+    model_path: str | None = None
+    enable: tuple[str, ...] = ()
+    disable: tuple[str, ...] = ()
+
+    def model(self) -> Any:
+        from ..physics import Model
+
+        changes = {name: True for name in self.enable} | {name: False for name in self.disable}
+        return Model.load(self.model_path).with_terms(changes)
+
+    def position_seed(self, position: Position) -> int:
+        return (self.seed + position.index) % SEED_MODULUS
+
+
+@dataclass
+class PositionRecord:
+    label: str
+    incl_x_deg: float
+    incl_y_deg: float
+    status: str = PENDING
+    seed: int | None = None
+    started_utc: str | None = None
+    sim_seconds: float | None = None
+    wall_seconds: float | None = None
+    firmware: dict[str, str] = field(default_factory=dict)
+    reported_errors: list[str] = field(default_factory=list)
+    error: str | None = None
+
+
+def select_positions(text: str | None) -> list[Position]:
+    """``all`` (or None), or labels separated by commas, e.g. ``0,X+15,Y-30``."""
+    known = [Position(label, x, y, index) for index, (label, x, y) in enumerate(campaign_positions())]
+    if text is None or text.strip() == "all":
+        return known
+    by_label = {position.label: position for position in known}
+    labels = [label.strip() for label in text.split(",") if label.strip()]
+    if not labels:
+        raise CampaignError("--positions names no position; use all or labels like 0,X+15,Y-30")
+    unknown = [label for label in labels if label not in by_label]
+    if unknown:
+        raise CampaignError(f"unknown position(s) {', '.join(unknown)}; use labels like 0, X+5, X-45, Y+30 "
+                            f"(the paper's: 0 and +-5..45 in 5 deg steps on X and Y)")
+    duplicates = sorted({label for label in labels if labels.count(label) > 1})
+    if duplicates:
+        raise CampaignError(f"position(s) {', '.join(duplicates)} listed twice")
+    return [by_label[label] for label in labels]
+
+
+def program_settings(options: ScenarioOptions) -> dict[str, Any]:
+    """The chamber program every position runs, as campaign.json states it."""
+    return {
+        "start_c": CALIBRATION_MIN_C,
+        "max_c": CALIBRATION_MAX_C,
+        "step_c": PAPER_STEP_C,
+        "hold_s": options.hold_s,
+        "rest_s": options.rest_s,
+        "hold_start": options.hold_start,
+        "controller": options.controller,
+        "ambient_c": options.ambient_c,
+    }
+
+
+def firmware_versions(serial_dir: Path) -> dict[str, str]:
+    """Each board's first VER frame in its serial capture."""
+    versions = {}
+    for capture in sorted(serial_dir.glob("*.txt")):
+        reader = FrameReader()
+        with open(capture, "rb") as stream:
+            while (chunk := stream.read(4096)) and capture.stem not in versions:
+                for frame in reader.feed(chunk):
+                    if frame.type == "VER":
+                        versions[capture.stem] = (f"{frame['device']} {frame['firmware_version']} "
+                                                  f"protocol {frame['protocol_version']}")
+                        break
+    return versions
+
+
+class CampaignFile:
+    """campaign.json: written whole to a temporary file and renamed, so a
+    crash leaves the previous version, never half of one."""
+
+    def __init__(self, out_dir: Path, header: dict[str, Any], records: list[PositionRecord]):
+        self.path = out_dir / CAMPAIGN_FILE
+        self.header = header
+        self.records = {record.label: record for record in records}
+
+    @classmethod
+    def start(cls, out_dir: Path, header: dict[str, Any], positions: list[Position],
+              resume: bool, force: bool) -> CampaignFile:
+        path = out_dir / CAMPAIGN_FILE
+        fresh = [PositionRecord(p.label, p.incl_x_deg, p.incl_y_deg) for p in positions]
+        if not path.exists():
+            if resume:
+                raise CampaignError(f"nothing to resume: {path} does not exist")
+            return cls(out_dir, header, fresh)
+        if force:
+            for record in fresh:
+                shutil.rmtree(out_dir / record.label, ignore_errors=True)
+            return cls(out_dir, header, fresh)
+        if not resume:
+            raise CampaignError(f"{path} exists; add --resume to finish that campaign or --force to start again")
+        try:
+            earlier = json.loads(path.read_text())
+            settings = {key: earlier[key] for key in header if key != "created_utc"}
+            records = [PositionRecord(**entry) for entry in earlier["positions"]]
+        except (OSError, ValueError, KeyError, TypeError) as error:
+            raise CampaignError(f"cannot resume from {path}: {error}") from None
+        wanted = {key: value for key, value in header.items() if key != "created_utc"}
+        changed = [key for key in wanted if settings[key] != wanted[key]]
+        if changed:
+            raise CampaignError(f"cannot resume {out_dir}: its {', '.join(changed)} differ from this "
+                                f"command's; give the same settings or start again with --force")
+        known = {record.label for record in records}
+        records += [record for record in fresh if record.label not in known]
+        campaign = cls(out_dir, {**header, "created_utc": earlier.get("created_utc")}, records)
+        for record in campaign.records.values():
+            if record.status == DONE and not (out_dir / record.label / "run.csv").exists():
+                record.status = PENDING
+        return campaign
+
+    def pending(self, positions: Iterable[Position]) -> list[Position]:
+        return [p for p in positions if self.records[p.label].status != DONE]
+
+    def save(self) -> None:
+        document = {**self.header, "positions": [asdict(record) for record in self.records.values()]}
+        temporary = self.path.with_name(self.path.name + ".tmp")
+        temporary.write_text(json.dumps(document, indent=2) + "\n")
+        os.replace(temporary, self.path)
+
+
+def _utc_now() -> str:
+    return time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+
+
+def position_scenario(options: ScenarioOptions, position: Position) -> Any:
+    return cycle(replace(options, incl_x_deg=position.incl_x_deg, incl_y_deg=position.incl_y_deg))
+
+
+# Set in each worker process by _start_worker.
+_progress_queue: Any = None
+_stop_event: Any = None
+
+
+def _start_worker(progress_queue: Any, stop_event: Any) -> None:
+    global _progress_queue, _stop_event
+    _progress_queue, _stop_event = progress_queue, stop_event
+    # Ctrl-C reaches the whole process group; the parent decides, and tells
+    # the workers through the stop event so each one still writes its summary.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def run_twin_position(setup: TwinSetup, position: Position, out_dir: Path) -> PositionRecord:
+    """One position in the twin, in this process; reports progress through
+    the worker's queue and stops when the stop event is set."""
+    from .. import simulate
+    from ..twin import TwinError
+
+    record = PositionRecord(position.label, position.incl_x_deg, position.incl_y_deg,
+                            seed=setup.position_seed(position), started_utc=_utc_now())
+    partial = out_dir / PARTIAL_DIR / position.label
+    shutil.rmtree(partial, ignore_errors=True)
+    partial.mkdir(parents=True)
+    reported = 0.0
+
+    def progress(sim_seconds: float) -> None:
+        nonlocal reported
+        if _progress_queue is not None:
+            _progress_queue.put(sim_seconds - reported)
+            reported = sim_seconds
+        if _stop_event is not None and _stop_event.is_set():
+            raise KeyboardInterrupt
+
+    try:
+        result = simulate.run(position_scenario(setup.options, position), setup.model(), partial,
+                              seed=record.seed, progress=progress)
+    except (TwinError, simulate.SimulationError, OSError) as error:
+        record.status, record.error = FAILED, str(error)
+        return record
+    summary = result.summary
+    record.sim_seconds = summary["sim_seconds"]
+    record.wall_seconds = summary["wall_seconds"]
+    record.firmware = firmware_versions(partial / "serial")
+    record.reported_errors = [f"{board}: {error}" for board, report in summary["boards"].items()
+                              for error in report["reported_errors"]]
+    if summary["interrupted"]:
+        record.status = INTERRUPTED
+        return record
+    final = out_dir / position.label
+    shutil.rmtree(final, ignore_errors=True)
+    os.replace(partial, final)
+    record.status = DONE
+    return record
+
+
+@dataclass(frozen=True)
+class CampaignOutcome:
+    records: list[PositionRecord]
+    interrupted: bool
+
+
+class TwinCampaign:
+    """A campaign in the twin: the plan checked and campaign.json started
+    on construction, the positions not yet done run by ``run``."""
+
+    def __init__(self, out_dir: Path, positions: list[Position], setup: TwinSetup,
+                 resume: bool = False, force: bool = False):
+        from ..physics import ModelError
+
+        try:
+            model = setup.model()
+            self.position_seconds = position_scenario(setup.options, positions[0]).duration_s
+        except (ModelError, ScenarioError) as error:
+            raise CampaignError(str(error)) from None
+        header = {
+            "format": FORMAT,
+            "rig": "twin",
+            "created_utc": _utc_now(),
+            "program": program_settings(setup.options),
+            "seed": setup.seed,
+            "model": model.source,
+            "terms": {name: model.enabled(name) for name in model.terms},
+        }
+        try:
+            out_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as error:
+            raise CampaignError(f"cannot create {out_dir}: {error.strerror or error}") from None
+        self.out_dir, self.positions, self.setup = out_dir, positions, setup
+        self.file = CampaignFile.start(out_dir, header, positions, resume, force)
+        self.todo = self.file.pending(positions)
+        self.file.save()
+
+    def run(self, jobs: int, progress: Callable[[float], None] | None = None,
+            on_position: Callable[[PositionRecord], None] | None = None) -> CampaignOutcome:
+        """``progress`` gets simulated seconds as they pass, all positions together."""
+
+        def finished(record: PositionRecord) -> None:
+            self.file.records[record.label] = record
+            self.file.save()
+            if on_position is not None:
+                on_position(record)
+
+        if jobs <= 1 or len(self.todo) <= 1:
+            interrupted = _run_here(self.todo, self.setup, self.out_dir, progress, finished)
+        else:
+            interrupted = _run_in_workers(self.todo, self.setup, self.out_dir,
+                                          min(jobs, len(self.todo)), progress, finished)
+        if not interrupted:
+            shutil.rmtree(self.out_dir / PARTIAL_DIR, ignore_errors=True)
+        return CampaignOutcome([self.file.records[p.label] for p in self.positions], interrupted)
+
+
+def _run_here(todo: list[Position], setup: TwinSetup, out_dir: Path,
+              progress: Callable[[float], None] | None,
+              finished: Callable[[PositionRecord], None]) -> bool:
+    global _progress_queue
+    local: queue.SimpleQueue[float] = queue.SimpleQueue()
+    _progress_queue = local
+    try:
+        for position in todo:
+            try:
+                record = run_twin_position(setup, position, out_dir)
+            finally:
+                while not local.empty() and progress is not None:
+                    progress(local.get())
+            finished(record)
+            if record.status == INTERRUPTED:
+                return True
+    finally:
+        _progress_queue = None
+    return False
+
+
+def _run_in_workers(todo: list[Position], setup: TwinSetup, out_dir: Path, jobs: int,
+                    progress: Callable[[float], None] | None,
+                    finished: Callable[[PositionRecord], None]) -> bool:
+    # spawn: a forked child would inherit the parent's threads (tqdm's) and locks.
+    context = multiprocessing.get_context("spawn")
+    progress_queue, stop = context.Queue(), context.Event()
+    interrupted = False
+    with ProcessPoolExecutor(jobs, mp_context=context, initializer=_start_worker,
+                             initargs=(progress_queue, stop)) as pool:
+        running: dict[Future[PositionRecord], Position] = {
+            pool.submit(run_twin_position, setup, position, out_dir): position for position in todo
+        }
+        while running:
+            try:
+                done, _ = wait(running, timeout=0.25, return_when=FIRST_COMPLETED)
+                _drain(progress_queue, progress)
+            except KeyboardInterrupt:
+                interrupted = True
+                stop.set()
+                for future in running:
+                    future.cancel()
+                continue
+            for future in done:
+                position = running.pop(future)
+                if future.cancelled():
+                    continue
+                try:
+                    record = future.result()
+                except Exception as error:  # a worker that died: the position failed, not the campaign
+                    record = PositionRecord(position.label, position.incl_x_deg, position.incl_y_deg,
+                                            status=FAILED, error=f"worker failed: {error}")
+                interrupted |= record.status == INTERRUPTED
+                finished(record)
+        _drain(progress_queue, progress)
+    return interrupted
+
+
+def _drain(progress_queue: Any, progress: Callable[[float], None] | None) -> None:
+    while True:
+        try:
+            seconds = progress_queue.get_nowait()
+        except queue.Empty:
+            return
+        if progress is not None:
+            progress(seconds)
