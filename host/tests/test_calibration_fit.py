@@ -180,6 +180,10 @@ def test_the_fit_command_writes_coefficients_block_and_header(tmp_path):
     assert table.surfaces[("C", "Z")] == Surface(0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     header = (out / "coefficients.h").read_text()
     assert "FITTED_COEFFICIENTS[2][3][6]" in header and f"{table.surfaces[('W', 'X')].p10:.9g}f" in header
+    report = (out / "report.md").read_text()
+    assert "RMSE" in report and "(drift.png)" in report and "(surfaces.png)" in report
+    for figure in ("drift.png", "surfaces.png"):
+        assert (out / figure).read_bytes().startswith(b"\x89PNG")
 
 
 @pytest.mark.parametrize(

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 import time
@@ -329,6 +330,7 @@ def _command_campaign(args: argparse.Namespace) -> int:
 def _command_fit(args: argparse.Namespace) -> int:
     from .calibration.dataset import CalibrationDataError, load
     from .calibration.fit import fit_campaign, format_table, write_outputs
+    from .calibration.report import write_fit_report
 
     try:
         campaign = load(Path(args.campaign), settle_s=args.settle_seconds)
@@ -338,6 +340,7 @@ def _command_fit(args: argparse.Namespace) -> int:
     out_dir = Path(args.out)
     try:
         write_outputs(fits, campaign, out_dir)
+        report = write_fit_report(out_dir, fits, campaign)
     except OSError as error:
         raise UsageError(f"cannot write {out_dir}: {error.strerror or error}") from None
     print(f"{len(campaign.positions)} positions, {sum(fit.points for fit in fits)} points"
@@ -345,7 +348,8 @@ def _command_fit(args: argparse.Namespace) -> int:
     print(format_table(fits))
     print("bounds: Newey-West (HAC) 95 % within each position; coefficients.json also has the "
           "OLS bounds, which ignore the rows' autocorrelation")
-    print(f"wrote {out_dir / 'coefficients.json'}, coefficients.bin (EEPROM block), coefficients.h")
+    print(f"wrote {out_dir / 'coefficients.json'}, coefficients.bin (EEPROM block), coefficients.h, "
+          f"{report.name} with figures")
     return 0
 
 
@@ -385,6 +389,41 @@ def _add_program_options(parser: argparse.ArgumentParser, ambient: Callable[[str
     parser.add_argument("--hold-start", choices=HOLD_STARTS, default=DEFAULT_HOLD_START,
                         help="when a step's hold starts: T timed, F the first step of each cycle waits "
                              "for its setpoint, A every step waits (default)")
+
+
+def _command_validate(args: argparse.Namespace) -> int:
+    from .calibration.dataset import CalibrationDataError
+    from .calibration.paper import FIELD_RMS_LSB
+    from .calibration.report import write_validation_report
+    from .calibration.validate import format_validation, load_coefficients, range_warnings, validate
+
+    run = Path(args.run_path)
+    try:
+        coefficients = load_coefficients(args.coefficients) if args.coefficients else None
+        validation = validate(run, coefficients)
+    except CalibrationDataError as error:
+        raise UsageError(str(error)) from None
+    scenario = _scenario_of(run)
+    paper = {axis: FIELD_RMS_LSB[(scenario, axis)] for axis in ("X", "Y")
+             if (scenario, axis) in FIELD_RMS_LSB}
+    print(format_validation(validation, paper or None))
+    for warning in range_warnings(validation):
+        print(f"warning: {warning}")
+    out_dir = Path(args.out) if args.out else (run if run.is_dir() else run.parent) / "validation"
+    try:
+        report = write_validation_report(out_dir, validation, coefficients, paper or None)
+    except OSError as error:
+        raise UsageError(f"cannot write {out_dir}: {error.strerror or error}") from None
+    print(f"wrote {report}")
+    return 0
+
+
+def _scenario_of(run: Path) -> str | None:
+    """The twin scenario a run folder holds, from its summary.json."""
+    try:
+        return json.loads(((run if run.is_dir() else run.parent) / "summary.json").read_text())["scenario"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -469,6 +508,16 @@ def build_parser() -> argparse.ArgumentParser:
     compare.add_argument("--reference", default="paper",
                          help="paper (default) or a model file (TOML) whose drift surfaces to compare with")
     compare.set_defaults(run=_command_compare)
+
+    validate = commands.add_parser(
+        "validate", help="the paper's field check: RMS about the 25 degC reading before and after compensation"
+    )
+    validate.add_argument("run_path", metavar="RUN", help="a run folder or run.csv (e.g. simulate field-warming, or a real log)")
+    validate.add_argument("--coefficients", metavar="FIT_DIR",
+                          help="compensate here with a fit's surfaces (a folder from thermotilt fit) or "
+                               "'paper'; default: the firmware's own compensated output")
+    validate.add_argument("--out", help="folder for report.md and its figures (default RUN/validation)")
+    validate.set_defaults(run=_command_validate)
 
     log = commands.add_parser("log", help="log real boards (or the twin's --pty ports) to run.csv")
     log.add_argument("--port", required=True, help="the IMU reader's serial port")

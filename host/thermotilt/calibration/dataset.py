@@ -93,7 +93,9 @@ def _positions(path: Path, rows: list[dict[str, str]]) -> dict[str, list[dict[st
     return groups
 
 
-def _reference(temperature: np.ndarray, values: np.ndarray) -> float | None:
+def reading_at_25(temperature: np.ndarray, values: np.ndarray) -> float | None:
+    """The straight line through the rows within REFERENCE_BAND_C of 25 degC,
+    read at 25 degC; None with too few such rows."""
     near = np.abs(temperature - REFERENCE_C) <= REFERENCE_BAND_C
     if np.count_nonzero(near) < MIN_REFERENCE_ROWS or np.ptp(temperature[near]) == 0.0:
         return None
@@ -129,7 +131,7 @@ def load(folder: Path, settle_s: float | None = None) -> Campaign:
                 if not complete:
                     raise CalibrationDataError(f"{label}: no settled rows of the {set_name} set")
                 data = np.array(complete, dtype=float)
-                references = [_reference(data[:, 0], data[:, column]) for column in (1, 2)]
+                references = [reading_at_25(data[:, 0], data[:, column]) for column in (1, 2)]
                 if None in references:
                     raise CalibrationDataError(
                         f"{label}: the {set_name} set never crosses {REFERENCE_C:g} degC "

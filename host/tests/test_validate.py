@@ -1,0 +1,135 @@
+"""``thermotilt validate``: the paper's field RMS before and after
+compensation (section 4.3), the fitted range warning, the report, bad input
+as one line, and the host's surface evaluation against the firmware's."""
+
+import csv
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from thermotilt import cli
+from thermotilt.calibration.validate import load_coefficients, validate
+from thermotilt.coefficients import PAPER_DEFAULTS
+from thermotilt.runlog import COLUMNS, read_run_log
+
+THERMOTILT = [sys.executable, "-m", "thermotilt"]
+WARMING_X = PAPER_DEFAULTS.surface("W", "X")
+OFFSET_X, OFFSET_Y = -1823.0, -143.0
+
+
+def write_field_log(path, temperatures, set_name="W", compensated=True, blank_every=0):
+    """A horizontal sensor whose X drifts as Table 2's warming surface and
+    whose Y drifts linearly by -10 LSB/degC; ax_comp as the firmware would
+    give it with the paper's coefficients."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "w", newline="") as stream:
+        writer = csv.DictWriter(stream, fieldnames=COLUMNS, lineterminator="\n")
+        writer.writeheader()
+        for index, temperature in enumerate(temperatures):
+            ax = OFFSET_X + WARMING_X.evaluate(temperature, OFFSET_X) - WARMING_X.evaluate(25.0, OFFSET_X)
+            ay = OFFSET_Y - 10.0 * (temperature - 25.0)
+            row = {column: "" for column in COLUMNS}
+            row.update(time_s=f"{index / 10:.3f}", imu_temp_c=f"{temperature:.3f}", comp_set=set_name,
+                       coef_source="D", incl_x_deg="0.00", incl_y_deg="0.00",
+                       ax_filt=f"{ax:.1f}", ay_filt=f"{ay:.1f}",
+                       ax_comp=f"{OFFSET_X if compensated else ax:.1f}",
+                       ay_comp=f"{OFFSET_Y if compensated else ay:.1f}")
+            if blank_every and index % blank_every == 0:
+                row["ax_filt"] = ""
+            writer.writerow(row)
+
+
+def test_rms_is_taken_about_the_25c_reading(tmp_path):
+    temperatures = np.linspace(9.0, 48.0, 2000)
+    write_field_log(tmp_path / "run.csv", temperatures)
+    validation = validate(tmp_path)
+    x, y = validation.result("W", "X"), validation.result("W", "Y")
+    relative = temperatures - 25.0
+    # Y is a line: its 25 degC reading is exact, its RMS that of -10 (T - 25).
+    # The cells hold 0.1 LSB, so the RMS is known to 0.05 LSB.
+    assert y.rms_before_lsb == pytest.approx(10.0 * np.sqrt(np.mean(relative**2)), abs=0.05)
+    expected_x = np.sqrt(np.mean((WARMING_X.evaluate(temperatures, OFFSET_X)
+                                  - WARMING_X.evaluate(25.0, OFFSET_X)) ** 2))
+    # X is curved: a line through +-1.5 degC reads p20 * 1.5^2 / 3 = 0.08 LSB off at 25 degC on average.
+    assert x.rms_before_lsb == pytest.approx(expected_x, abs=0.3)
+    assert x.rms_after_lsb == pytest.approx(0.0, abs=0.05)
+    assert y.rms_after_lsb == pytest.approx(0.0, abs=0.05)
+    # Table 2's surface fits -10..45 degC: 9..48 degC leaves 3 / 39 of the rows above it.
+    assert x.outside_rows == pytest.approx(2000 * 3 / 39, abs=2)
+
+
+def test_coefficients_given_are_applied_here(tmp_path):
+    temperatures = np.linspace(9.0, 48.0, 2000)
+    write_field_log(tmp_path / "run.csv", temperatures, compensated=False)
+    assert validate(tmp_path).result("W", "X").rms_after_lsb > 100
+    here = validate(tmp_path, load_coefficients("paper"))
+    # The log's X is Table 2's drift, so Table 2 removes it, but evaluated at
+    # the measured acceleration, which carries the drift itself (<= 420 LSB
+    # here): |df/da| = |p01 + p11 T| <= 0.0018 over 9..48 degC gives <= 0.76
+    # LSB, plus the 25 degC reference line's 0.3 (the test above).
+    assert here.result("W", "X").rms_after_lsb < 0.76 + 0.3
+    assert "compensated here with paper" in here.after_from
+
+
+def test_a_set_that_never_nears_25c_has_no_rms(tmp_path, capsys):
+    write_field_log(tmp_path / "run.csv", np.linspace(5.0, 15.0, 600))
+    assert cli.main(["validate", str(tmp_path / "run.csv"), "--out", str(tmp_path / "v")]) == 0
+    stdout = capsys.readouterr().out
+    assert "n/a" in stdout and "never come within 1.5 degC of 25 degC" in stdout
+
+
+def test_the_report_has_the_table_and_the_figure(tmp_path, capsys):
+    write_field_log(tmp_path / "run" / "run.csv", np.linspace(9.0, 48.0, 800), blank_every=100)
+    assert cli.main(["validate", str(tmp_path / "run")]) == 0
+    stdout = capsys.readouterr().out
+    assert "8 rows with empty cells skipped" in stdout
+    assert "warning: X: " in stdout and "the surface is extrapolated there" in stdout
+    report = (tmp_path / "run" / "validation" / "report.md").read_text()
+    assert "RMS about the 25 degC reading" in report and "![before and after compensation](field.png)" in report
+    assert (tmp_path / "run" / "validation" / "field.png").read_bytes().startswith(b"\x89PNG")
+
+
+@pytest.mark.parametrize("make, arguments, message", [
+    (lambda folder: None, [], "cannot read"),
+    (lambda folder: (folder / "run.csv").write_text("time_s,ax\n1,2\n"), [], "the header is not run.csv's"),
+    (lambda folder: (folder / "run.csv").write_text(",".join(COLUMNS) + "\n1,2\n"), [], "row 1 has 2 cells"),
+    (lambda folder: write_field_log(folder / "run.csv", [20.0, 25.0], set_name=""), [], "no row with"),
+    (lambda folder: write_field_log(folder / "run.csv", [20.0, 25.0]), ["--coefficients", "nofit"],
+     "nofit/coefficients.json: cannot read"),
+])
+def test_bad_validate_input_is_one_line(tmp_path, make, arguments, message):
+    folder = tmp_path / "run"
+    folder.mkdir()
+    make(folder)
+    result = subprocess.run([*THERMOTILT, "validate", str(folder), *arguments], capture_output=True,
+                            text=True, timeout=60, check=False, cwd=tmp_path)
+    assert result.returncode == 1
+    assert result.stderr.count("\n") == 1 and "Traceback" not in result.stderr
+    assert message in result.stderr
+
+
+def test_host_compensation_equals_the_firmwares(tmp_path):
+    """One surface evaluation, two implementations: the twin's firmware
+    (lib/Compensation, float32, with the paper's defaults) and the host's
+    (float64) on the same printed rows."""
+    out = tmp_path / "field"
+    result = subprocess.run([*THERMOTILT, "simulate", "field-warming", "--duration", "300", "--out", str(out)],
+                            capture_output=True, text=True, timeout=300, check=False)
+    assert result.returncode == 0, result.stderr
+    firmware = validate(out)
+    host = validate(out, load_coefficients("paper"))
+    rows = read_run_log(str(out / "run.csv"))
+    assert {row["coef_source"] for row in rows} == {"D"}
+    for axis in ("X", "Y"):
+        difference = host.series[f"{axis} after"] - firmware.series[f"{axis} after"]
+        # The host starts from the printed filtered value (0.05 LSB) and
+        # temperature (0.0005 degC x ~25 LSB/degC), the firmware's output is
+        # printed to 0.05 LSB, and float32 adds < 0.01 LSB (Compensation.cpp).
+        assert np.nanmax(np.abs(difference)) <= 0.05 + 0.0125 + 0.05 + 0.01, axis
+        assert host.result("W", axis).rms_after_lsb == pytest.approx(
+            firmware.result("W", axis).rms_after_lsb, abs=0.1)
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["scenario"] == "field-warming"

@@ -1,0 +1,222 @@
+"""``thermotilt validate``: the paper's field check (section 4.3).
+
+The paper's measure: the RMS, over a field run, of each axis's reading minus
+its reading at 25 degC — before compensation (284 and 161 LSB for X and Y
+while warming 9 -> 48 degC; 122 and 70 while cooling 26 -> 16 degC) and after
+(11, 8; 4, 4). Here, per axis and per set the device chose (warming rows
+with the warming surfaces, cooling rows with the cooling ones, as the paper
+did), on the filtered acceleration the firmware compensates:
+
+    before: ax_filt - ax_filt(25 degC)
+    after:  ax_comp - ax_comp(25 degC)
+
+The 25 degC reading is the set's straight line through its rows within
+1.5 degC of 25 degC, read at 25 degC (the campaign fit's reference); a set
+that never comes that near 25 degC has no reference and no RMS.
+
+``after`` is the firmware's own output (``ax_comp``) unless coefficients
+are given: then the run's filtered readings are compensated here with
+those surfaces, which is the paper's post-processing of raw field data.
+
+The coefficients cover a temperature and acceleration range (a fit's, or
+the paper's -10..45 degC and +-45 deg); rows outside it are counted and
+reported, because a surface is not known there.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..coefficients import AXES, PAPER_DEFAULTS, ZERO_SURFACE, CoefficientTable
+from ..runlog import RunLogError, read_run_log
+from .compare import CALIBRATED_C, read_fit
+from .dataset import FIT_AXES, REFERENCE_BAND_C, REFERENCE_C, CalibrationDataError, reading_at_25
+
+# The paper's calibration covered +-45 deg of tilt; 1 g is 1 / 0.061 mg LSB at +-2 g (LSM9DS0).
+CALIBRATED_INCLINATION_DEG = 45.0
+LSB_PER_G = 1.0 / 0.061e-3
+PAPER_ACCELERATION_LSB = LSB_PER_G * math.sin(math.radians(CALIBRATED_INCLINATION_DEG))
+SETS = ("W", "C")
+SET_NAMES = {"W": "warming", "C": "cooling"}
+_NEEDED = ("time_s", "imu_temp_c", "comp_set", "coef_source",
+           *(f"a{axis.lower()}_{kind}" for axis in FIT_AXES for kind in ("filt", "comp")))
+
+
+@dataclass(frozen=True)
+class Domain:
+    """Where a set of surfaces was fitted, per key ("WX", ...)."""
+
+    temperature_c: dict[str, tuple[float, float]]
+    acceleration_lsb: dict[str, tuple[float, float]]
+    source: str
+
+
+@dataclass(frozen=True)
+class Coefficients:
+    table: CoefficientTable
+    domain: Domain
+    source: str  # what the user named: "paper" or the fit folder
+
+
+@dataclass(frozen=True)
+class AxisResult:
+    set_name: str
+    axis: str
+    rows: int
+    rms_before_lsb: float | None
+    rms_after_lsb: float | None
+    outside_rows: int  # rows outside the coefficients' temperature or acceleration range
+
+
+@dataclass(frozen=True)
+class Validation:
+    run: str
+    rows: int
+    skipped_rows: int
+    temperature_range_c: tuple[float, float]
+    after_from: str  # "firmware (coef_source ...)" or "host, with <coefficients>"
+    domain_source: str | None
+    results: list[AxisResult] = field(default_factory=list)
+    # The rows behind the table, for figures: time_s, temperature_c, set, and
+    # per axis "X before", "X after"...
+    series: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def result(self, set_name: str, axis: str) -> AxisResult | None:
+        return next((r for r in self.results if (r.set_name, r.axis) == (set_name, axis)), None)
+
+
+def paper_domain() -> Domain:
+    keys = [f"{s}{a}" for s in SETS for a in FIT_AXES]
+    return Domain({key: CALIBRATED_C for key in keys},
+                  {key: (-PAPER_ACCELERATION_LSB, PAPER_ACCELERATION_LSB) for key in keys},
+                  "the paper's calibration (-10..45 degC, +-45 deg)")
+
+
+def load_coefficients(source: str) -> Coefficients:
+    """``paper`` (Tables 2-3, the firmware's defaults) or a folder written by
+    ``thermotilt fit``."""
+    if source == "paper":
+        return Coefficients(PAPER_DEFAULTS, paper_domain(), "paper")
+    fits = read_fit(Path(source))
+    surfaces = {(s, a): ZERO_SURFACE for s in SETS for a in AXES}
+    surfaces.update({(key[0], key[1]): fit.surface for key, fit in fits.items()})
+    domain = Domain({key: fit.temperature_range_c for key, fit in fits.items()},
+                    {key: fit.acceleration_range_lsb for key, fit in fits.items()},
+                    f"the fit in {source}")
+    return Coefficients(CoefficientTable(surfaces), domain, source)
+
+
+def run_log_of(run: Path) -> Path:
+    return run / "run.csv" if run.is_dir() else run
+
+
+def validate(run: Path, coefficients: Coefficients | None = None) -> Validation:
+    path = run_log_of(run)
+    try:
+        rows = read_run_log(str(path))
+    except RunLogError as error:
+        raise CalibrationDataError(str(error)) from None
+    usable = [row for row in rows if all(row[column] != "" for column in _NEEDED)
+              and row["comp_set"] in SETS]
+    if not usable:
+        raise CalibrationDataError(f"{path}: no row with a temperature, a set and every X/Y acceleration")
+    try:
+        time_s = np.array([float(row["time_s"]) for row in usable])
+        temperature = np.array([float(row["imu_temp_c"]) for row in usable])
+        sets = np.array([row["comp_set"] for row in usable])
+        filtered = {axis: np.array([float(row[f"a{axis.lower()}_filt"]) for row in usable]) for axis in FIT_AXES}
+        firmware = {axis: np.array([float(row[f"a{axis.lower()}_comp"]) for row in usable]) for axis in FIT_AXES}
+    except ValueError as error:
+        raise CalibrationDataError(f"{path}: a cell is not a number ({error})") from None
+    sources = sorted({row["coef_source"] for row in usable})
+    if coefficients is None:
+        after_from = f"the firmware's output (coef_source {'/'.join(sources)})"
+        domain = paper_domain() if sources == ["D"] else None
+    else:
+        after_from = f"compensated here with {coefficients.source}"
+        domain = coefficients.domain
+    results = []
+    series = {"time_s": time_s, "temperature_c": temperature, "set": sets}
+    for set_name in SETS:
+        in_set = sets == set_name
+        if not in_set.any():
+            continue
+        t = temperature[in_set]
+        for axis in FIT_AXES:
+            before = filtered[axis][in_set]
+            if coefficients is None:
+                after = firmware[axis][in_set]
+            else:
+                surface = coefficients.table.surface(set_name, axis)
+                after = before - surface.evaluate(t, before)
+            series.setdefault(f"{axis} before", np.full(len(usable), np.nan))[in_set] = before
+            series.setdefault(f"{axis} after", np.full(len(usable), np.nan))[in_set] = after
+            results.append(AxisResult(set_name, axis, int(in_set.sum()), _rms_about_25(t, before),
+                                      _rms_about_25(t, after), _outside(domain, set_name, axis, t, before)))
+    return Validation(str(path), len(usable), len(rows) - len(usable),
+                      (float(temperature.min()), float(temperature.max())), after_from,
+                      domain.source if domain else None, results, series)
+
+
+def _rms_about_25(temperature: np.ndarray, values: np.ndarray) -> float | None:
+    reference = reading_at_25(temperature, values)
+    return None if reference is None else float(np.sqrt(np.mean((values - reference) ** 2)))
+
+
+def _outside(domain: Domain | None, set_name: str, axis: str, temperature: np.ndarray,
+             acceleration: np.ndarray) -> int:
+    key = f"{set_name}{axis}"
+    if domain is None or key not in domain.temperature_c:
+        return 0
+    (t_low, t_high), (a_low, a_high) = domain.temperature_c[key], domain.acceleration_lsb[key]
+    outside = ((temperature < t_low) | (temperature > t_high)
+               | (acceleration < a_low) | (acceleration > a_high))
+    return int(outside.sum())
+
+
+def format_validation(validation: Validation, paper: dict[tuple[str, str], tuple[float, float]] | None) -> str:
+    """The RMS table, with the paper's figures beside it when the run is one
+    of its field tests (``paper`` maps axis -> (before, after))."""
+
+    def lsb(value: float | None) -> str:
+        return "n/a" if value is None else f"{value:.1f}"
+
+    low, high = validation.temperature_range_c
+    lines = [f"{validation.run}: {validation.rows} rows, IMU temperature {low:.1f}..{high:.1f} degC"
+             + (f" ({validation.skipped_rows} rows with empty cells skipped)" if validation.skipped_rows else ""),
+             f"after = {validation.after_from}",
+             f"RMS about the 25 degC reading, LSB:",
+             f"{'set':<8}{'axis':<6}{'rows':>8}{'before':>10}{'after':>10}"
+             + (f"{'paper before':>14}{'paper after':>13}" if paper else "")]
+    for result in validation.results:
+        line = (f"{SET_NAMES[result.set_name]:<8}{result.axis:<6}{result.rows:>8}"
+                f"{lsb(result.rms_before_lsb):>10}{lsb(result.rms_after_lsb):>10}")
+        if paper and result.axis in paper:
+            line += f"{paper[result.axis][0]:>14.0f}{paper[result.axis][1]:>13.0f}"
+        lines.append(line)
+    for result in validation.results:
+        if result.rms_before_lsb is None:
+            lines.append(f"note: the {SET_NAMES[result.set_name]} rows never come "
+                         f"within {REFERENCE_BAND_C:g} degC of {REFERENCE_C:g} degC: no reference, no RMS")
+            break
+    return "\n".join(lines)
+
+
+def range_warnings(validation: Validation) -> list[str]:
+    warnings = []
+    if validation.domain_source is None:
+        warnings.append("the coefficients' fitted range is unknown (coefficients from EEPROM or uploaded): "
+                        "give --coefficients FIT_DIR to check the run against it")
+        return warnings
+    for result in validation.results:
+        if result.outside_rows:
+            share = 100.0 * result.outside_rows / result.rows
+            warnings.append(
+                f"{result.axis}: {result.outside_rows} of {result.rows} {SET_NAMES[result.set_name]} rows "
+                f"({share:.1f} %) lie outside the range of {validation.domain_source}: "
+                f"the surface is extrapolated there")
+    return warnings
