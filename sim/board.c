@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include <simavr/avr_adc.h>
+#include <simavr/avr_eeprom.h>
 #include <simavr/avr_timer.h>
 #include <simavr/avr_uart.h>
 #include <simavr/sim_cycle_timers.h>
@@ -88,6 +89,66 @@ static void free_flash_image(elf_firmware_t *firmware)
     firmware->flash = NULL;
 }
 
+static avr_cycle_count_t stop_here(avr_t *avr, avr_cycle_count_t when, void *param);
+static avr_cycle_count_t send_next_byte(avr_t *avr, avr_cycle_count_t when, void *param);
+
+static void after_reset(avr_io_t *io)
+{
+    board_t *board = (board_t *)((char *)io - offsetof(board_t, reset_watch));
+    avr_t *avr = board->avr;
+    if (board->run_until_cycle > avr->cycle) {
+        avr_cycle_timer_register(avr, board->run_until_cycle - avr->cycle, stop_here, board);
+    }
+    if (board->uart_input_sent < board->uart_input_length) {
+        avr_cycle_timer_register(avr, avr->frequency / 1000, send_next_byte, board);
+    }
+    for (int i = 0; i < board->reset_hook_count; ++i) {
+        board->reset_hooks[i](board->reset_contexts[i]);
+    }
+}
+
+int board_on_reset(board_t *board, board_reset_fn hook, void *context)
+{
+    if (board->reset_hook_count >= BOARD_RESET_HOOKS) {
+        return -1;
+    }
+    board->reset_hooks[board->reset_hook_count] = hook;
+    board->reset_contexts[board->reset_hook_count] = context;
+    board->reset_hook_count++;
+    return 0;
+}
+
+size_t board_eeprom_size(const board_t *board)
+{
+    return (size_t)board->avr->e2end + 1;
+}
+
+/* simavr's EEPROM ioctls return -1 whether or not they did anything, so the bounds are checked here. */
+static int eeprom_access(board_t *board, uint32_t request, size_t offset, uint8_t *bytes, size_t length)
+{
+    size_t size = board_eeprom_size(board);
+    if (offset > size || length > size - offset) {
+        return -1;
+    }
+    if (length == 0) {
+        return 0;
+    }
+    avr_eeprom_desc_t desc = {.ee = bytes, .offset = (uint16_t)offset, .size = (uint32_t)length};
+    avr_ioctl(board->avr, request, &desc);
+    return 0;
+}
+
+int board_eeprom_read(board_t *board, size_t offset, uint8_t *out, size_t length)
+{
+    return eeprom_access(board, AVR_IOCTL_EEPROM_GET, offset, out, length);
+}
+
+int board_eeprom_write(board_t *board, size_t offset, const uint8_t *bytes, size_t length)
+{
+    /* AVR_IOCTL_EEPROM_SET only reads from ee. */
+    return eeprom_access(board, AVR_IOCTL_EEPROM_SET, offset, (uint8_t *)bytes, length);
+}
+
 int board_load(board_t *board, const char *elf_path, const char *mcu, uint32_t frequency_hz, char *error,
                size_t error_capacity)
 {
@@ -126,6 +187,9 @@ int board_load(board_t *board, const char *elf_path, const char *mcu, uint32_t f
     free_flash_image(&firmware);
     board->avr->sleep = skip_sleep;
     count_phase_correct_pwm_to_top(board->avr);
+    board->reset_watch.kind = "thermotilt_board";
+    board->reset_watch.reset = after_reset;
+    avr_register_io(board->avr, &board->reset_watch);
     return 0;
 }
 
@@ -237,6 +301,7 @@ int board_run(board_t *board, uint64_t until_cycle)
         return state;
     }
     /* A sleeping CPU skips ahead to the next cycle timer; this one is it. */
+    board->run_until_cycle = until_cycle;
     avr_cycle_timer_register(avr, until_cycle - avr->cycle, stop_here, board);
     while (avr->cycle < until_cycle) {
         state = avr_run(avr);
@@ -245,5 +310,6 @@ int board_run(board_t *board, uint64_t until_cycle)
         }
     }
     avr_cycle_timer_cancel(avr, stop_here, board);
+    board->run_until_cycle = 0;
     return state;
 }

@@ -9,8 +9,12 @@
 #include <stdint.h>
 
 #include <simavr/sim_avr.h>
+#include <simavr/sim_io.h>
 
 typedef void (*board_uart_byte_fn)(void *context, uint8_t byte);
+typedef void (*board_reset_fn)(void *context);
+
+enum { BOARD_RESET_HOOKS = 4 };
 
 typedef struct board {
     avr_t *avr;
@@ -21,6 +25,11 @@ typedef struct board {
     size_t uart_input_sent;
     avr_flashaddr_t exit_address; /* libgcc's _exit: cli, then an endless loop; 0 if none */
     uint16_t stack_floor;         /* first SRAM byte above .data/.bss/.noinit (_end) */
+    uint64_t run_until_cycle;     /* the end of the board_run in progress; 0 between runs */
+    avr_io_t reset_watch;         /* an IO module of ours, so simavr tells us of each reset */
+    board_reset_fn reset_hooks[BOARD_RESET_HOOKS];
+    void *reset_contexts[BOARD_RESET_HOOKS];
+    int reset_hook_count;
 } board_t;
 
 /*
@@ -45,6 +54,23 @@ int board_hang(board_t *board);
  */
 enum { BOARD_STACK_PAINT = 0xA5 };
 size_t board_stack_untouched(const board_t *board, size_t *capacity);
+
+/*
+ * A reset of the MCU (the watchdog's) drops every simavr cycle timer, also
+ * those of the parts outside it, which a real reset leaves running: each
+ * part that keeps time registers a hook here to start its timers again. The
+ * board's own (the end of board_run, board_feed_uart0) it restarts itself.
+ * Returns 0, or -1 when BOARD_RESET_HOOKS are taken.
+ */
+int board_on_reset(board_t *board, board_reset_fn hook, void *context);
+
+/*
+ * The EEPROM, which keeps its bytes across resets as the chip's does. Both
+ * return 0, or -1 when offset + length lies beyond it.
+ */
+size_t board_eeprom_size(const board_t *board);
+int board_eeprom_read(board_t *board, size_t offset, uint8_t *out, size_t length);
+int board_eeprom_write(board_t *board, size_t offset, const uint8_t *bytes, size_t length);
 
 /* Releases the MCU; the board can be loaded again afterwards. */
 void board_free(board_t *board);

@@ -149,6 +149,12 @@ void lsm9ds0_init(avr_t *avr, lsm9ds0_t *sensor, uint8_t address7)
     avr_cycle_timer_register(avr, avr->frequency / 1000, produce_sample, sensor);
 }
 
+void lsm9ds0_mcu_reset(void *context)
+{
+    lsm9ds0_t *sensor = (lsm9ds0_t *)context;
+    avr_cycle_timer_register(sensor->avr, sensor->avr->frequency / 1000, produce_sample, sensor);
+}
+
 void lsm9ds0_attach(lsm9ds0_t *sensor)
 {
     avr_t *avr = sensor->avr;

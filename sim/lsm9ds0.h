@@ -38,6 +38,12 @@ enum { LSM9DS0_ADDRESS_SDO_HIGH = 0x1D };
 
 void lsm9ds0_init(avr_t *avr, lsm9ds0_t *sensor, uint8_t address7);
 void lsm9ds0_attach(lsm9ds0_t *sensor);
+/*
+ * The MCU was reset (a board_reset_fn, so context is the sensor): simavr
+ * dropped the sample clock's timer, which the sensor keeps running, with its
+ * registers, through a reset of the MCU.
+ */
+void lsm9ds0_mcu_reset(void *context);
 
 void lsm9ds0_set_acceleration(lsm9ds0_t *sensor, int16_t x, int16_t y, int16_t z);
 /* 12-bit two's complement, 8 LSB/degC, as OUT_TEMP_L/H_XM report it. */

@@ -143,6 +143,21 @@ static void apply_adc(twin_t *twin, unsigned channel)
     board_set_adc_millivolts(&twin->board, (uint8_t)channel, millivolts);
 }
 
+size_t twin_eeprom_size(const twin_t *twin)
+{
+    return board_eeprom_size(&twin->board);
+}
+
+int twin_eeprom_read(twin_t *twin, size_t offset, uint8_t *out, size_t length)
+{
+    return board_eeprom_read(&twin->board, offset, out, length);
+}
+
+int twin_eeprom_write(twin_t *twin, size_t offset, const uint8_t *bytes, size_t length)
+{
+    return board_eeprom_write(&twin->board, offset, bytes, length);
+}
+
 size_t twin_stack_untouched(const twin_t *twin, size_t *capacity)
 {
     return board_stack_untouched(&twin->board, capacity);
@@ -180,6 +195,7 @@ void twin_lsm9ds0_attach(twin_t *twin)
     }
     lsm9ds0_init(twin->board.avr, &twin->sensor, LSM9DS0_ADDRESS_SDO_HIGH);
     lsm9ds0_attach(&twin->sensor);
+    board_on_reset(&twin->board, lsm9ds0_mcu_reset, &twin->sensor);
     twin->sensor_attached = 1;
 }
 

@@ -39,6 +39,16 @@ uint64_t twin_pty_dropped_bytes(const twin_t *twin);
 /* A deadlocked firmware (board_hang): 0, or -1 when the image cannot be hung. */
 int twin_hang(twin_t *twin);
 
+/*
+ * The MCU's EEPROM (1 KB on the ATmega328P, 4 KB on the ATmega2560), which
+ * keeps its bytes across resets and whose firmware writes land at once.
+ * Write before the first run to give the firmware a stored block at boot.
+ * Read and write return 0, or -1 when offset + length lies beyond it.
+ */
+size_t twin_eeprom_size(const twin_t *twin);
+int twin_eeprom_read(twin_t *twin, size_t offset, uint8_t *out, size_t length);
+int twin_eeprom_write(twin_t *twin, size_t offset, const uint8_t *bytes, size_t length);
+
 /* SRAM bytes between the static data and RAMEND that the stack never reached; capacity gets their count. */
 size_t twin_stack_untouched(const twin_t *twin, size_t *capacity);
 

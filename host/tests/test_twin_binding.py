@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 import serial
 
+from thermotilt.coefficients import PAPER_DEFAULTS, encode_block, table_from_values
 from thermotilt.protocol import FrameReader, build_frame
 from thermotilt.twin import Board, Drive, TwinError, build_dir, firmware_elf
 
@@ -419,6 +420,61 @@ def test_bad_images_and_missing_builds_are_explained(tmp_path, monkeypatch):
         firmware_elf("imu_reader")
     with pytest.raises(TwinError, match="run `make build` first"):
         Board(garbage, "atmega328p")
+
+
+# ---- EEPROM --------------------------------------------------------------
+
+# The datasheets: 1 KB on the ATmega328P, 4 KB on the ATmega2560; erased cells read 0xFF.
+EEPROM_BYTES = {"atmega328p": 1024, "atmega2560": 4096}
+
+
+def test_the_eeprom_is_blank_and_sized_as_the_datasheets_say():
+    for board in (Board.imu_reader(), Board.thermal_chamber()):
+        with board:
+            assert board.eeprom_size == EEPROM_BYTES[board.mcu]
+            assert board.read_eeprom() == b"\xff" * EEPROM_BYTES[board.mcu]
+
+
+def test_eeprom_bytes_written_before_boot_are_what_the_firmware_loads_and_survive_a_watchdog_reset():
+    values = PAPER_DEFAULTS.values()
+    values[0] = 500.0
+    block = encode_block(table_from_values(values))
+    reader = FrameReader()
+    with imu_with_sensor() as board:
+        board.write_eeprom(block)
+        board.write_eeprom(b"\x12\x34", offset=1022)
+        assert board.read_eeprom(0, len(block)) == block
+        board.run_until(1.0)
+        board.hang()
+        board.run_until(2.0)
+        frames = reader.feed(board.read_uart())
+        assert board.read_eeprom(0, len(block)) == block
+        assert board.read_eeprom(1020) == b"\xff\xff\x12\x34"
+    versions = of_type(frames, "VER")
+    assert [v["reset_cause"] for v in versions] == ["POWER_ON", "WATCHDOG"]
+    # Loaded at boot, and again after the reset; the sensor's sample clock
+    # kept running through it, as a real sensor's does.
+    rebooted = frames[frames.index(versions[1]):]
+    assert {f["coef_source"] for f in of_type(frames, "IMU")} == {"E"}
+    assert len(of_type(rebooted, "IMU")) >= 4
+
+
+def test_eeprom_access_beyond_its_end_is_refused():
+    with Board.imu_reader() as board:
+        for call in (
+            lambda: board.read_eeprom(1020, 5),
+            lambda: board.read_eeprom(1025),
+            lambda: board.read_eeprom(-1, 1),
+            lambda: board.write_eeprom(b"\x00" * 5, offset=1020),
+            lambda: board.write_eeprom(b"\x00", offset=1024),
+        ):
+            with pytest.raises(ValueError, match="EEPROM"):
+                call()
+        with pytest.raises(TypeError):
+            board.write_eeprom("text")
+        board.write_eeprom(b"", offset=1024)
+        assert board.read_eeprom(1024) == b""
+        assert board.read_eeprom() == b"\xff" * 1024
 
 
 def test_the_stack_high_water_mark_is_measured_on_painted_sram():

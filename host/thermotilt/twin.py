@@ -93,6 +93,9 @@ def _load_library(path: Path) -> ctypes.CDLL:
         "twin_uart_corrupted_bytes": (ctypes.c_uint64, [handle]),
         "twin_pty_dropped_bytes": (ctypes.c_uint64, [handle]),
         "twin_hang": (ctypes.c_int, [handle]),
+        "twin_eeprom_size": (ctypes.c_size_t, [handle]),
+        "twin_eeprom_read": (ctypes.c_int, [handle, ctypes.c_size_t, ctypes.c_char_p, ctypes.c_size_t]),
+        "twin_eeprom_write": (ctypes.c_int, [handle, ctypes.c_size_t, ctypes.c_char_p, ctypes.c_size_t]),
         "twin_stack_untouched": (ctypes.c_size_t, [handle, ctypes.POINTER(ctypes.c_size_t)]),
         "twin_adc_set_millivolts": (ctypes.c_int, [handle, ctypes.c_uint, ctypes.c_double]),
         "twin_adc_set_fault": (ctypes.c_int, [handle, ctypes.c_uint, ctypes.c_int]),
@@ -256,6 +259,38 @@ class Board:
         capacity = ctypes.c_size_t(0)
         untouched = self._lib.twin_stack_untouched(self._live(), ctypes.byref(capacity))
         return int(untouched), int(capacity.value)
+
+    @property
+    def eeprom_size(self) -> int:
+        """Bytes of EEPROM: 1024 on the ATmega328P, 4096 on the ATmega2560."""
+        return int(self._lib.twin_eeprom_size(self._live()))
+
+    def _eeprom_span(self, offset: int, length: int) -> tuple[int, int]:
+        size = self.eeprom_size
+        offset = _integer_in(offset, range(size + 1), "EEPROM offset")
+        length = _integer_in(length, range(size - offset + 1), f"EEPROM length from {offset}")
+        return offset, length
+
+    def read_eeprom(self, offset: int = 0, length: int | None = None) -> bytes:
+        """EEPROM bytes from offset (all of the rest without a length). The
+        EEPROM keeps them across resets; the firmware's writes land at once."""
+        handle = self._live()
+        offset, length = self._eeprom_span(offset, self.eeprom_size - offset if length is None else length)
+        buffer = ctypes.create_string_buffer(length)
+        if self._lib.twin_eeprom_read(handle, offset, buffer, length) != 0:
+            raise TwinError(f"cannot read {length} EEPROM bytes from {offset}")
+        return buffer.raw[:length]
+
+    def write_eeprom(self, data: bytes | bytearray | memoryview, offset: int = 0) -> None:
+        """Stores bytes in the EEPROM from offset, as a programmer would: before
+        the first run_until, the firmware finds them at boot."""
+        if not isinstance(data, bytes | bytearray | memoryview):
+            raise TypeError(f"write_eeprom takes bytes, not {type(data).__name__}")
+        payload = bytes(data)
+        handle = self._live()
+        offset, length = self._eeprom_span(offset, len(payload))
+        if self._lib.twin_eeprom_write(handle, offset, payload, length) != 0:
+            raise TwinError(f"cannot write {length} EEPROM bytes at {offset}")
 
     def hang(self) -> None:
         """Deadlocks the firmware: interrupts off, the CPU in an endless
