@@ -26,6 +26,7 @@ const uint32_t MAX_PASSES = 20000;
 const char WORLD_RECORD = '~';
 const char WORLD_BYTES = '|';
 const uint8_t POWER_ON_FLAGS = _BV(PORF);
+uint8_t bootFlags = POWER_ON_FLAGS;
 
 struct FrameSpec {
     const char* tag;
@@ -289,6 +290,10 @@ private:
         loop();
         ++passes_;
         collect();
+        if (ArduinoShim::watchdogExpired()) {
+            resetFlags_ = _BV(WDRF);
+            booted_ = false;
+        }
     }
 
     void boot()
@@ -297,6 +302,7 @@ private:
         SketchState::restore();
         ArduinoShim::reset();
         MCUSR = resetFlags_;
+        bootFlags = resetFlags_;
         if (captureResetFlags) {
             captureResetFlags();
         }
@@ -339,6 +345,11 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size)
     std::unique_ptr<Board> board = makeBoard();
     Runner(*board).run(data, size);
     return 0;
+}
+
+uint8_t BoardHarness::bootResetFlags()
+{
+    return bootFlags;
 }
 
 const char* BoardHarness::text(const FrameParser& frame, uint8_t index)

@@ -9,6 +9,8 @@
 //     r  passes to run (default 1, at most MAX_REPEAT)
 //     R  reset the board now, with these MCUSR flags (a power-on has PORF)
 //     any other letter: the board's own (Board::setWorld)
+//   A watchdog the sketch stopped feeding resets the board with WDRF once
+//   its timeout has passed (checked after each pass).
 //   and after an optional '|', bytes for Board::setWorldBytes.
 //
 // Changes made before the first pass (the board boots lazily) are in place
@@ -55,6 +57,9 @@ std::unique_ptr<Board> makeBoard();
 namespace BoardHarness {
 
 const int32_t MAX_REPEAT = 5000;
+
+// The MCUSR flags the board booted with last (valid in Board::boot()).
+uint8_t bootResetFlags();
 
 // Field `index` of a frame that passed the common checks, as text, or as an
 // integer (the common checks made sure it is one when the table says so).

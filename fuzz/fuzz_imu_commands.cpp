@@ -10,12 +10,18 @@
 // Besides the common checks, the state commands set must show in frames:
 // - no IMU frame between an acknowledged STOP and the next START;
 // - coef_source in IMU and ICF frames is U after SETCOE, D after DEFCOE,
-//   E after SAVECOE; ICF's streaming follows START and STOP.
+//   E after SAVECOE; ICF's streaming follows START and STOP;
+// - after an acknowledged RESET the board sends nothing until it has reset;
+//   VER's reset_cause is COMMANDED exactly when an acknowledged RESET came
+//   before and no other reset flag than the watchdog's is set (the first
+//   boot of an input aside, whose RAM another input left), and a commanded
+//   reset is never reported as ERR RESET.
 #include <Compensation.h>
 #include <LSM9DS0.h>
 #include <Protocol.h>
 
 #include <Arduino.h>
+#include <avr/io.h>
 
 #include "arduino_shim/ArduinoShim.h"
 #include "board_harness.h"
@@ -31,6 +37,9 @@ const int32_t TEMPERATURE_MAX = 2047;
 const uint8_t IMU_COEF_SOURCE = 12;
 const uint8_t ICF_STREAMING = 1;
 const uint8_t ICF_COEF_SOURCE = 2;
+const uint8_t VER_RESET_CAUSE = 3;
+const uint8_t ERR_CODE = 1;
+const uint8_t OTHER_THAN_WATCHDOG = _BV(PORF) | _BV(EXTRF) | _BV(BORF);
 const char UNKNOWN = 0;
 
 int16_t clampToInt16(int32_t value)
@@ -183,10 +192,25 @@ public:
     {
         streaming_ = UNKNOWN;
         coefficientSource_ = UNKNOWN;
+        bool otherCause = (BoardHarness::bootResetFlags() & OTHER_THAN_WATCHDOG) != 0;
+        commandedBoot_ = resetAcknowledged_ && !otherCause;
+        // The first boot's RAM may hold a marker an earlier input left.
+        causeKnown_ = booted_ || otherCause;
+        resetAcknowledged_ = false;
+        booted_ = true;
     }
 
     void sentFrame(const FrameParser& frame) override
     {
+        require(!resetAcknowledged_, "a frame after RESET was acknowledged, before the reset");
+        if (frame.typeIs(Protocol::Tag::VER)) {
+            bool commanded = strcmp(BoardHarness::text(frame, VER_RESET_CAUSE), "COMMANDED") == 0;
+            require(commanded == commandedBoot_ || (!causeKnown_ && commanded),
+                    "VER's reset_cause COMMANDED differs from an acknowledged RESET before the boot");
+        } else if (frame.typeIs(Protocol::Tag::ERR)) {
+            require(!(commandedBoot_ && strcmp(BoardHarness::text(frame, ERR_CODE), "RESET") == 0),
+                    "a commanded reset was reported as ERR RESET");
+        }
         if (frame.typeIs(Protocol::Tag::ACK)) {
             acknowledged(BoardHarness::text(frame, 1));
         } else if (frame.typeIs(Protocol::Tag::IMU)) {
@@ -213,6 +237,8 @@ private:
             coefficientSource_ = 'D';
         } else if (strcmp(command, Protocol::Tag::SAVECOE) == 0) {
             coefficientSource_ = 'E';
+        } else if (strcmp(command, Protocol::Tag::RESET) == 0) {
+            resetAcknowledged_ = true;
         }
     }
 
@@ -226,6 +252,10 @@ private:
     bool eepromAsCoefficients_ = false;
     char streaming_ = UNKNOWN;
     char coefficientSource_ = UNKNOWN;
+    bool booted_ = false;
+    bool resetAcknowledged_ = false;
+    bool commandedBoot_ = false;
+    bool causeKnown_ = false;
 };
 
 }  // namespace

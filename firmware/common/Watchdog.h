@@ -10,6 +10,8 @@
 // Longer than any loop pass (a blocking 120-byte write is ~10 ms, a Wire
 // time-out 25 ms), short enough that a hung chamber stops heating at once.
 const uint8_t WATCHDOG_TIMEOUT = WDTO_500MS;
+// A reset the firmware asks for waits no longer than this.
+const uint8_t COMMANDED_RESET_TIMEOUT = WDTO_15MS;
 
 void startWatchdog();
 
@@ -18,8 +20,14 @@ inline void feedWatchdog()
     wdt_reset();
 }
 
-// From MCUSR as it was at start-up: "POWER_ON", "EXTERNAL", "BROWNOUT",
-// "WATCHDOG", or "UNKNOWN" when a bootloader cleared it first.
+// Marks the coming reset as commanded and shortens the watchdog to
+// COMMANDED_RESET_TIMEOUT. The caller must stop feeding it from now on: the
+// watchdog then resets the MCU, and the next VER says COMMANDED, not WATCHDOG.
+void startCommandedReset();
+
+// From MCUSR as it was at start-up and the commanded-reset marker
+// (lib/ResetCause): "POWER_ON", "EXTERNAL", "BROWNOUT", "WATCHDOG",
+// "COMMANDED", or "UNKNOWN" when a bootloader cleared MCUSR first.
 const char* resetCauseName();
 // True after a reset the firmware did not ask for: watchdog or brown-out.
 bool resetWasAbnormal();

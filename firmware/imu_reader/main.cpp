@@ -15,7 +15,7 @@
 
 namespace {
 
-const char FIRMWARE_VERSION[] = "0.1.0";
+const char FIRMWARE_VERSION[] = "0.2.0";
 // CTRL_REG1_XM runs the accelerometer at 100 Hz; data-ready is polled only
 // near the end of each period, so sampling follows the sensor's own clock.
 const uint32_t SAMPLE_PERIOD_MS = 10;
@@ -81,6 +81,8 @@ Coefficients coefficients;
 char coefficientSource = FROM_DEFAULTS;
 bool sensorReady = false;
 bool streaming = true;
+// Set by RESET: from then on the loop does nothing until the watchdog resets the board.
+bool resetting = false;
 uint32_t lastSampleMs = 0;
 uint32_t lastSensorAttemptMs = 0;
 
@@ -156,8 +158,13 @@ void saveCoefficients()
 {
     uint8_t block[COEFFICIENT_BLOCK_SIZE];
     encodeCoefficients(coefficients, block);
-    // put() writes only the bytes that changed (EEPROM.update).
-    EEPROM.put(COEFFICIENTS_EEPROM_ADDRESS, block);
+    // update() writes only the bytes that changed. Each write takes 3.3 ms
+    // (datasheet), a whole new block ~0.5 s: as long as the watchdog's
+    // timeout, which would cut the save short without the feeding.
+    for (uint8_t i = 0; i < COEFFICIENT_BLOCK_SIZE; ++i) {
+        EEPROM.update(COEFFICIENTS_EEPROM_ADDRESS + i, block[i]);
+        feedWatchdog();
+    }
     coefficientSource = FROM_EEPROM;
 }
 
@@ -312,6 +319,12 @@ void handleCommand()
         loadDefaultCoefficients(coefficients);
         coefficientSource = FROM_DEFAULTS;
         link.acknowledge();
+    } else if (link.commandIs(Protocol::Tag::RESET)) {
+        link.acknowledge();
+        // The ACK leaves before the reset cuts the line.
+        Serial.flush();
+        startCommandedReset();
+        resetting = true;
     } else {
         link.reject("UNKNOWN_CMD", command.type());
     }
@@ -333,9 +346,15 @@ void setup()
 
 void loop()
 {
+    if (resetting) {
+        return;
+    }
     feedWatchdog();
     if (link.poll()) {
         handleCommand();
+        if (resetting) {
+            return;
+        }
     }
     uint32_t now = millis();
     if (!sensorReady) {

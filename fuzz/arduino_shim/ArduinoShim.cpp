@@ -22,6 +22,8 @@ namespace {
 const size_t SERIAL_RX_CAPACITY = 63;
 const uint8_t I2C_ADDRESSES = 128;
 const uint8_t ERASED = 0xFF;
+// WDTO_15MS .. WDTO_8S, as avr-libc names them.
+const uint32_t WATCHDOG_TIMEOUTS_MS[] = {15, 30, 60, 120, 250, 500, 1000, 2000, 4000, 8000};
 
 struct Mcu {
     uint64_t clockUs;
@@ -31,6 +33,8 @@ struct Mcu {
     std::string serialWritten;
     ArduinoShim::PinState pins[ArduinoShim::PIN_COUNT];
     bool watchdogOn;
+    uint32_t watchdogTimeoutMs;
+    uint64_t watchdogFedUs;
 };
 
 struct Surroundings {
@@ -158,6 +162,11 @@ bool ArduinoShim::watchdogEnabled()
     return mcu.watchdogOn;
 }
 
+bool ArduinoShim::watchdogExpired()
+{
+    return mcu.watchdogOn && mcu.clockUs - mcu.watchdogFedUs >= (uint64_t)mcu.watchdogTimeoutMs * 1000u;
+}
+
 unsigned long millis()
 {
     return (uint32_t)(mcu.clockUs / 1000u);
@@ -206,12 +215,18 @@ void analogWrite(uint8_t pin, int value)
     setPin(pin, OUTPUT, duty);
 }
 
-void wdt_enable(uint8_t)
+void wdt_enable(uint8_t timeout)
 {
+    require(timeout < sizeof WATCHDOG_TIMEOUTS_MS / sizeof WATCHDOG_TIMEOUTS_MS[0], "wdt_enable takes a WDTO_* value");
     mcu.watchdogOn = true;
+    mcu.watchdogTimeoutMs = WATCHDOG_TIMEOUTS_MS[timeout];
+    mcu.watchdogFedUs = mcu.clockUs;
 }
 
-void wdt_reset() {}
+void wdt_reset()
+{
+    mcu.watchdogFedUs = mcu.clockUs;
+}
 
 void wdt_disable()
 {

@@ -58,6 +58,9 @@ void observePins(PinObserver observer);
 uint8_t* eeprom();
 void attachI2cDevice(uint8_t address7, I2cDevice* device);
 bool watchdogEnabled();
+// On, and not fed for its timeout (wdt_enable's WDTO_*) of shim time: the
+// AVR would have reset.
+bool watchdogExpired();
 
 }  // namespace ArduinoShim
 

@@ -1,8 +1,8 @@
 """The IMU reader's defences, in the twin (the real imu_reader.elf in simavr
 through thermotilt.twin): coefficient blocks in EEPROM it must not trust,
 SETCOE surfaces whose output no IMU frame can carry, a first temperature
-sample taken before the sensor refreshed it, and commands with a field
-appended.
+sample taken before the sensor refreshed it, commands with a field
+appended, and RESET, a reset through the watchdog that is not a fault.
 
 Expected values come from the protocol and the parts: the frame limits of
 docs/protocol.md, the paper's default coefficients, the LSM9DS0's
@@ -282,3 +282,88 @@ def test_commands_with_an_appended_field_are_carried_out():
     assert surface_values(coe) == pytest.approx(uploaded, rel=1e-6)
     (config,) = of_type(frames, "ICF")
     assert (config["decimation"], config["coef_source"]) == (20, "U")
+
+
+# ---- RESET: a commanded reset through the watchdog ------------------------
+
+# Firmware/common/Watchdog.h: WDTO_15MS, 2048 cycles of the 128 kHz watchdog
+# oscillator, which simavr counts exactly.
+COMMANDED_RESET_S = 2048 / 128_000
+SAMPLE_PERIOD_S = 0.01
+
+
+def frames_after(frames: list[Frame], first: Frame) -> list[Frame]:
+    """The frames from `first` on: sequence numbers start again at each boot."""
+    return frames[next(i for i, f in enumerate(frames) if f is first):]
+
+
+def test_reset_acknowledges_then_restarts_as_commanded_not_as_a_fault():
+    reader = FrameReader()
+    frames: list[Frame] = []
+    with start_imu() as board:
+        board.run_until(0.5)
+        board.write_uart(build_frame("RESET", 1).encode())
+        acknowledged_s = booted_s = None
+        while booted_s is None and board.seconds < 1.0:
+            board.run_until(board.seconds + 0.0005)
+            new = reader.feed(board.read_uart())
+            frames += new
+            if acknowledged_s is None and of_type(new, "ACK"):
+                acknowledged_s = board.seconds
+            if acknowledged_s is not None and of_type(new, "VER"):
+                booted_s = board.seconds
+        board.run_until(booted_s + 1.0)
+        frames += reader.feed(board.read_uart())
+    first, second = of_type(frames, "VER")
+    assert (first["reset_cause"], second["reset_cause"]) == ("POWER_ON", "COMMANDED")
+    (ack,) = of_type(frames, "ACK")
+    assert (ack["cmd_seq"], ack["cmd_type"]) == (1, "RESET")
+    # Nothing between the ACK and the board's restart, which the watchdog
+    # brings within its 15 ms (and the VER's 45 bytes at the line rate).
+    assert frames.index(second) == frames.index(ack) + 1
+    assert COMMANDED_RESET_S <= booted_s - acknowledged_s < COMMANDED_RESET_S + 0.01
+    # No ERR RESET: a commanded reset is no fault. It streams again at 10 Hz.
+    after = frames_after(frames, second)
+    assert not of_type(after, "ERR")
+    restarted = of_type(after, "IMU")
+    assert len(restarted) >= 8 and restarted[0].seq < 5
+    assert all(b["t_ms"] - a["t_ms"] in (99, 100, 101) for a, b in zip(restarted, restarted[1:]))
+
+
+def test_a_hang_after_a_commanded_reset_is_a_watchdog_reset_again():
+    reader = FrameReader()
+    with start_imu() as board:
+        board.run_until(0.3)
+        frames = answers(board, reader, [build_frame("RESET", 1)], 0.6)
+        board.hang()
+        board.run_until(1.5)
+        frames += reader.feed(board.read_uart())
+    assert [v["reset_cause"] for v in of_type(frames, "VER")] == ["POWER_ON", "COMMANDED", "WATCHDOG"]
+    assert [(e["code"], e["detail"]) for e in of_type(frames, "ERR")] == [("RESET", "WATCHDOG")]
+
+
+def test_a_reset_keeps_saved_coefficients_and_drops_unsaved_ones():
+    saved = (500.5, -19.0625, 1.5e-3, -0.1, -7.0e-5, 6.0e-9)
+    unsaved = (1.5, -2.5, 3.5e-3, -4.5e-4, 5.5e-6, -6.5e-9)
+    reader = FrameReader()
+    with start_imu() as board:
+        board.run_until(0.3)
+        frames = answers(board, reader, [build_frame("SETCOE", 1, ["W", "X", *saved]),
+                                         build_frame("SAVECOE", 2),
+                                         build_frame("SETCOE", 3, ["C", "Y", *unsaved]),
+                                         build_frame("RESET", 4)], 0.5)
+        frames += answers(board, reader, [build_frame("GETCOE", 5, ["W", "X"]),
+                                          build_frame("GETCOE", 6, ["C", "Y"]),
+                                          build_frame("STATUS", 7)], 1.0)
+        stored = board.read_eeprom(0, len(PAPER_BLOCK))
+    rebooted = frames_after(frames, of_type(frames, "VER")[1])
+    coe_wx, coe_cy = of_type(rebooted, "COE")
+    assert surface_values(coe_wx) == pytest.approx(saved, rel=1e-4)
+    assert surface_values(coe_cy) == pytest.approx(tuple(PAPER_DEFAULTS.surface("C", "Y")), rel=1e-4)
+    (config,) = of_type(rebooted, "ICF")
+    assert config["coef_source"] == "E"
+    assert {f["coef_source"] for f in of_type(rebooted, "IMU")} == {"E"}
+    # SAVECOE stored what SETCOE was sent, as float32, bit for bit.
+    values = PAPER_DEFAULTS.values()
+    values[:6] = saved
+    assert stored == encode_block(table_from_values(values).to_float32())

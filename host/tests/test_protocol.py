@@ -127,6 +127,7 @@ def test_table_matches_brief():
         "SETHB",
         "CLEAR",
         "RESEED",
+        "RESET",
     }
 
 

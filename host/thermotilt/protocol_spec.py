@@ -190,4 +190,5 @@ FRAMES = {
     ),
     "SAVECOE": ("host", ()),
     "DEFCOE": ("host", ()),
+    "RESET": ("host", ()),
 }

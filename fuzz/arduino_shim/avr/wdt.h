@@ -1,4 +1,5 @@
-// avr-libc's watchdog calls; the shim only remembers whether it is on.
+// avr-libc's watchdog calls; the shim remembers whether it is on, its
+// timeout and when it was last fed (ArduinoShim::watchdogExpired).
 #ifndef THERMOTILT_FUZZ_AVR_WDT_H
 #define THERMOTILT_FUZZ_AVR_WDT_H
 
