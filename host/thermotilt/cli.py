@@ -330,17 +330,22 @@ def _command_campaign(args: argparse.Namespace) -> int:
 def _command_fit(args: argparse.Namespace) -> int:
     from .calibration.dataset import CalibrationDataError, load
     from .calibration.fit import fit_campaign, format_table, write_outputs
+    from .calibration.families import compare_families, format_families, recommend
     from .calibration.report import write_fit_report
 
     try:
         campaign = load(Path(args.campaign), settle_s=args.settle_seconds)
         fits = fit_campaign(campaign, tuple(args.axes))
+        families = compare_families(campaign, tuple(args.axes)) if args.compare_families else None
     except CalibrationDataError as error:
         raise UsageError(str(error)) from None
     out_dir = Path(args.out)
     try:
         write_outputs(fits, campaign, out_dir)
-        report = write_fit_report(out_dir, fits, campaign)
+        if families is not None:
+            (out_dir / "families.json").write_text(json.dumps(
+                {"recommended": recommend(families), "scores": [vars(score) for score in families]}, indent=2) + "\n")
+        report = write_fit_report(out_dir, fits, campaign, format_families(families) if families else None)
     except OSError as error:
         raise UsageError(f"cannot write {out_dir}: {error.strerror or error}") from None
     print(f"{len(campaign.positions)} positions, {sum(fit.points for fit in fits)} points"
@@ -348,6 +353,8 @@ def _command_fit(args: argparse.Namespace) -> int:
     print(format_table(fits))
     print("bounds: Newey-West (HAC) 95 % within each position; coefficients.json also has the "
           "OLS bounds, which ignore the rows' autocorrelation")
+    if families is not None:
+        print(format_families(families))
     print(f"wrote {out_dir / 'coefficients.json'}, coefficients.bin (EEPROM block), coefficients.h, "
           f"{report.name} with figures")
     return 0
@@ -499,6 +506,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help="skip rows this soon after a table move (default 120)")
     fit.add_argument("--axes", nargs="+", choices=("X", "Y"), default=["X", "Y"],
                      help="axes to fit (default X Y); the others stay uncorrected")
+    fit.add_argument("--compare-families", action="store_true",
+                     help="also score poly11, poly22 (the paper's), poly22+rate and poly33 by "
+                          "leave-one-position-out CV RMSE and BIC; writes families.json")
     fit.set_defaults(run=_command_fit)
 
     compare = commands.add_parser(

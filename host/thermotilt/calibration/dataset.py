@@ -35,6 +35,9 @@ MIN_REFERENCE_ROWS = 10
 # After a table move without RESEED the Kalman filter needs ~90 s to forget
 # a 45 deg step (docs/run-log.md); with RESEED it is settled within a second.
 DEFAULT_SETTLE_S = 120.0
+# dT/dt is the temperature's change over +-RATE_HALF_WINDOW_S: the IMU
+# reports it in 1/16 degC-ish steps, so a shorter window shows the steps.
+RATE_HALF_WINDOW_S = 5.0
 FIT_AXES = ("X", "Y")
 _RUNNING_PHASES = {"W", "C"}
 
@@ -51,6 +54,8 @@ class SetData:
     acceleration: dict[str, np.ndarray]  # axis -> filtered LSB
     residual: dict[str, np.ndarray]  # axis -> LSB minus the 25 degC reading
     position: np.ndarray  # index into Campaign.positions, for grouped statistics
+    # dT/dt of the filtered IMU temperature, degC/s, for model families with a rate term.
+    rate_c_per_s: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -103,6 +108,21 @@ def reading_at_25(temperature: np.ndarray, values: np.ndarray) -> float | None:
     return float(intercept)
 
 
+def _temperature_rates(rows: list[dict[str, str]]) -> list[str]:
+    """Each row's dT/dt over +-RATE_HALF_WINDOW_S of its position's rows, as
+    text like the other cells ("" where the temperature or time is empty)."""
+    cells = [(_number(row["time_s"]), _number(row["imu_temp_c"])) for row in rows]
+    known = np.array([cell for cell in cells if not math.isnan(cell[0] + cell[1])])
+    if len(known) < 2 or np.any(np.diff(known[:, 0]) <= 0):
+        return [""] * len(rows)
+    times, temperatures = known[:, 0], known[:, 1]
+    early = np.interp(times - RATE_HALF_WINDOW_S, times, temperatures)
+    late = np.interp(times + RATE_HALF_WINDOW_S, times, temperatures)
+    spans = np.minimum(times + RATE_HALF_WINDOW_S, times[-1]) - np.maximum(times - RATE_HALF_WINDOW_S, times[0])
+    rate = iter((late - early) / spans)
+    return [repr(float(next(rate))) if not math.isnan(time + temperature) else "" for time, temperature in cells]
+
+
 def load(folder: Path, settle_s: float | None = None) -> Campaign:
     """Every position's residuals per set; CalibrationDataError when a
     position cannot give them."""
@@ -123,9 +143,10 @@ def load(folder: Path, settle_s: float | None = None) -> Campaign:
             positions.append(label)
             used = [row for row in _settled(position_rows, settle_s)
                     if not has_chamber or row["phase"] in _RUNNING_PHASES]
+            rates = _temperature_rates(used)
             for set_name, set_parts in parts.items():
-                cells = [(row["imu_temp_c"], row["ax_filt"], row["ay_filt"])
-                         for row in used if row["comp_set"] == set_name]
+                cells = [(row["imu_temp_c"], row["ax_filt"], row["ay_filt"], rate)
+                         for row, rate in zip(used, rates) if row["comp_set"] == set_name]
                 complete = [cell for cell in cells if all(cell)]
                 skipped += len(cells) - len(complete)
                 if not complete:
@@ -137,7 +158,7 @@ def load(folder: Path, settle_s: float | None = None) -> Campaign:
                         f"{label}: the {set_name} set never crosses {REFERENCE_C:g} degC "
                         f"(needs {MIN_REFERENCE_ROWS} rows within {REFERENCE_BAND_C:g} degC of it)"
                     )
-                set_parts.append((index, data, np.array([0.0, *references])))
+                set_parts.append((index, data, np.array([0.0, *references, 0.0])))
     sets = {}
     for set_name, set_parts in parts.items():
         data = np.concatenate([part[1] for part in set_parts])
@@ -147,5 +168,6 @@ def load(folder: Path, settle_s: float | None = None) -> Campaign:
             acceleration={axis: data[:, 1 + i] for i, axis in enumerate(FIT_AXES)},
             residual={axis: residual[:, 1 + i] for i, axis in enumerate(FIT_AXES)},
             position=np.concatenate([np.full(len(part[1]), part[0]) for part in set_parts]),
+            rate_c_per_s=data[:, 3],
         )
     return Campaign(tuple(positions), sets, skipped)

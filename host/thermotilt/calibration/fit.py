@@ -30,6 +30,7 @@ _POWERS = ((0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2))
 # scaled back exactly.
 _TEMPERATURE_SCALE = 10.0
 _ACCELERATION_SCALE = 1e4
+_RATE_SCALE = 60.0  # degC/s to degC/min
 MIN_POINTS = 7 * len(TERMS)
 # A quadratic in the acceleration needs three distinct levels of it.
 MIN_POSITIONS = 3
@@ -60,10 +61,14 @@ class SurfaceFit:
     acceleration_range_lsb: tuple[float, float]
 
 
-def _design(temperature_c: np.ndarray, acceleration: np.ndarray) -> np.ndarray:
+def design(temperature_c: np.ndarray, acceleration: np.ndarray,
+           powers: tuple[tuple[int, ...], ...] = _POWERS, rate_c_per_s: np.ndarray | None = None) -> np.ndarray:
+    """Columns T^i a^j (and dT/dt^k for a third power) on scaled variables."""
     t = temperature_c / _TEMPERATURE_SCALE
     a = acceleration / _ACCELERATION_SCALE
-    return np.column_stack([t**i * a**j for i, j in _POWERS])
+    r = None if rate_c_per_s is None else rate_c_per_s * _RATE_SCALE
+    return np.column_stack([t**power[0] * a**power[1] * (r**power[2] if len(power) > 2 else 1.0)
+                            for power in powers])
 
 
 def _unscale() -> np.ndarray:
@@ -95,15 +100,15 @@ def fit_surface(data: SetData, set_name: str, axis: str) -> SurfaceFit:
             f"{set_name} set, {axis} axis: {positions} position(s); a surface of 2nd order in the "
             f"acceleration needs at least {MIN_POSITIONS} inclinations"
         )
-    design = _design(temperature, acceleration)
+    columns = design(temperature, acceleration)
     # The scaled design is well conditioned, so its 6 x 6 normal matrix
     # shows a missing direction as well as the tall matrix itself, faster.
-    if np.linalg.matrix_rank(design.T @ design) < len(TERMS):
+    if np.linalg.matrix_rank(columns.T @ columns) < len(TERMS):
         raise CalibrationDataError(
             f"{set_name} set, {axis} axis: temperature and acceleration do not vary enough for "
             "six coefficients (the fit needs several temperatures at several inclinations)"
         )
-    ols = sm.OLS(residual, design).fit(method="qr")
+    ols = sm.OLS(residual, columns).fit(method="qr")
     lags = hac_lags(ols.resid)
     hac = ols.get_robustcov_results(cov_type="hac-panel", groups=data.position, maxlags=lags)
     unscale = _unscale()

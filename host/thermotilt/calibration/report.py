@@ -120,7 +120,8 @@ def surface_figure(fits: list[SurfaceFit], campaign: Campaign, path: Path) -> st
     return _save(figure, path)
 
 
-def write_fit_report(out_dir: Path, fits: list[SurfaceFit], campaign: Campaign) -> Path:
+def write_fit_report(out_dir: Path, fits: list[SurfaceFit], campaign: Campaign,
+                     families: str | None = None) -> Path:
     drift = drift_figure(campaign, out_dir / "drift.png")
     surfaces = surface_figure(fits, campaign, out_dir / "surfaces.png")
     lines = [
@@ -136,6 +137,7 @@ def write_fit_report(out_dir: Path, fits: list[SurfaceFit], campaign: Campaign) 
         "Bounds: Newey–West (HAC) 95 % within each position; coefficients.json also has the OLS "
         "bounds, which ignore the rows' autocorrelation.",
         "",
+        *(["## Model families", "", "```", families, "```", ""] if families else []),
         f"![residuals against temperature per position (the paper's Figure 10)]({drift})",
         "",
         f"![fitted surfaces with their data and what they leave (Figures 12–13)]({surfaces})",
