@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from thermotilt import cli
-from thermotilt.calibration.dataset import Campaign, SetData
+from thermotilt.calibration.dataset import CalibrationDataError, Campaign, SetData
 from thermotilt.calibration.families import FAMILIES, compare_families, recommend
 from thermotilt.calibration.fit import _POWERS
 
@@ -66,3 +66,12 @@ def test_the_fit_command_writes_families_json(tmp_path, capsys):
     assert document["recommended"] in FAMILIES
     assert {score["family"] for score in document["scores"]} == set(FAMILIES)
     assert "## Model families" in (out / "report.md").read_text()
+
+
+def test_a_family_the_data_cannot_determine_is_one_error():
+    campaign = synthetic_campaign(0.0)
+    data = campaign.sets["W"]
+    steady = SetData(data.temperature_c, data.acceleration, data.residual, data.position,
+                     np.full(data.temperature_c.size, 0.01))
+    with pytest.raises(CalibrationDataError, match="cannot determine the terms of poly22\\+rate"):
+        compare_families(Campaign(campaign.positions, {"W": steady, "C": steady}, 0), ("X",))

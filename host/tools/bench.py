@@ -20,7 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from thermotilt import simulate
-from thermotilt.calibration.dataset import SetData
+from thermotilt.calibration.dataset import Campaign, SetData
+from thermotilt.calibration.families import compare_families
 from thermotilt.calibration.fit import fit_surface
 from thermotilt.protocol import build_frame
 from thermotilt.twin import Board
@@ -91,6 +92,28 @@ def fit_seconds() -> float:
     return time.perf_counter() - begin
 
 
+# The paper's campaign: 37 positions, 57 one-minute holds at 10 Hz, half of them per set.
+CAMPAIGN_POSITIONS = 37
+ROWS_PER_POSITION_AND_SET = 57 * 60 * 10 // 2
+
+
+def families_seconds() -> tuple[float, int]:
+    """`fit --compare-families` on synthetic rows the size of the paper's
+    full campaign: four families, both sets and axes, leave-one-position-out."""
+    rng = np.random.default_rng(2)
+    rows = ROWS_PER_POSITION_AND_SET
+    temperature = np.tile(np.linspace(-10.0, 45.0, rows), CAMPAIGN_POSITIONS)
+    angles = np.radians(np.linspace(-45.0, 45.0, CAMPAIGN_POSITIONS))
+    acceleration = np.repeat(16393.0 * np.sin(angles), rows)
+    residual = -20.0 * (temperature - 25.0) + rng.standard_normal(temperature.size)
+    data = SetData(temperature, {"X": acceleration, "Y": acceleration}, {"X": residual, "Y": residual},
+                   np.repeat(np.arange(CAMPAIGN_POSITIONS), rows), rng.normal(0.0, 0.01, temperature.size))
+    campaign = Campaign(tuple(map(str, range(CAMPAIGN_POSITIONS))), {"W": data, "C": data}, 0)
+    begin = time.perf_counter()
+    compare_families(campaign, ("X", "Y"))
+    return time.perf_counter() - begin, temperature.size
+
+
 def main() -> None:
     model = Model.load()
     chamber_us, sensor_us = physics_step_us(model)
@@ -116,6 +139,9 @@ def main() -> None:
               f"data; {untouched} B never touched (target >= {STACK_HEADROOM_TARGET_B} B)")
     print(f"fit: {fit_seconds():.2f} s for one surface with statistics over {FIT_POINTS} points "
           f"(target <= 1 s)")
+    seconds, points = families_seconds()
+    print(f"fit --compare-families: {seconds:.1f} s for 4 families x 2 sets x 2 axes, leave-one-position-out "
+          f"over {CAMPAIGN_POSITIONS} positions, {points} points per set (target <= 30 s)")
     print(subprocess.run([str(build_dir() / "native" / "integrity_bench")], check=True,
                          capture_output=True, text=True).stdout, end="")
     print("integrity target: at most 1 corrupted frame accepted per million at 0.1 % byte errors")
