@@ -130,3 +130,69 @@ def test_all_is_the_papers_37_positions():
     positions = select_positions("all")
     assert len(positions) == 37 and positions[0].label == "0"
     assert [p.index for p in positions] == list(range(37))
+
+
+# ---- real boards: the twin's pseudo-terminals stand in for the serial ports ----
+
+
+@pytest.fixture
+def idle_twin(tmp_path):
+    """Both firmware images idle behind pseudo-terminals, the table at X+30."""
+    twin = subprocess.Popen([*THERMOTILT, "simulate", "idle", "--pty", "--incl-x", "30", "--duration", "3000",
+                             "--out", str(tmp_path / "twin")],
+                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    try:
+        ports = {}
+        while len(ports) < 2:
+            line = twin.stdout.readline()
+            assert line, "the twin ended before announcing its ports"
+            board, _, path = line.strip().partition(": ")
+            if path.startswith("/dev/"):
+                ports[board] = path
+        yield ports
+    finally:
+        twin.send_signal(signal.SIGINT)
+        twin.wait(timeout=60)
+
+
+def boards_campaign(ports, out, answers, *extra):
+    # The twin races ahead of the wall clock, so a wall-clock heartbeat would trip: off.
+    return subprocess.run([*THERMOTILT, "campaign", "--imu-port", ports["imu_reader"],
+                           "--chamber-port", ports["thermal_chamber"], "--out", str(out),
+                           "--heartbeat-seconds", "0", *SHORT, *extra],
+                          input=answers, capture_output=True, text=True, timeout=180, check=False)
+
+
+def test_boards_campaign_asks_for_each_position_and_logs_its_program(idle_twin, tmp_path):
+    out = tmp_path / "campaign"
+    result = boards_campaign(idle_twin, out, "q\n", "--positions", "X+30,0")
+    assert result.returncode == 1
+    assert "Set the tilt table to X+30 (X +30 deg, Y +0 deg)" in result.stdout
+    assert "stopped with 2 position(s) to run (X+30, 0)" in result.stderr
+    result = boards_campaign(idle_twin, out, "\n", "--positions", "X+30,0", "--resume")
+    # The twin's table stays at X+30: the user confirms it and then stops.
+    assert result.returncode == 1, result.stderr
+    assert "X+30: done" in result.stdout and "stopped with 1 position(s) to run (0)" in result.stderr
+    document = campaign_file(out)
+    assert document["rig"] == "boards" and document["ports"]["imu_reader"] == idle_twin["imu_reader"]
+    entry = document["positions"][0]
+    assert entry["status"] == "done" and entry["firmware"]["imu_reader"].startswith("imu_reader ")
+    rows = read_run_log(str(out / "X+30" / "run.csv"))
+    assert {row["incl_x_deg"] for row in rows} == {"30.00"}
+    assert {"W", "C"} <= {row["phase"] for row in rows}
+    # The log starts right after RESEED and runs until the program is done.
+    assert rows[0]["since_move_s"] == "0.00" and float(rows[-1]["since_move_s"]) > 50
+    assert abs(float(rows[0]["ax_filt"]) - float(rows[0]["ax_raw"])) < 100
+    summary = json.loads((out / "X+30" / "summary.json").read_text())
+    assert summary["end_reason"] == "program done" and summary["rows"] == len(rows)
+    assert (out / "X+30" / "serial" / "thermal_chamber.txt").stat().st_size > 0
+
+
+def test_boards_campaign_without_a_board_is_one_line(tmp_path):
+    result = subprocess.run([*THERMOTILT, "campaign", "--imu-port", str(tmp_path / "ttyNONE"),
+                             "--chamber-port", str(tmp_path / "ttyNONE2"), "--out", str(tmp_path / "c"),
+                             "--positions", "0", *SHORT], input="\n", capture_output=True, text=True,
+                            timeout=60, check=False)
+    assert result.returncode == 1
+    assert result.stderr.count("\n") == 1 and "0 failed: serial port:" in result.stderr
+    assert campaign_file(tmp_path / "c")["positions"][0]["status"] == "failed"

@@ -184,6 +184,7 @@ def _command_simulate(args: argparse.Namespace) -> int:
         )
     except (ModelError, ScenarioError) as error:
         raise UsageError(str(error)) from None
+    eeprom = _eeprom_block(args.eeprom) if args.eeprom else None
     out_dir = Path(args.out or f"runs/{scenario.name}-{time.strftime('%Y%m%d-%H%M%S')}")
     if os.path.exists(out_dir / "run.csv") and not args.force:
         raise UsageError(f"{out_dir}/run.csv exists; choose another --out or add --force")
@@ -196,7 +197,7 @@ def _command_simulate(args: argparse.Namespace) -> int:
         try:
             result = simulate.run(
                 scenario, model, out_dir, seed=args.seed, pty=args.pty, on_pty=announce_pty,
-                progress=lambda t: bar.update(round(t) - bar.n),
+                progress=lambda t: bar.update(round(t) - bar.n), eeprom=eeprom,
             )
         except (TwinError, simulate.SimulationError) as error:
             raise UsageError(str(error)) from None
@@ -220,6 +221,21 @@ def _command_simulate(args: argparse.Namespace) -> int:
         raise UsageError(str(error)) from None
     _print_figures(scenario.name, rows)
     return 0
+
+
+def _eeprom_block(path: str) -> bytes:
+    """The --eeprom file: exactly one coefficient block. What it holds is the
+    firmware's to judge at boot, as with a real EEPROM."""
+    data = b""
+    for chunk in _input_chunks(path):
+        data += chunk
+        if len(data) > BLOCK_SIZE:
+            break
+    if len(data) != BLOCK_SIZE:
+        size = f"more than {BLOCK_SIZE}" if len(data) > BLOCK_SIZE else str(len(data))
+        raise UsageError(f"{path}: {size} bytes; --eeprom takes the {BLOCK_SIZE}-byte coefficient block "
+                         "that thermotilt fit writes (coefficients.bin)")
+    return data
 
 
 def _print_figures(scenario_name: str, rows: list[dict[str, str]]) -> None:
@@ -283,8 +299,11 @@ def _command_campaign(args: argparse.Namespace) -> int:
     )
     from .scenarios import ScenarioOptions
 
-    if not args.twin:
-        raise UsageError("campaign needs --twin (real boards: not yet supported)")
+    boards = args.imu_port is not None or args.chamber_port is not None
+    if args.twin == boards or (boards and not (args.imu_port and args.chamber_port)):
+        raise UsageError("campaign needs --twin, or --imu-port and --chamber-port for real boards")
+    if boards:
+        return _boards_campaign(args)
     setup = TwinSetup(
         ScenarioOptions(hold_s=args.hold_seconds, rest_s=args.rest_seconds, ambient_c=args.ambient,
                         hold_start=args.hold_start, controller=args.controller),
@@ -323,6 +342,61 @@ def _command_campaign(args: argparse.Namespace) -> int:
     if failed:
         raise UsageError(f"{len(failed)} position(s) failed: "
                          + "; ".join(f"{record.label}: {record.error}" for record in failed))
+    print(f"all {len(outcome.records)} positions done; fit them with: thermotilt fit {out_dir} --out FIT_DIR")
+    return 0
+
+
+def _boards_campaign(args: argparse.Namespace) -> int:
+    from .calibration.campaign import (
+        DONE,
+        FAILED,
+        BoardsCampaign,
+        BoardsSetup,
+        CampaignError,
+        Position,
+        PositionRecord,
+        select_positions,
+    )
+    from .scenarios import ScenarioOptions
+
+    def confirm(position: Position) -> bool:
+        prompt = (f"Set the tilt table to {position.label} (X {position.incl_x_deg:+g} deg, "
+                  f"Y {position.incl_y_deg:+g} deg), then press Enter (q stops): ")
+        try:
+            return input(prompt).strip().lower() not in ("q", "quit")
+        except EOFError:
+            print("\nno answer: standard input is closed")
+            return False
+
+    setup = BoardsSetup(args.imu_port, args.chamber_port,
+                        ScenarioOptions(hold_s=args.hold_seconds, rest_s=args.rest_seconds, ambient_c=args.ambient,
+                                        hold_start=args.hold_start, controller=args.controller),
+                        confirm, baud=args.baud, heartbeat_s=args.heartbeat_seconds)
+    out_dir = Path(args.out)
+    try:
+        campaign = BoardsCampaign(out_dir, select_positions(args.positions), setup,
+                                  resume=args.resume, force=args.force)
+    except CampaignError as error:
+        raise UsageError(str(error)) from None
+    print(f"campaign of {len(campaign.positions)} positions on {args.imu_port} and {args.chamber_port} "
+          f"-> {out_dir}: {len(campaign.todo)} to run", flush=True)
+
+    def report(record: PositionRecord) -> None:
+        print(f"{record.label}: {record.status}"
+              + (f" in {record.wall_seconds:.0f} s" if record.status == DONE else "")
+              + (f" ({record.error})" if record.error else ""), flush=True)
+
+    outcome = campaign.run(on_position=report)
+    if outcome.interrupted:
+        print("kept every finished position; add --resume to run the others")
+        return _interrupted()
+    failed = [record for record in outcome.records if record.status == FAILED]
+    if failed:
+        raise UsageError(f"{failed[0].label} failed: {failed[0].error}; fix it, then add --resume")
+    left = [record.label for record in outcome.records if record.status != DONE]
+    if left:
+        raise UsageError(f"stopped with {len(left)} position(s) to run ({', '.join(left)}); "
+                         "add --resume to run them")
     print(f"all {len(outcome.records)} positions done; fit them with: thermotilt fit {out_dir} --out FIT_DIR")
     return 0
 
@@ -433,6 +507,17 @@ def _scenario_of(run: Path) -> str | None:
         return None
 
 
+def _command_upload(args: argparse.Namespace) -> int:
+    from .calibration.upload import UploadError, format_result, upload
+
+    try:
+        result = upload(Path(args.fit_dir), args.port, baud=args.baud, save=not args.no_save)
+    except UploadError as error:
+        raise UsageError(str(error)) from None
+    print(format_result(result))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _ArgumentParser(prog=PROGRAM, description="ThermoTilt host tools.")
     parser.add_argument(
@@ -461,8 +546,8 @@ def build_parser() -> argparse.ArgumentParser:
     simulate = commands.add_parser(
         "simulate", help="run both firmware images in the digital twin against the physics model"
     )
-    simulate.add_argument("scenario", help="fig8, cycle, campaign, field-warming, field-cooling "
-                          "or field-alternating")
+    simulate.add_argument("scenario", help="fig8, cycle, campaign, field-warming, field-cooling, "
+                          "field-alternating or idle (both boards, no commands: for --pty)")
     simulate.add_argument("--out", help="output folder (default runs/SCENARIO-DATE-TIME)")
     simulate.add_argument("--force", action="store_true", help="overwrite an earlier run in --out")
     _add_model_options(simulate)
@@ -473,11 +558,15 @@ def build_parser() -> argparse.ArgumentParser:
                           help="table angle on Y, degrees")
     simulate.add_argument("--positions", help="campaign subset, e.g. 0,X+30,Y-15")
     simulate.add_argument("--duration", type=board_seconds,
-                          help="field scenarios: compress the day's profile into this many seconds")
+                          help="field scenarios: compress the day's profile into this many seconds; "
+                               "idle: run this long (default 3600)")
     simulate.add_argument("--fault", action="append", default=[], metavar="NAME[=RATE][@START[-END]]",
                           help="inject a fault, e.g. inner_open@120-180 or imu_uart_corrupt=0.001")
     simulate.add_argument("--pty", action="store_true",
                           help="also expose each board's serial port as a pseudo-terminal")
+    simulate.add_argument("--eeprom", metavar="FILE",
+                          help="start the IMU with this 148-byte coefficient block in its EEPROM "
+                               "(coefficients.bin from thermotilt fit)")
     simulate.set_defaults(run=_command_simulate)
 
     campaign = commands.add_parser(
@@ -490,6 +579,12 @@ def build_parser() -> argparse.ArgumentParser:
                           help="all (default, the paper's 37) or labels, e.g. 0,X+15,X-15,Y+30")
     campaign.add_argument("--jobs", type=_within(int, 1, 256), default=os.cpu_count() or 1,
                           help="twin positions run at once (default: the CPU count)")
+    campaign.add_argument("--imu-port", help="real boards: the IMU reader's serial port")
+    campaign.add_argument("--chamber-port", help="real boards: the thermal chamber's serial port")
+    campaign.add_argument("--baud", type=int, default=115200, help="real boards' line speed (default 115200)")
+    campaign.add_argument("--heartbeat-seconds", type=_within(int, 0, 3600), default=60,
+                          help="real boards: the chamber stops itself after this long without a frame "
+                               "from the host (default 60; 0 turns it off)")
     campaign.add_argument("--resume", action="store_true",
                           help="finish an interrupted campaign in --out, keeping its finished positions")
     campaign.add_argument("--force", action="store_true", help="start --out again from nothing")
@@ -528,6 +623,16 @@ def build_parser() -> argparse.ArgumentParser:
                                "'paper'; default: the firmware's own compensated output")
     validate.add_argument("--out", help="folder for report.md and its figures (default RUN/validation)")
     validate.set_defaults(run=_command_validate)
+
+    upload = commands.add_parser(
+        "upload", help="write a fit's surfaces into the IMU reader: SETCOE, read back, SAVECOE, reset, check"
+    )
+    upload.add_argument("fit_dir", help="a folder written by thermotilt fit (its coefficients.json)")
+    upload.add_argument("--port", required=True, help="the IMU reader's serial port (or the twin's --pty port)")
+    upload.add_argument("--baud", type=_within(int, 1), default=115200, help="line speed (default 115200)")
+    upload.add_argument("--no-save", action="store_true",
+                        help="upload to RAM only (coef_source U): no SAVECOE, no reset")
+    upload.set_defaults(run=_command_upload)
 
     log = commands.add_parser("log", help="log real boards (or the twin's --pty ports) to run.csv")
     log.add_argument("--port", required=True, help="the IMU reader's serial port")

@@ -19,7 +19,7 @@ from typing import Any, Iterator, Mapping
 
 import serial
 
-from .protocol import FrameReader
+from .protocol import Frame, FrameReader, SequenceCounter, build_frame
 from .runlog import ChamberState, RunLogWriter
 
 # Long enough for a 10 Hz stream to fill a read; short enough to watch both ports.
@@ -93,16 +93,19 @@ def _read_available(port: serial.Serial, wait: bool) -> bytes:
 
 
 def log_boards(
-    imu_port: str,
+    imu_port: str | serial.Serial,
     out_path: Path,
-    chamber_port: str | None = None,
+    chamber_port: str | serial.Serial | None = None,
     baud: int = 115200,
     duration_s: float | None = None,
     max_rows: int | None = None,
     raw_dir: Path | None = None,
     context: Mapping[str, str] | None = None,
     force: bool = False,
+    program: ProgramWatch | None = None,
 ) -> LogResult:
+    """Logs until the duration, the row count, a closed port, Ctrl-C or, with
+    ``program``, the chamber's program ending. A port given open stays open."""
     # os.path answers False where pathlib raises (a parent that cannot be
     # searched); opening the file then says why.
     if os.path.isdir(out_path):
@@ -118,8 +121,8 @@ def log_boards(
     started = time.monotonic()
     warned = False
     with ExitStack() as stack:
-        imu = stack.enter_context(_open_port(imu_port, baud))
-        chamber = stack.enter_context(_open_port(chamber_port, baud)) if chamber_port else None
+        imu = _opened(stack, imu_port, baud)
+        chamber = _opened(stack, chamber_port, baud) if chamber_port is not None else None
         raw_imu = raw_chamber = None
         if raw_dir is not None:
             try:
@@ -138,6 +141,10 @@ def log_boards(
                     for frame in chamber_reader.feed(data):
                         if frame.type == "CHS":
                             chamber_state.update(frame)
+                            if program is not None:
+                                stop = program.ended(frame) or stop
+                    if program is not None:
+                        program.keep_alive(chamber)
                 data = _read_available(imu, wait=True)
                 _save_raw(raw_imu, data)
                 for frame in imu_reader.feed(data):
@@ -145,6 +152,9 @@ def log_boards(
                         continue
                     last_ms = frame["t_ms"]
                     first_ms = last_ms if first_ms is None else first_ms
+                    if program is not None:
+                        # The table was set and the filters restarted just before the log began.
+                        context["since_move_s"] = f"{(last_ms - first_ms) / 1000.0:.2f}"
                     if duration_s is not None and (last_ms - first_ms) / 1000.0 > duration_s:
                         stop = f"{duration_s:g} s of board time"
                         break
@@ -170,6 +180,41 @@ def log_boards(
     return LogResult(writer.rows, imu_reader.frames + chamber_reader.frames,
                      imu_reader.malformed + chamber_reader.malformed,
                      imu_reader.gaps + chamber_reader.gaps, end_reason)
+
+
+def _opened(stack: ExitStack, port: str | serial.Serial, baud: int) -> serial.Serial:
+    return stack.enter_context(_open_port(port, baud)) if isinstance(port, str) else port
+
+
+class ProgramWatch:
+    """For a chamber program the host started: ends the log when the CHS
+    phase reaches done (D) or idle (I) after running, or a fault (F), and
+    sends the chamber a STATUS every ``heartbeat_s`` wall seconds so that
+    its heartbeat (SETHB) sees the host alive."""
+
+    def __init__(self, heartbeat_s: float | None, seq: SequenceCounter):
+        self.heartbeat_s = heartbeat_s
+        self._seq = seq
+        self._last_beat = time.monotonic()
+        self._ran = False
+        self.fault = ""
+
+    def ended(self, frame: Frame) -> str:
+        phase = frame["phase"]
+        if phase == "F":
+            self.fault = frame["fault"]
+            return f"chamber fault {self.fault}"
+        self._ran |= phase in ("W", "C", "R")
+        return "program done" if self._ran and phase in ("D", "I") else ""
+
+    def keep_alive(self, chamber: serial.Serial) -> None:
+        if self.heartbeat_s is None or time.monotonic() - self._last_beat < self.heartbeat_s:
+            return
+        self._last_beat = time.monotonic()
+        try:
+            chamber.write(build_frame("STATUS", self._seq.next(), ()).encode("ascii"))
+        except (serial.SerialException, OSError):
+            raise EOFError from None
 
 
 def _open_output(stack: ExitStack, path: Path, mode: str, **options: Any) -> _OutputFile:

@@ -385,3 +385,157 @@ def _drain(progress_queue: Any, progress: Callable[[float], None] | None) -> Non
             return
         if progress is not None:
             progress(seconds)
+
+
+# A Nano resets when its port opens and its bootloader waits ~1-2 s; a Mega the same.
+BOOT_WAIT_S = 10.0
+DEFAULT_HEARTBEAT_S = 60
+
+
+@dataclass(frozen=True)
+class BoardsSetup:
+    """Real boards: the IMU reader and the chamber on their serial ports; the
+    tilt table is moved by hand, so ``confirm`` asks the user at each position
+    (False stops the campaign, keeping what is done)."""
+
+    imu_port: str
+    chamber_port: str
+    options: ScenarioOptions
+    confirm: Callable[[Position], bool]
+    baud: int = 115200
+    heartbeat_s: int = DEFAULT_HEARTBEAT_S
+
+
+class BoardsCampaign:
+    """A campaign on real boards, one position after another."""
+
+    def __init__(self, out_dir: Path, positions: list[Position], setup: BoardsSetup,
+                 resume: bool = False, force: bool = False):
+        header = {
+            "format": FORMAT,
+            "rig": "boards",
+            "created_utc": _utc_now(),
+            "program": program_settings(setup.options),
+            "ports": {"imu_reader": setup.imu_port, "thermal_chamber": setup.chamber_port},
+        }
+        try:
+            out_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as error:
+            raise CampaignError(f"cannot create {out_dir}: {error.strerror or error}") from None
+        self.out_dir, self.positions, self.setup = out_dir, positions, setup
+        self.file = CampaignFile.start(out_dir, header, positions, resume, force)
+        self.todo = self.file.pending(positions)
+        self.file.save()
+
+    def run(self, on_position: Callable[[PositionRecord], None] | None = None) -> CampaignOutcome:
+        for position in self.todo:
+            if not self.setup.confirm(position):
+                return CampaignOutcome([self.file.records[p.label] for p in self.positions], False)
+            record = run_boards_position(self.setup, position, self.out_dir)
+            self.file.records[record.label] = record
+            self.file.save()
+            if on_position is not None:
+                on_position(record)
+            if record.status != DONE:
+                # With hardware a failure needs a person: the next position waits for --resume.
+                return CampaignOutcome([self.file.records[p.label] for p in self.positions],
+                                       record.status == INTERRUPTED)
+        shutil.rmtree(self.out_dir / PARTIAL_DIR, ignore_errors=True)
+        return CampaignOutcome([self.file.records[p.label] for p in self.positions], False)
+
+
+def _board_version(client: Any, port: str) -> str:
+    """VERSION until the board, maybe still in its bootloader, answers."""
+    from ..commands import CommandTimeout
+
+    deadline = time.monotonic() + BOOT_WAIT_S
+    while True:
+        try:
+            answer = client.command("VERSION")
+        except CommandTimeout:
+            if time.monotonic() > deadline:
+                raise CampaignError(f"no board answers on {port} (VERSION, {BOOT_WAIT_S:g} s)") from None
+            continue
+        frame = next((frame for frame in answer.data if frame.type == "VER"), None)
+        if frame is None:
+            raise CampaignError(f"the board on {port} answered VERSION without a VER frame")
+        return f"{frame['device']} {frame['firmware_version']} protocol {frame['protocol_version']}"
+
+
+def run_boards_position(setup: BoardsSetup, position: Position, out_dir: Path) -> PositionRecord:
+    """The table is set: restart the IMU's filters, run the chamber's program
+    and log both boards until it ends."""
+    import serial
+
+    from ..commands import CommandClient, CommandError
+    from ..logger import INTERRUPTED as LOG_INTERRUPTED
+    from ..logger import LogError, ProgramWatch, log_boards
+    from ..protocol import SequenceCounter
+    from ..scenarios import chamber_program
+
+    record = PositionRecord(position.label, position.incl_x_deg, position.incl_y_deg, started_utc=_utc_now())
+    partial = out_dir / PARTIAL_DIR / position.label
+    shutil.rmtree(partial, ignore_errors=True)
+    partial.mkdir(parents=True)
+    begin = time.monotonic()
+    chamber = None
+    try:
+        with serial.serial_for_url(setup.imu_port, baudrate=setup.baud, timeout=0.05) as imu, \
+                serial.serial_for_url(setup.chamber_port, baudrate=setup.baud, timeout=0.05) as chamber:
+            chamber_seq = SequenceCounter()
+            imu_client, chamber_client = CommandClient(imu), CommandClient(chamber, seq=chamber_seq)
+            record.firmware = {"imu_reader": _board_version(imu_client, setup.imu_port),
+                               "thermal_chamber": _board_version(chamber_client, setup.chamber_port)}
+            imu_client.command("RESEED")
+            for command in chamber_program(CALIBRATION_MIN_C, CALIBRATION_MAX_C, setup.options, 1):
+                chamber_client.command(command.frame_type, command.values)
+            chamber_client.command("SETHB", (setup.heartbeat_s,))
+            chamber_client.command("START")
+            context = {"incl_x_deg": f"{position.incl_x_deg:.2f}", "incl_y_deg": f"{position.incl_y_deg:.2f}",
+                       "ambient_c": "" if setup.options.ambient_c is None else f"{setup.options.ambient_c:.3f}"}
+            watch = ProgramWatch(setup.heartbeat_s / 4 if setup.heartbeat_s else None, chamber_seq)
+            result = log_boards(imu, partial / "run.csv", chamber, raw_dir=partial / "serial",
+                                context=context, program=watch)
+            if result.end_reason != "program done":
+                _stop_chamber(chamber)
+    except (serial.SerialException, OSError) as error:
+        record.status, record.error = FAILED, f"serial port: {error}"
+        return record
+    except (CampaignError, CommandError, LogError) as error:
+        record.status, record.error = FAILED, str(error)
+        _stop_chamber(chamber)
+        return record
+    except KeyboardInterrupt:
+        record.status = INTERRUPTED
+        _stop_chamber(chamber)
+        return record
+    record.wall_seconds = round(time.monotonic() - begin, 3)
+    summary = {"rig": "boards", "position": position.label, "rows": result.rows, "frames": result.frames,
+               "rejected": result.rejected, "gaps": result.gaps, "end_reason": result.end_reason,
+               "wall_seconds": record.wall_seconds, "firmware": record.firmware}
+    (partial / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    if result.end_reason == LOG_INTERRUPTED:
+        record.status = INTERRUPTED
+    elif result.end_reason != "program done":
+        record.status, record.error = FAILED, f"the log ended early: {result.end_reason}"
+    else:
+        final = out_dir / position.label
+        shutil.rmtree(final, ignore_errors=True)
+        os.replace(partial, final)
+        record.status = DONE
+    return record
+
+
+def _stop_chamber(chamber: Any) -> None:
+    """Best effort: the chamber's own heartbeat stops it anyway."""
+    import serial
+
+    from ..protocol import build_frame
+
+    if chamber is None:
+        return
+    try:
+        if chamber.is_open:
+            chamber.write(build_frame("STOP", 0, ()).encode("ascii"))
+    except (serial.SerialException, OSError):
+        pass  # the port may be what failed; the chamber's heartbeat is the real safeguard
