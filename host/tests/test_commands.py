@@ -201,3 +201,18 @@ def test_the_client_drives_the_twin_through_its_pty_with_pyserial(imu):
     assert version["device"] == "imu_reader"
     assert [(a.data[0]["set"], a.data[0]["axis"]) for a in answers] == [(s, a) for s in SETS for a in AXES]
     assert imu.pty_dropped_bytes == 0
+
+
+def test_wait_for_reads_what_the_board_sends_on_its_own(imu):
+    passed_on = []
+    client = CommandClient(imu, on_frame=passed_on.append)
+    boot = client.wait_for(lambda frame: frame.type == "VER", 0.5)
+    assert (boot["device"], boot["reset_cause"]) == ("imu_reader", "POWER_ON")
+    client.command("RESET")
+    restart = client.wait_for(lambda frame: frame.type == "VER", 0.5)
+    assert restart["reset_cause"] == "COMMANDED"
+    # Every frame read went on, the wanted ones too.
+    assert boot in passed_on and restart in passed_on and of_type(passed_on, "IMU")
+    started = imu.seconds
+    assert client.wait_for(lambda frame: frame.type == "CHS", 0.3) is None
+    assert imu.seconds >= started + 0.3

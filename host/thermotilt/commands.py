@@ -15,7 +15,8 @@ answer to an earlier one is never mistaken for it. Every command but START
 is safe to carry out twice: queries change nothing, SETDEC, SETCOE, SETPRG,
 SETCTL, DEFCOE and STOP set a state that a second time leaves as it is, and
 SAVECOE writes bytes equal to those already stored (EEPROM.update skips
-them). START is sent once: on the chamber it restarts the staircase from
+them), and a second RESET resets a board that has just reset, losing
+nothing the first did not. START is sent once: on the chamber it restarts the staircase from
 step 0, so a START that ran but whose ACK was lost would, sent again, throw
 away the elapsed part of a calibration. After its timeout the board's state
 is unknown; STATUS or the CHS phase tell. A refusal (ERR) is an answer and is
@@ -193,6 +194,20 @@ class CommandClient:
             if answer is not None:
                 return answer
         raise CommandTimeout(frame_type, attempts, self.timeout_s)
+
+    def wait_for(self, wanted: Callable[[Frame], bool], timeout_s: float) -> Frame | None:
+        """Reads frames, sending nothing, until one is wanted or timeout_s
+        has passed; every frame read goes to on_frame, the wanted one too.
+        Returns the first wanted frame, or None. For what a board sends on
+        its own: the VER after a reset, the next IMU frame."""
+        deadline = self._line.now() + timeout_s
+        found: Frame | None = None
+        while found is None and self._line.now() < deadline:
+            for frame in self.reader.feed(self._line.read(deadline)):
+                self._pass_on(frame)
+                if found is None and wanted(frame):
+                    found = frame
+        return found
 
     def _await_answer(self, frame_type: str, seq: int, deadline: float) -> Answer | None:
         data: list[Frame] = []

@@ -135,8 +135,11 @@ def run(
     pty: bool = False,
     on_pty: Callable[[str, str], None] | None = None,
     progress: Callable[[float], None] | None = None,
+    eeprom: bytes | None = None,
 ) -> RunResult:
-    """Plays a scenario; writes run.csv, serial/ and summary.json in out_dir."""
+    """Plays a scenario; writes run.csv, serial/ and summary.json in out_dir.
+    eeprom: bytes the IMU's EEPROM holds from address 0 when it starts, e.g.
+    the 148-byte coefficient block of `thermotilt fit` (coefficients.bin)."""
     for fault in model.faults:
         if fault.name in CHAMBER_FAULTS and not scenario.uses_chamber:
             raise SimulationError(
@@ -151,6 +154,12 @@ def run(
     with open(out_dir / "run.csv", "w", newline="") as csv_stream:
         try:
             links[IMU] = BoardLink(IMU, Board.imu_reader(), open(serial_dir / f"{IMU}.txt", "wb"))
+            if eeprom is not None:
+                imu_eeprom_bytes = links[IMU].board.eeprom_size
+                if len(eeprom) > imu_eeprom_bytes:
+                    raise SimulationError(
+                        f"{len(eeprom)} bytes do not fit the IMU's EEPROM of {imu_eeprom_bytes} bytes")
+                links[IMU].board.write_eeprom(eeprom)
             if scenario.uses_chamber:
                 links[CHAMBER] = BoardLink(
                     CHAMBER, Board.thermal_chamber(), open(serial_dir / f"{CHAMBER}.txt", "wb")
@@ -176,6 +185,7 @@ def run(
         "model": model.source,
         "terms": {name: model.enabled(name) for name in model.terms},
         "faults": [vars(fault) for fault in model.faults],
+        "imu_eeprom_preloaded_bytes": len(eeprom) if eeprom is not None else 0,
         "interrupted": interrupted,
         "sim_seconds": round(simulated, 3),
         "wall_seconds": round(wall, 3),
