@@ -36,7 +36,11 @@ SENSOR_EFFECTS_OFF = {
     "sensitivity_loss": False,
     "noise": False,
     "measuring_offset": False,
+    "drift_repeatability": False,
+    "bias_instability": False,
 }
+# The sources of the paper's scatter the surfaces do not explain (test_scatter.py).
+SCATTER_OFF = {"drift_repeatability": False, "bias_instability": False}
 
 
 @pytest.fixture(scope="module")
@@ -479,6 +483,7 @@ def test_firmware_compensation_recovers_the_tilt(model):
     # The measuring offset, which the surfaces leave alone, is off here.
     quiet = model.with_terms(
         {"noise": False, "rate_sensitivity": False, "die_lag": False, "measuring_offset": False}
+        | SCATTER_OFF
     )
     rising = [-10.0 + 0.05 * i for i in range(1101)]
     for sample in sweep(quiet, rising, incl_x=20.0, incl_y=-15.0)[::50]:
@@ -567,7 +572,9 @@ def test_the_paper_surfaces_leave_the_measuring_offset_in_the_compensated_readin
     # Section 3.3: the surfaces compensate the thermal drift only; the
     # firmware's raw - f(T, raw) keeps the offset, within a few LSB (f is
     # evaluated at the offset reading).
-    quiet = model.with_terms({"noise": False, "rate_sensitivity": False, "die_lag": False})
+    quiet = model.with_terms(
+        {"noise": False, "rate_sensitivity": False, "die_lag": False} | SCATTER_OFF
+    )
     offset = model.terms["measuring_offset"]["warming_lsb"]
     for sample in sweep(quiet, [-10.0 + 0.05 * i for i in range(1101)], incl_x=20.0)[::100]:
         reported = sample.temperature_raw / 8 + 21

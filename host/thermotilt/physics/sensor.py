@@ -4,6 +4,7 @@ functions of its enabled terms stage by stage (terms.SENSOR_STAGES)."""
 from __future__ import annotations
 
 import math
+import zlib
 from dataclasses import dataclass
 from typing import Any
 
@@ -16,6 +17,8 @@ from .terms.sensor import INT16_MAX, INT16_MIN
 # The LSM9DS0 temperature output is 12-bit two's complement.
 _TEMPERATURE_RAW_MIN, _TEMPERATURE_RAW_MAX = -2048, 2047
 _NOISE_BLOCK_SAMPLES = 4096
+# The spawn key of the terms' own streams (noise and dither are 0 and 1).
+_TERM_STREAMS = 2
 
 
 @dataclass(frozen=True, slots=True)
@@ -36,6 +39,8 @@ class SensorSample:
     drift_x: float
     drift_y: float
     drift_z: float
+    # The table position's index, a new mounting at every move.
+    mounting: int
 
 
 def _clip_round(value: float, low: int, high: int) -> int:
@@ -81,6 +86,7 @@ class Sensor:
         "_trend_extreme",
         "_angles",
         "_acceleration",
+        "_mounting",
     )
 
     def __init__(self, model: Model, seed: int, environment_c: float) -> None:
@@ -93,10 +99,16 @@ class Sensor:
 
         # Separate streams, so switching dither on or off leaves the noise as it was.
         noise_seed, dither_seed = np.random.SeedSequence(seed).spawn(2)
+
+        def generator(name: str) -> np.random.Generator:
+            key = (_TERM_STREAMS, zlib.crc32(name.encode()))
+            return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=key))
+
         context = SensorContext(
             lsb_per_g=constants["lsb_per_g"],
             normal=_BlockDraws(np.random.default_rng(noise_seed).standard_normal).next,
             uniform=_BlockDraws(np.random.default_rng(dither_seed).random).next,
+            generator=generator,
         )
         stages: dict[str, list[Any]] = {stage: [] for stage in SENSOR_STAGES}
         for term in model.bound_terms(SensorTerm):
@@ -117,6 +129,8 @@ class Sensor:
         self._trend_extreme = self._die_c
         self._angles: tuple[float, float] | None = None
         self._acceleration = (0.0, 0.0, 0.0)
+        # A table move is a new mounting of the sensor; the first position is 0.
+        self._mounting = -1
 
     def step(
         self, dt_s: float, environment_c: float, incl_x_deg: float, incl_y_deg: float
@@ -137,6 +151,7 @@ class Sensor:
 
         if self._angles != (incl_x_deg, incl_y_deg):
             self._angles = (incl_x_deg, incl_y_deg)
+            self._mounting += 1
             acceleration = self._gravity(incl_x_deg, incl_y_deg)
             for modify in self._ideal:
                 acceleration = modify(*acceleration)
@@ -149,8 +164,9 @@ class Sensor:
         else:
             drift_x = drift_y = drift_z = 0.0
             raw_x, raw_y, raw_z = ideal_x, ideal_y, ideal_z
+        mounting = self._mounting
         for error in self._errors:
-            error_x, error_y, error_z = error(drift_set, reported, rate)
+            error_x, error_y, error_z = error(drift_set, reported, rate, dt_s, mounting)
             raw_x += error_x
             raw_y += error_y
             raw_z += error_z
@@ -176,6 +192,7 @@ class Sensor:
             drift_x=drift_x,
             drift_y=drift_y,
             drift_z=drift_z,
+            mounting=mounting,
         )
 
     def _update_trend(self, die: float) -> str:

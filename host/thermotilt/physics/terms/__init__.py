@@ -13,6 +13,8 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
+import numpy as np
+
 from ..parameters import SWITCH, Parameter
 
 
@@ -87,19 +89,23 @@ SENSOR_STAGES: Mapping[str, str] = {
     "gravity": "(incl x deg, incl y deg) -> acceleration (x, y, z) LSB",
     "ideal": "(acceleration x, y, z) -> ideal acceleration (x, y, z) LSB",
     "drift": "(set, reported degC, ideal x, y, z) -> thermal drift (x, y, z) LSB",
-    "error": "(set, reported degC, rate degC/s) -> additive error (x, y, z) LSB",
+    "error": "(set, reported degC, rate degC/s, dt s, mounting) -> additive error (x, y, z) "
+    "LSB; mounting counts the table's positions from 0, one more at every move",
     "register": "(temperature LSB, unrounded) -> temperature LSB",
 }
 
 
 @dataclass(frozen=True)
 class SensorContext:
-    """What a sensor term may need to bind: hardware constants and the
-    seeded streams of draws (each a callable giving the next draw)."""
+    """What a sensor term may need to bind: hardware constants, the seeded
+    streams of draws (each a callable giving the next draw) shared by noise
+    and dither, and a term's own seeded generator by name, so that switching
+    one term leaves every other term's draws as they were."""
 
     lsb_per_g: float
     normal: Callable[[], float]
     uniform: Callable[[], float]
+    generator: Callable[[str], np.random.Generator]
 
 
 class SensorTerm(Term):
