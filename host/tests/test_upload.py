@@ -24,6 +24,7 @@ import serial
 
 from thermotilt import simulate
 from thermotilt.calibration.fit import SurfaceFit, write_outputs
+from thermotilt.cli import main
 from thermotilt.calibration.upload import UploadError, printed_equal, read_table, upload_table
 from thermotilt.coefficients import AXES, BLOCK_SIZE, SETS, TERMS, Surface, decode_block, encode_block
 from thermotilt.commands import CommandClient
@@ -93,9 +94,9 @@ def assert_printed_equal(read: dict, table) -> None:
 
 @contextmanager
 def idle_twin(out: Path, *options):
-    """`thermotilt simulate idle --pty`: the two ports, then Ctrl-C."""
-    process = subprocess.Popen([*THERMOTILT, "simulate", "idle", "--pty", "--duration", "900",
-                                "--out", str(out), *map(str, options)],
+    """`thermotilt simulate idle --pty` (its hour is far more than a test
+    needs at ~20x real time): the two ports, then Ctrl-C."""
+    process = subprocess.Popen([*THERMOTILT, "simulate", "idle", "--pty", "--out", str(out), *map(str, options)],
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         ports = {}
@@ -351,6 +352,14 @@ def test_read_table_fills_the_surfaces_a_fit_did_not_make_with_zero(tmp_path):
 # ---- bad input: one line, exit 1 ------------------------------------------
 
 
+def assert_one_line(capsys, status: int, message: str) -> None:
+    """What cli.main printed for a command that failed (in-process; the
+    subprocess cases above and test_bad_input run the installed CLI)."""
+    err = capsys.readouterr().err
+    assert status == 1 and err.count("\n") == 1, err
+    assert err.startswith("thermotilt: error: ") and message in err, err
+
+
 def corrupt_json(directory: Path, text: str) -> Path:
     directory.mkdir()
     (directory / "coefficients.json").write_text(text)
@@ -390,9 +399,9 @@ def set_cy_p02_nan(document) -> None:
     ],
     ids=["missing", "not-json", "no-fits", "unknown-surface", "beyond-float32", "nan"],
 )
-def test_a_bad_fit_dir_is_one_line(tmp_path, make, message):
+def test_a_bad_fit_dir_is_one_line(tmp_path, capsys, make, message):
     # The fit is read before the port is opened: this port does not exist.
-    assert_one_line_error(run("upload", make(tmp_path), "--port", tmp_path / "no-port"), 1, message)
+    assert_one_line(capsys, main(["upload", str(make(tmp_path)), "--port", str(tmp_path / "no-port")]), message)
 
 
 def test_a_missing_port_and_a_silent_board_are_one_line(fit_dir, tmp_path):
@@ -412,12 +421,12 @@ def test_a_missing_port_and_a_silent_board_are_one_line(fit_dir, tmp_path):
      (b"\xff" * 200, "more than 148 bytes")],
     ids=["missing", "short", "long"],
 )
-def test_simulate_eeprom_of_the_wrong_size_is_one_line(tmp_path, content, message):
+def test_simulate_eeprom_of_the_wrong_size_is_one_line(tmp_path, capsys, content, message):
     block = tmp_path / "block.bin"
     if content is not None:
         block.write_bytes(content)
-    result = run("simulate", "idle", "--duration", "1", "--eeprom", block, "--out", tmp_path / "run")
-    assert_one_line_error(result, 1, message)
+    status = main(["simulate", "idle", "--duration", "1", "--eeprom", str(block), "--out", str(tmp_path / "run")])
+    assert_one_line(capsys, status, message)
     assert not (tmp_path / "run").exists()
 
 
@@ -435,3 +444,11 @@ def test_run_refuses_an_eeprom_image_larger_than_the_imus(tmp_path):
     scenario = build("idle", ScenarioOptions(duration_s=0.1))
     with pytest.raises(SimulationError, match="2000 bytes do not fit the IMU's EEPROM of 1024 bytes"):
         simulate.run(scenario, Model.load(), tmp_path, eeprom=b"\xff" * 2000)
+
+
+def test_the_idle_scenario_powers_both_boards_and_sends_nothing():
+    scenario = build("idle", ScenarioOptions(incl_x_deg=30.0, ambient_c=18.0))
+    assert (scenario.duration_s, scenario.uses_chamber, scenario.commands) == (3600.0, True, ())
+    assert [(p.label, p.incl_x_deg, p.incl_y_deg) for p in scenario.positions] == [("X+30", 30.0, 0.0)]
+    assert {scenario.ambient_c(t) for t in (0.0, 1800.0, 3600.0)} == {18.0}
+    assert build("idle", ScenarioOptions(duration_s=60.0)).duration_s == 60.0
