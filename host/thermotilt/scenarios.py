@@ -93,6 +93,10 @@ class Scenario:
     commands: tuple[Command, ...] = ()
     # Named moments the analysis needs, e.g. when each program started.
     marks: dict[str, float] = field(default_factory=dict)
+    # Stop once the chamber's program is over (phase back to idle or done):
+    # the duration then only bounds a program whose waiting steps are timed
+    # with a margin (reach_allowance_s).
+    ends_with_program: bool = False
 
 
 @dataclass(frozen=True)
@@ -185,6 +189,7 @@ def cycle(options: ScenarioOptions) -> Scenario:
             Command(PROGRAM_STARTED_S, "START"),
         ),
         marks={"program_start_s": PROGRAM_STARTED_S},
+        ends_with_program=True,
     )
 
 

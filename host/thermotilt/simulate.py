@@ -28,6 +28,7 @@ INNER_THERMISTOR_CHANNEL = 0
 OUTER_THERMISTOR_CHANNEL = 1
 IMU = "imu_reader"
 CHAMBER = "thermal_chamber"
+IMU_EEPROM_FILE = "imu_reader_eeprom.bin"
 CHAMBER_FAULTS = {"inner_open", "inner_short", "outer_open", "outer_short",
                   "peltier_disconnected", "peltier_reversed", "inner_detached",
                   "heatsink_failed", "chamber_hang", "chamber_uart_corrupt"}
@@ -173,6 +174,9 @@ def run(
                 interrupted = True
             simulated = links[IMU].board.seconds
             reports = {name: link.report() for name, link in links.items()}
+            # What the IMU saved (SAVECOE), as a real board would keep it: the
+            # next run can start from it with eeprom=.
+            (out_dir / IMU_EEPROM_FILE).write_bytes(links[IMU].board.read_eeprom())
         finally:
             for link in links.values():
                 link.capture.close()
@@ -255,6 +259,7 @@ def _play(
     positions = list(scenario.positions)
     position = positions.pop(0)
     chamber_state = ChamberState.unknown()
+    program_ran = program_over = False
     drive = None
     steps = round(scenario.duration_s / STEP_S)
     for step in range(steps):
@@ -285,6 +290,8 @@ def _play(
             for frame in chamber_link.receive():
                 if frame.type == "CHS":
                     chamber_state.update(frame)
+                    program_ran |= frame["phase"] in ("W", "C", "R")
+                    program_over = program_ran and frame["phase"] in ("D", "I")
         imu_frames = [frame for frame in imu.receive() if frame.type == "IMU"]
         if imu_frames:
             context = {
@@ -298,3 +305,5 @@ def _play(
                 writer.write_imu_frame(frame, chamber_state, context, truth)
         if progress is not None and step % 100 == 99:
             progress(end)
+        if scenario.ends_with_program and program_over:
+            break
