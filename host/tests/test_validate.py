@@ -131,5 +131,7 @@ def test_host_compensation_equals_the_firmwares(tmp_path):
         assert np.nanmax(np.abs(difference)) <= 0.05 + 0.0125 + 0.05 + 0.01, axis
         assert host.result("W", axis).rms_after_lsb == pytest.approx(
             firmware.result("W", axis).rms_after_lsb, abs=0.1)
+    assert host.firmware_difference_lsb <= 0.05 + 0.0125 + 0.05 + 0.01
+    assert host.sources == "coef_source D"
     summary = json.loads((out / "summary.json").read_text())
     assert summary["scenario"] == "field-warming"

@@ -240,12 +240,15 @@ def run_twin_position(setup: TwinSetup, position: Position, out_dir: Path) -> Po
         if _stop_event is not None and _stop_event.is_set():
             raise KeyboardInterrupt
 
+    scenario = position_scenario(setup.options, position)
     try:
-        result = simulate.run(position_scenario(setup.options, position), setup.model(), partial,
-                              seed=record.seed, progress=progress)
+        result = simulate.run(scenario, setup.model(), partial, seed=record.seed, progress=progress)
     except (TwinError, simulate.SimulationError, OSError) as error:
         record.status, record.error = FAILED, str(error)
         return record
+    if _progress_queue is not None and not result.summary["interrupted"]:
+        # The run ends with the chamber's program, before the scenario's bound.
+        _progress_queue.put(scenario.duration_s - reported)
     summary = result.summary
     record.sim_seconds = summary["sim_seconds"]
     record.wall_seconds = summary["wall_seconds"]

@@ -79,8 +79,12 @@ class Validation:
     skipped_rows: int
     temperature_range_c: tuple[float, float]
     after_from: str  # "firmware (coef_source ...)" or "host, with <coefficients>"
+    sources: str  # the run's coef_source cells, e.g. "coef_source E"
     domain_source: str | None
     results: list[AxisResult] = field(default_factory=list)
+    # With coefficients given: the largest difference between the host's
+    # compensation and the firmware's own output on the same rows.
+    firmware_difference_lsb: float | None = None
     # The rows behind the table, for figures: time_s, temperature_c, set, and
     # per axis "X before", "X after"...
     series: dict[str, np.ndarray] = field(default_factory=dict)
@@ -157,9 +161,13 @@ def validate(run: Path, coefficients: Coefficients | None = None) -> Validation:
             series.setdefault(f"{axis} after", np.full(len(usable), np.nan))[in_set] = after
             results.append(AxisResult(set_name, axis, int(in_set.sum()), _rms_about_25(t, before),
                                       _rms_about_25(t, after), _outside(domain, set_name, axis, t, before)))
+    difference = None
+    if coefficients is not None:
+        difference = max(float(np.nanmax(np.abs(series[f"{axis} after"] - firmware[axis]))) for axis in FIT_AXES)
     return Validation(str(path), len(usable), len(rows) - len(usable),
                       (float(temperature.min()), float(temperature.max())), after_from,
-                      domain.source if domain else None, results, series)
+                      f"coef_source {'/'.join(sources)}",
+                      domain.source if domain else None, results, difference, series)
 
 
 def _rms_about_25(temperature: np.ndarray, values: np.ndarray) -> float | None:
@@ -198,6 +206,9 @@ def format_validation(validation: Validation, paper: dict[tuple[str, str], tuple
         if paper and result.axis in paper:
             line += f"{paper[result.axis][0]:>14.0f}{paper[result.axis][1]:>13.0f}"
         lines.append(line)
+    if validation.firmware_difference_lsb is not None:
+        lines.append(f"the firmware's own compensated output ({validation.sources}) differs from this "
+                     f"by at most {validation.firmware_difference_lsb:.2f} LSB")
     for result in validation.results:
         if result.rms_before_lsb is None:
             lines.append(f"note: the {SET_NAMES[result.set_name]} rows never come "
