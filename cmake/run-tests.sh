@@ -31,6 +31,27 @@ run_ctest_tree() {
     total_failed=$((total_failed + failures))
 }
 
+# Which Unity the tests were built with (cmake/unity.cmake), on one line that
+# names the trees only when they differ.
+report_unity() {
+    local tree unity i trees=() unities=()
+    for tree in native "$@"; do
+        trees+=("$tree")
+        unity=$(sed -n 's/^THERMOTILT_UNITY:INTERNAL=//p' "$build/$tree/CMakeCache.txt" 2>/dev/null)
+        unities+=("${unity:-unknown}")
+    done
+    if [ "$(printf '%s\n' "${unities[@]}" | sort -u | wc -l)" -eq 1 ]; then
+        echo "== Unity: ${unities[0]}"
+        return
+    fi
+    local line="== Unity:"
+    for i in "${!trees[@]}"; do
+        line+=" ${trees[$i]}: ${unities[$i]};"
+    done
+    echo "${line%;}"
+}
+
+report_unity "$@"
 run_ctest_tree native "$build/native"
 for mcu in "$@"; do
     run_ctest_tree "simavr ${mcu}" "$build/$mcu"
