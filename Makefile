@@ -19,9 +19,9 @@ VENV_READY := $(VENV)/.installed
 SCENARIO ?= fig8
 RUNS ?= runs
 
-.PHONY: all firmware simulate test deps system-deps python-deps build native avr bench fuzz fuzz-build clean
+.PHONY: all firmware simulate demo test deps system-deps python-deps build native avr bench fuzz fuzz-build clean
 
-all: simulate
+all: demo
 
 deps: system-deps python-deps
 
@@ -71,6 +71,11 @@ firmware: avr
 # simavr against the physics model); SCENARIO=cycle, campaign, field-warming...
 simulate: build python-deps
 	$(VENV)/bin/thermotilt simulate $(SCENARIO) --out $(RUNS)/$(SCENARIO) --force
+
+# The main job: the paper's calibration end to end in the twin - campaign,
+# fit, compare, upload through the IMU's serial port, field validation.
+demo: build python-deps
+	DEMO_DIR=$(RUNS)/demo $(VENV)/bin/python host/tools/demo.py
 
 # How fast the twin runs (simulated seconds per wall second); prints figures.
 bench: build python-deps

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from thermotilt import cli
-from thermotilt.calibration.dataset import CalibrationDataError, Campaign, SetData
-from thermotilt.calibration.families import FAMILIES, compare_families, recommend
+from thermotilt.calibration.dataset import Campaign, SetData
+from thermotilt.calibration.families import FAMILIES, compare_families, extrapolating, format_families, recommend
 from thermotilt.calibration.fit import _POWERS
 
 from test_calibration_fit import ANGLES_DEG, LSB_PER_G, TRUE, cycle, smooth_noise, write_run_log
@@ -42,7 +42,7 @@ def test_the_papers_family_is_fit_py_s_surface():
 
 def test_poly22_data_recommend_poly22():
     scores = compare_families(synthetic_campaign(0.0), ("X",))
-    assert recommend(scores) == "poly22"
+    assert recommend(scores) == {"X": "poly22"}
     by_family = {s.family: s for s in scores if s.set_name == "W"}
     # The noise is 2 LSB: the right family predicts a left-out position to about that.
     assert by_family["poly22"].cv_rmse_lsb == pytest.approx(2.0, rel=0.25)
@@ -52,7 +52,7 @@ def test_poly22_data_recommend_poly22():
 def test_a_rate_effect_recommends_the_rate_term():
     # 20 LSB per degC/min on a ramp of 2-7 degC/min: tens of LSB against 2 LSB of noise.
     scores = compare_families(synthetic_campaign(20.0), ("X",))
-    assert recommend(scores) == "poly22+rate"
+    assert recommend(scores) == {"X": "poly22+rate"}
 
 
 def test_the_fit_command_writes_families_json(tmp_path, capsys):
@@ -61,17 +61,34 @@ def test_the_fit_command_writes_families_json(tmp_path, capsys):
         write_run_log(tmp_path / "campaign" / f"{angle}.csv", angle, temperatures, sets)
     out = tmp_path / "fit"
     assert cli.main(["fit", str(tmp_path / "campaign"), "--out", str(out), "--compare-families"]) == 0
-    assert "recommended: " in capsys.readouterr().out
+    assert "recommended for X: " in capsys.readouterr().out
     document = json.loads((out / "families.json").read_text())
-    assert document["recommended"] in FAMILIES
+    assert set(document["recommended"]) == {"X", "Y"} and set(document["recommended"].values()) <= set(FAMILIES)
     assert {score["family"] for score in document["scores"]} == set(FAMILIES)
     assert "## Model families" in (out / "report.md").read_text()
 
 
-def test_a_family_the_data_cannot_determine_is_one_error():
+def test_a_family_the_data_cannot_determine_is_left_out():
     campaign = synthetic_campaign(0.0)
     data = campaign.sets["W"]
     steady = SetData(data.temperature_c, data.acceleration, data.residual, data.position,
                      np.full(data.temperature_c.size, 0.01))
-    with pytest.raises(CalibrationDataError, match="cannot determine the terms of poly22\\+rate"):
-        compare_families(Campaign(campaign.positions, {"W": steady, "C": steady}, 0), ("X",))
+    scores = compare_families(Campaign(campaign.positions, {"W": steady, "C": steady}, 0), ("X",))
+    undetermined = {s.family for s in scores if not s.determined}
+    assert undetermined == {"poly22+rate"}
+    assert recommend(scores) == {"X": "poly22"}
+    assert any(line.startswith("poly22+rate") and "not determined" in line
+               for line in format_families(scores).splitlines())
+
+
+def test_too_few_inclinations_for_a_quadratic_are_named():
+    campaign = synthetic_campaign(0.0)
+    data = campaign.sets["W"]
+    # Keep three of the seven positions: -45, 0 and +45 deg.
+    keep = np.isin(data.position, [0, 3, 6])
+    three = SetData(data.temperature_c[keep], {"X": data.acceleration["X"][keep]}, {"X": data.residual["X"][keep]},
+                    data.position[keep], data.rate_c_per_s[keep])
+    scores = compare_families(Campaign(campaign.positions, {"W": three, "C": three}, 0), ("X",))
+    assert extrapolating(scores) == ["X"]
+    assert "too few inclinations on X" in format_families(scores)
+    assert extrapolating(compare_families(campaign, ("X",))) == []

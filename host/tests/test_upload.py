@@ -418,8 +418,8 @@ def test_a_missing_port_and_a_silent_board_are_one_line(fit_dir, tmp_path):
 @pytest.mark.parametrize(
     ("content", "message"),
     [(None, "cannot read"), (b"\x54\x01" * 5, "10 bytes; --eeprom takes the 148-byte coefficient block"),
-     (b"\xff" * 200, "more than 148 bytes")],
-    ids=["missing", "short", "long"],
+     (b"\xff" * 200, "200 bytes; --eeprom takes"), (b"\xff" * 1025, "more than 1024 bytes")],
+    ids=["missing", "short", "between", "long"],
 )
 def test_simulate_eeprom_of_the_wrong_size_is_one_line(tmp_path, capsys, content, message):
     block = tmp_path / "block.bin"
@@ -452,3 +452,17 @@ def test_the_idle_scenario_powers_both_boards_and_sends_nothing():
     assert [(p.label, p.incl_x_deg, p.incl_y_deg) for p in scenario.positions] == [("X+30", 30.0, 0.0)]
     assert {scenario.ambient_c(t) for t in (0.0, 1800.0, 3600.0)} == {18.0}
     assert build("idle", ScenarioOptions(duration_s=60.0)).duration_s == 60.0
+
+
+def test_a_runs_saved_eeprom_starts_the_next_run(fit_dir, tmp_path):
+    """What the IMU saved in one run (imu_reader_eeprom.bin) is what it
+    starts with in the next, as a real board keeps its EEPROM."""
+    first, second = tmp_path / "first", tmp_path / "second"
+    assert run("simulate", "idle", "--duration", "2", "--eeprom", fit_dir / "coefficients.bin",
+               "--out", first).returncode == 0
+    saved = (first / "imu_reader_eeprom.bin").read_bytes()
+    assert len(saved) == 1024 and saved[:BLOCK_SIZE] == (fit_dir / "coefficients.bin").read_bytes()
+    assert run("simulate", "idle", "--duration", "2", "--eeprom", first / "imu_reader_eeprom.bin",
+               "--out", second).returncode == 0
+    assert {row["coef_source"] for row in read_run_log(str(second / "run.csv"))} == {"E"}
+    assert (second / "imu_reader_eeprom.bin").read_bytes() == saved

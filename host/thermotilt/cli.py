@@ -224,17 +224,21 @@ def _command_simulate(args: argparse.Namespace) -> int:
 
 
 def _eeprom_block(path: str) -> bytes:
-    """The --eeprom file: exactly one coefficient block. What it holds is the
+    """The --eeprom file: a coefficient block (coefficients.bin) or the whole
+    EEPROM a twin run saved (imu_reader_eeprom.bin). What it holds is the
     firmware's to judge at boot, as with a real EEPROM."""
+    from .simulate import IMU_EEPROM_BYTES, IMU_EEPROM_FILE
+
     data = b""
     for chunk in _input_chunks(path):
         data += chunk
-        if len(data) > BLOCK_SIZE:
+        if len(data) > IMU_EEPROM_BYTES:
             break
-    if len(data) != BLOCK_SIZE:
-        size = f"more than {BLOCK_SIZE}" if len(data) > BLOCK_SIZE else str(len(data))
+    if len(data) not in (BLOCK_SIZE, IMU_EEPROM_BYTES):
+        size = f"more than {IMU_EEPROM_BYTES}" if len(data) > IMU_EEPROM_BYTES else str(len(data))
         raise UsageError(f"{path}: {size} bytes; --eeprom takes the {BLOCK_SIZE}-byte coefficient block "
-                         "that thermotilt fit writes (coefficients.bin)")
+                         f"that thermotilt fit writes (coefficients.bin) or the {IMU_EEPROM_BYTES}-byte "
+                         f"EEPROM a run saved ({IMU_EEPROM_FILE})")
     return data
 
 

@@ -29,6 +29,7 @@ OUTER_THERMISTOR_CHANNEL = 1
 IMU = "imu_reader"
 CHAMBER = "thermal_chamber"
 IMU_EEPROM_FILE = "imu_reader_eeprom.bin"
+IMU_EEPROM_BYTES = 1024  # the ATmega328P's
 CHAMBER_FAULTS = {"inner_open", "inner_short", "outer_open", "outer_short",
                   "peltier_disconnected", "peltier_reversed", "inner_detached",
                   "heatsink_failed", "chamber_hang", "chamber_uart_corrupt"}

@@ -7,12 +7,13 @@ RMS error" (section 3.3); here each family is scored per set and axis by
 - BIC (statsmodels OLS), which counts every row as independent and so
   favours larger families on autocorrelated logs: shown, not decisive.
 
-The recommendation is the family with the fewest terms whose CV RMSE is
-within RECOMMEND_WITHIN of the best family's, for every set and axis.
+The recommendation, per axis, is the family with the fewest terms whose CV
+RMSE is within RECOMMEND_WITHIN of the best family's in both sets.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,6 +32,8 @@ FAMILIES: dict[str, tuple[tuple[int, int, int], ...]] = {
 }
 PAPER_FAMILY = "poly22"
 RECOMMEND_WITHIN = 0.05
+# A CV RMSE this many times the in-sample RMSE means a left-out position lies outside the others' span.
+EXTRAPOLATION_RATIO = 3.0
 
 
 @dataclass(frozen=True)
@@ -39,9 +42,13 @@ class FamilyScore:
     set_name: str
     axis: str
     terms: int
-    cv_rmse_lsb: float
+    cv_rmse_lsb: float  # NaN, as the two below, for a family the campaign cannot determine
     rmse_lsb: float
     bic: float
+
+    @property
+    def determined(self) -> bool:
+        return not math.isnan(self.cv_rmse_lsb)
 
 
 def score(campaign: Campaign, family: str, set_name: str, axis: str) -> FamilyScore:
@@ -60,8 +67,7 @@ def score(campaign: Campaign, family: str, set_name: str, axis: str) -> FamilySc
     moments = [columns[rows].T @ residual[rows] for rows in groups]
     total_gram, total_moment = sum(grams), sum(moments)
     if np.linalg.matrix_rank(total_gram) < columns.shape[1]:
-        raise CalibrationDataError(f"{set_name} set, {axis} axis: the campaign cannot determine the terms "
-                                   f"of {family} (a column such as dT/dt does not vary independently)")
+        return FamilyScore(family, set_name, axis, columns.shape[1], math.nan, math.nan, math.nan)
     squared_error = 0.0
     for rows, gram, moment in zip(groups, grams, moments):
         params, *_ = np.linalg.lstsq(total_gram - gram, total_moment - moment, rcond=None)
@@ -77,30 +83,48 @@ def compare_families(campaign: Campaign, axes: tuple[str, ...]) -> list[FamilySc
             for axis in axes for set_name in SETS for family in FAMILIES]
 
 
-def recommend(scores: list[FamilyScore]) -> str:
-    """The fewest terms whose CV RMSE is within RECOMMEND_WITHIN of the best
-    in every set and axis; if none is, the smallest worst-case excess."""
-    keys = {(s.set_name, s.axis) for s in scores}
-    best = {key: min(s.cv_rmse_lsb for s in scores if (s.set_name, s.axis) == key) for key in keys}
+def recommend(scores: list[FamilyScore]) -> dict[str, str]:
+    """Per axis, the fewest terms whose CV RMSE is within RECOMMEND_WITHIN of
+    the best in both sets; if none is, the smallest worst-case excess."""
+    choices = {}
+    for axis in dict.fromkeys(s.axis for s in scores):
+        mine = [s for s in scores if s.axis == axis and s.determined]
+        best = {set_name: min(s.cv_rmse_lsb for s in mine if s.set_name == set_name)
+                for set_name in {s.set_name for s in mine}}
 
-    def excess(family: str) -> float:
-        return max(s.cv_rmse_lsb / best[(s.set_name, s.axis)] - 1.0 for s in scores if s.family == family)
+        def excess(family: str) -> float:
+            return max(s.cv_rmse_lsb / best[s.set_name] - 1.0 for s in mine if s.family == family)
 
-    families = [family for family in FAMILIES if any(s.family == family for s in scores)]
-    acceptable = [family for family in families if excess(family) <= RECOMMEND_WITHIN]
-    if acceptable:
-        return min(acceptable, key=lambda family: (len(FAMILIES[family]), family))
-    return min(families, key=excess)
+        families = list(dict.fromkeys(s.family for s in mine))
+        if not families:
+            continue
+        acceptable = [family for family in families if excess(family) <= RECOMMEND_WITHIN]
+        choices[axis] = (min(acceptable, key=lambda family: (len(FAMILIES[family]), family))
+                         if acceptable else min(families, key=excess))
+    return choices
+
+
+def extrapolating(scores: list[FamilyScore]) -> list[str]:
+    """Axes where the paper's family predicts a left-out position far worse
+    than it fits the rest: too few levels of that axis's acceleration, so a
+    quadratic in it extrapolates."""
+    return sorted({s.axis for s in scores
+                   if s.family == PAPER_FAMILY and s.cv_rmse_lsb > EXTRAPOLATION_RATIO * s.rmse_lsb})
 
 
 def format_families(scores: list[FamilyScore]) -> str:
     lines = ["model families (leave-one-position-out CV RMSE decides; BIC counts rows as independent):",
              f"{'family':<13}{'terms':>6}  {'set':<8}{'axis':<5}{'CV RMSE':>10}{'RMSE':>9}{'BIC':>14}"]
     for s in scores:
-        lines.append(f"{s.family:<13}{s.terms:>6}  {'warming' if s.set_name == 'W' else 'cooling':<8}"
-                     f"{s.axis:<5}{s.cv_rmse_lsb:>10.2f}{s.rmse_lsb:>9.2f}{s.bic:>14.1f}")
-    choice = recommend(scores)
-    lines.append(f"recommended: {choice} (the fewest terms within {RECOMMEND_WITHIN:.0%} of the best CV RMSE"
-                 + ("; the paper's family" if choice == PAPER_FAMILY else f"; the paper used {PAPER_FAMILY}")
-                 + ")")
+        line = f"{s.family:<13}{s.terms:>6}  {'warming' if s.set_name == 'W' else 'cooling':<8}{s.axis:<5}"
+        lines.append(line + (f"{s.cv_rmse_lsb:>10.2f}{s.rmse_lsb:>9.2f}{s.bic:>14.1f}" if s.determined else
+                             "  not determined: its terms do not vary independently in this campaign"))
+    for axis, choice in recommend(scores).items():
+        lines.append(f"recommended for {axis}: {choice} (the fewest terms within {RECOMMEND_WITHIN:.0%} of the "
+                     f"best CV RMSE" + ("; the paper's family)" if choice == PAPER_FAMILY
+                                        else f"; the paper used {PAPER_FAMILY})"))
+    for axis in extrapolating(scores):
+        lines.append(f"note: on {axis} the {PAPER_FAMILY} surface predicts a left-out position more than "
+                     f"{EXTRAPOLATION_RATIO:g}x worse than it fits: the campaign has too few inclinations on "
+                     f"{axis} for a quadratic in its acceleration; add positions on {axis}")
     return "\n".join(lines)

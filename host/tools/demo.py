@@ -1,0 +1,109 @@
+"""`make demo`: the calibration job end to end in the digital twin, with the
+same commands a user runs on a real rig.
+
+    campaign (a subset of the paper's positions) -> fit -> compare with the
+    paper and with the model -> upload into the twin's IMU through its
+    pseudo-terminal -> field-warming and field-cooling runs that start with
+    the EEPROM the IMU saved -> validate, next to the paper's RMS figures.
+
+Every step is a `thermotilt` command, printed before it runs; what each
+prints is what a user sees. Outputs go to runs/demo/ (DEMO_DIR).
+"""
+
+from __future__ import annotations
+
+import os
+import shlex
+import signal
+import subprocess
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+THERMOTILT = [sys.executable, "-m", "thermotilt"]
+# Section 3.2's positions the issue asks for at least: 0, +-15, +-30, +-45 on X, +-30 on Y.
+POSITIONS = "0,X+15,X-15,X+30,X-30,X+45,X-45,Y+30,Y-30"
+# 20 s of each step held once reached (the paper holds 60 s): the filtered
+# reading settles within ~10 s of the face reaching the step, and the fit
+# then has ~200 rows per step and position.
+HOLD_SECONDS = 20
+# The field tests' 3 h and 9 h, compressed so that the demo stays short; the
+# warming ramp is then 3x faster than the paper's, the cooling one 9x.
+FIELD_SECONDS = 3600
+DEFAULT_MODEL = Path(__file__).resolve().parents[1] / "thermotilt" / "models" / "default.toml"
+
+
+def step(title: str) -> None:
+    print(f"\n=== {title}", flush=True)
+
+
+def thermotilt(*arguments: str, **options) -> subprocess.CompletedProcess:
+    print("$ thermotilt " + " ".join(shlex.quote(a) for a in arguments), flush=True)
+    result = subprocess.run([*THERMOTILT, *arguments], text=True, **options)
+    if result.returncode != 0:
+        sys.exit(f"demo: thermotilt {arguments[0]} failed (exit {result.returncode})")
+    return result
+
+
+def upload_through_pty(fit: Path, board_dir: Path) -> Path:
+    """The twin's boards idle behind pseudo-terminals; `thermotilt upload`
+    talks to the IMU like to a Nano on USB. Returns the EEPROM the IMU saved."""
+    print("$ thermotilt simulate idle --pty ...  (in the background)", flush=True)
+    twin = subprocess.Popen([*THERMOTILT, "simulate", "idle", "--pty", "--out", str(board_dir), "--force"],
+                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    try:
+        ports = {}
+        while len(ports) < 2:
+            line = twin.stdout.readline()
+            if not line:
+                sys.exit("demo: the twin ended before announcing its ports")
+            board, _, path = line.strip().partition(": ")
+            if path.startswith("/dev/"):
+                ports[board] = path
+        thermotilt("upload", str(fit), "--port", ports["imu_reader"])
+    finally:
+        twin.send_signal(signal.SIGINT)
+        twin.wait(timeout=120)
+    return board_dir / "imu_reader_eeprom.bin"
+
+
+def main() -> None:
+    out = Path(os.environ.get("DEMO_DIR", "runs/demo"))
+    begin = time.monotonic()
+
+    step(f"1. calibration campaign in the twin: {POSITIONS}, each -10 -> 45 -> -10 degC")
+    thermotilt("campaign", "--twin", "--positions", POSITIONS, "--hold-seconds", str(HOLD_SECONDS),
+               "--rest-seconds", "0", "--out", str(out / "campaign"), "--force")
+
+    step("2. fit the paper's surfaces (Tables 2-3), with statistics and the model-family comparison")
+    thermotilt("fit", str(out / "campaign"), "--out", str(out / "fit"), "--compare-families")
+
+    step("3. compare with the paper's fits and with the model the twin ran")
+    thermotilt("compare", str(out / "fit"))
+    thermotilt("compare", str(out / "fit"), "--reference", str(DEFAULT_MODEL))
+
+    step("4. upload the coefficients into the twin's IMU through its serial port")
+    eeprom = upload_through_pty(out / "fit", out / "board")
+
+    step("5. field tests with the uploaded coefficients, then the paper's RMS check")
+    runs = {name: out / name for name in ("field-warming", "field-cooling")}
+    with ThreadPoolExecutor(len(runs)) as pool:
+        results = list(pool.map(lambda item: subprocess.run(
+            [*THERMOTILT, "simulate", item[0], "--duration", str(FIELD_SECONDS), "--eeprom", str(eeprom),
+             "--out", str(item[1]), "--force"], capture_output=True, text=True), runs.items()))
+    for (name, run), result in zip(runs.items(), results):
+        print(f"$ thermotilt simulate {name} --duration {FIELD_SECONDS} --eeprom {eeprom} --out {run}")
+        print(result.stdout, end="")
+        if result.returncode != 0:
+            sys.exit(f"demo: simulate {name} failed: {result.stderr.strip()}")
+    for name, run in runs.items():
+        thermotilt("validate", str(run), "--coefficients", str(out / "fit"))
+
+    minutes = (time.monotonic() - begin) / 60.0
+    step(f"done in {minutes:.1f} min; reports: {out}/fit/report.md, "
+         f"{out}/field-warming/validation/report.md, {out}/field-cooling/validation/report.md")
+
+
+if __name__ == "__main__":
+    main()
