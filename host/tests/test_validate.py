@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from thermotilt import cli
-from thermotilt.calibration.validate import load_coefficients, validate
+from thermotilt.calibration.validate import AxisResult, Validation, format_validation, load_coefficients, validate
 from thermotilt.coefficients import PAPER_DEFAULTS
 from thermotilt.runlog import COLUMNS, read_run_log
 
@@ -135,3 +135,14 @@ def test_host_compensation_equals_the_firmwares(tmp_path):
     assert host.sources == "coef_source D"
     summary = json.loads((out / "summary.json").read_text())
     assert summary["scenario"] == "field-warming"
+
+
+def test_the_papers_figures_stand_beside_the_set_its_test_used():
+    results = [AxisResult("W", "X", 200, 7.8, 26.1, 0), AxisResult("C", "X", 3000, 121.8, 2.1, 0)]
+    validation = Validation("run.csv", 3200, 0, (16.0, 26.0), "the firmware's output", "coef_source E", None,
+                            results)
+    table = format_validation(validation, {("C", "X"): (122.0, 4.0)}).splitlines()
+    warming = next(line for line in table if line.startswith("warming"))
+    cooling = next(line for line in table if line.startswith("cooling"))
+    assert warming.split() == ["warming", "X", "200", "7.8", "26.1"]
+    assert cooling.split() == ["cooling", "X", "3000", "121.8", "2.1", "122", "4"]

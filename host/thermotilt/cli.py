@@ -478,7 +478,7 @@ def _add_program_options(parser: argparse.ArgumentParser, ambient: Callable[[str
 
 def _command_validate(args: argparse.Namespace) -> int:
     from .calibration.dataset import CalibrationDataError
-    from .calibration.paper import FIELD_RMS_LSB
+    from .calibration.paper import FIELD_RMS_LSB, FIELD_TEST_SET
     from .calibration.report import write_validation_report
     from .calibration.validate import format_validation, load_coefficients, range_warnings, validate
 
@@ -489,7 +489,7 @@ def _command_validate(args: argparse.Namespace) -> int:
     except CalibrationDataError as error:
         raise UsageError(str(error)) from None
     scenario = _scenario_of(run)
-    paper = {axis: FIELD_RMS_LSB[(scenario, axis)] for axis in ("X", "Y")
+    paper = {(FIELD_TEST_SET[scenario], axis): FIELD_RMS_LSB[(scenario, axis)] for axis in ("X", "Y")
              if (scenario, axis) in FIELD_RMS_LSB}
     print(format_validation(validation, paper or None))
     for warning in range_warnings(validation):

@@ -92,3 +92,5 @@ FIELD_RMS_LSB: Mapping[tuple[str, str], tuple[float, float]] = MappingProxyType(
     ("field-cooling", "X"): (122.0, 4.0),
     ("field-cooling", "Y"): (70.0, 4.0),
 })
+# Which set's surfaces compensated each field test (section 4.3).
+FIELD_TEST_SET: Mapping[str, str] = MappingProxyType({"field-warming": "W", "field-cooling": "C"})

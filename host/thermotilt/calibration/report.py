@@ -47,7 +47,7 @@ def validation_figure(validation: Validation, path: Path) -> str:
 
 
 def write_validation_report(out_dir: Path, validation: Validation, coefficients: Coefficients | None,
-                            paper: dict[str, tuple[float, float]] | None) -> Path:
+                            paper: dict[tuple[str, str], tuple[float, float]] | None) -> Path:
     out_dir.mkdir(parents=True, exist_ok=True)
     figure = validation_figure(validation, out_dir / "field.png")
     lines = [

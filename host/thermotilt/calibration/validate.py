@@ -188,7 +188,7 @@ def _outside(domain: Domain | None, set_name: str, axis: str, temperature: np.nd
 
 def format_validation(validation: Validation, paper: dict[tuple[str, str], tuple[float, float]] | None) -> str:
     """The RMS table, with the paper's figures beside it when the run is one
-    of its field tests (``paper`` maps axis -> (before, after))."""
+    of its field tests (``paper`` maps (set, axis) -> (before, after))."""
 
     def lsb(value: float | None) -> str:
         return "n/a" if value is None else f"{value:.1f}"
@@ -203,8 +203,9 @@ def format_validation(validation: Validation, paper: dict[tuple[str, str], tuple
     for result in validation.results:
         line = (f"{SET_NAMES[result.set_name]:<8}{result.axis:<6}{result.rows:>8}"
                 f"{lsb(result.rms_before_lsb):>10}{lsb(result.rms_after_lsb):>10}")
-        if paper and result.axis in paper:
-            line += f"{paper[result.axis][0]:>14.0f}{paper[result.axis][1]:>13.0f}"
+        if paper and (result.set_name, result.axis) in paper:
+            before, after = paper[(result.set_name, result.axis)]
+            line += f"{before:>14.0f}{after:>13.0f}"
         lines.append(line)
     if validation.firmware_difference_lsb is not None:
         lines.append(f"the firmware's own compensated output ({validation.sources}) differs from this "
