@@ -40,6 +40,67 @@ const FrameSpec FRAME_SPECS[] = {
 #undef THERMOTILT_FRAME
 };
 
+struct ErrorDetailSpec {
+    const char* token;
+    const char* codes;
+};
+
+const char* const ERROR_CODES[] = {
+#define THERMOTILT_ERROR(code, meaning) #code,
+#include <ProtocolFrames.def>
+#undef THERMOTILT_ERROR
+};
+
+const ErrorDetailSpec ERROR_DETAILS[] = {
+#define THERMOTILT_ERROR_DETAIL(token, codes) {#token, codes},
+#include <ProtocolFrames.def>
+#undef THERMOTILT_ERROR_DETAIL
+};
+
+// Whether a space-separated list holds the word.
+bool listsWord(const char* list, const char* word)
+{
+    size_t length = strlen(word);
+    for (const char* at = strstr(list, word); at; at = strstr(at + 1, word)) {
+        bool starts = at == list || at[-1] == ' ';
+        bool ends = at[length] == '\0' || at[length] == ' ';
+        if (starts && ends) {
+            return true;
+        }
+    }
+    return false;
+}
+
+bool isFrameType(const char* text)
+{
+    size_t length = strlen(text);
+    return length >= 2 && length <= Protocol::MAX_TYPE_LENGTH && strspn(text, "ABCDEFGHIJKLMNOPQRSTUVWXYZ") == length;
+}
+
+// An ERR's code is one of ProtocolFrames.def's, and its detail a token the
+// file gives that code or, for a code it gives none, a frame TYPE.
+void checkErrorAgainstTable(const FrameParser& frame)
+{
+    const char* code = frame.field(1);
+    bool defined = false;
+    for (const char* known : ERROR_CODES) {
+        defined = defined || strcmp(known, code) == 0;
+    }
+    require(defined, "the board sent an ERR code ProtocolFrames.def does not define");
+    const char* detail = frame.field(2);
+    bool codeHasTokens = false;
+    for (const ErrorDetailSpec& spec : ERROR_DETAILS) {
+        if (listsWord(spec.codes, code)) {
+            codeHasTokens = true;
+            if (strcmp(spec.token, detail) == 0) {
+                return;
+            }
+        }
+    }
+    require(!codeHasTokens && isFrameType(detail),
+            "the board sent an ERR detail ProtocolFrames.def does not give its code");
+}
+
 const FrameSpec* specOf(const char* type)
 {
     for (const FrameSpec& spec : FRAME_SPECS) {
@@ -77,6 +138,9 @@ void checkAgainstTable(const FrameParser& frame)
         }
     }
     require(frame.fieldCount() == index, "a board frame has more fields than ProtocolFrames.def");
+    if (frame.typeIs(Protocol::Tag::ERR)) {
+        checkErrorAgainstTable(frame);
+    }
 }
 
 // The commands the board read (as its own parser saw them), which it still

@@ -17,7 +17,8 @@
 // when setup() runs. Checked for every board:
 // - every byte it sends belongs to a "$...\r\n" line that its own
 //   FrameParser accepts, of a BOARD type of ProtocolFrames.def with exactly
-//   its fields, numbers where the table says so;
+//   its fields, numbers where the table says so; an ERR's code and detail
+//   token defined there for each other (a code without tokens: a TYPE);
 // - SEQ counts up by one from boot, so no built frame is dropped;
 // - every command it reads is answered with ACK or ERR carrying the
 //   command's SEQ (ACK: and type) in the same loop pass, in order; frames of

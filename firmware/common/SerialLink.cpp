@@ -6,18 +6,20 @@
 
 #include "Watchdog.h"
 
+namespace Detail = Protocol::ErrorDetail;
+
 static const char* malformedName(Protocol::MalformedReason reason)
 {
     switch (reason) {
-    case Protocol::MALFORMED_TRUNCATED: return "TRUNCATED";
-    case Protocol::MALFORMED_TOO_LONG: return "TOO_LONG";
-    case Protocol::MALFORMED_BAD_CHAR: return "BAD_CHAR";
-    case Protocol::MALFORMED_NO_CHECKSUM: return "NO_CHECKSUM";
-    case Protocol::MALFORMED_BAD_CHECKSUM: return "BAD_CHECKSUM";
-    case Protocol::MALFORMED_BAD_TYPE: return "BAD_TYPE";
-    case Protocol::MALFORMED_BAD_SEQ: return "BAD_SEQ";
-    case Protocol::MALFORMED_TOO_MANY_FIELDS: return "TOO_MANY_FIELDS";
-    default: return "UNKNOWN";
+    case Protocol::MALFORMED_TRUNCATED: return Detail::TRUNCATED;
+    case Protocol::MALFORMED_TOO_LONG: return Detail::TOO_LONG;
+    case Protocol::MALFORMED_BAD_CHAR: return Detail::BAD_CHAR;
+    case Protocol::MALFORMED_NO_CHECKSUM: return Detail::NO_CHECKSUM;
+    case Protocol::MALFORMED_BAD_CHECKSUM: return Detail::BAD_CHECKSUM;
+    case Protocol::MALFORMED_BAD_TYPE: return Detail::BAD_TYPE;
+    case Protocol::MALFORMED_BAD_SEQ: return Detail::BAD_SEQ;
+    case Protocol::MALFORMED_TOO_MANY_FIELDS: return Detail::TOO_MANY_FIELDS;
+    default: return "UNKNOWN";  // MALFORMED_NONE, which is never reported
     }
 }
 
@@ -47,7 +49,7 @@ bool SerialLink::poll()
             if (!malformedReported_ || now - lastMalformedReportMs_ >= MALFORMED_REPORT_MS) {
                 malformedReported_ = true;
                 lastMalformedReportMs_ = now;
-                report("BAD_FRAME", malformedName(parser_.lastMalformedReason()));
+                report(Protocol::Error::BAD_FRAME, malformedName(parser_.lastMalformedReason()));
             }
         }
         if (complete && !Protocol::isBoardFrame(parser_.type())) {
@@ -56,12 +58,6 @@ bool SerialLink::poll()
         }
     }
     return false;
-}
-
-FrameWriter& SerialLink::start(const char* type)
-{
-    writer_.begin(type, nextSeq_++);
-    return writer_;
 }
 
 void SerialLink::send()
@@ -81,13 +77,13 @@ void SerialLink::send()
     type[typeLength] = '\0';
     // An ERR always fits; the guard keeps a broken writer from recursing.
     if (strcmp(type, Protocol::Tag::ERR) != 0) {
-        report("FRAME_ENCODE", type);
+        report(Protocol::Error::FRAME_ENCODE, type);
     }
 }
 
 void SerialLink::sendVersion(const char* device, const char* firmwareVersion)
 {
-    FrameWriter& frame = start(Protocol::Tag::VER);
+    FrameWriter& frame = start(Protocol::Frame::VER);
     frame.addText(device);
     frame.addText(firmwareVersion);
     frame.addUnsigned(Protocol::VERSION);
@@ -99,31 +95,21 @@ void SerialLink::announceStart(const char* device, const char* firmwareVersion)
 {
     sendVersion(device, firmwareVersion);
     if (resetWasAbnormal()) {
-        report("RESET", resetCauseName());
+        report(Protocol::Error::RESET, resetCauseName());
     }
 }
 
 void SerialLink::acknowledge()
 {
-    FrameWriter& frame = start(Protocol::Tag::ACK);
+    FrameWriter& frame = start(Protocol::Frame::ACK);
     frame.addUnsigned(parser_.seq());
     frame.addText(parser_.type());
     send();
 }
 
-void SerialLink::reject(const char* code, const char* detail)
-{
-    sendError(parser_.seq(), code, detail);
-}
-
-void SerialLink::report(const char* code, const char* detail)
-{
-    sendError(-1, code, detail);
-}
-
 void SerialLink::sendError(int32_t commandSeq, const char* code, const char* detail)
 {
-    FrameWriter& frame = start(Protocol::Tag::ERR);
+    FrameWriter& frame = start(Protocol::Frame::ERR);
     frame.addInt(commandSeq);
     frame.addText(code);
     frame.addText(detail);

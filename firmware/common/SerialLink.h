@@ -36,10 +36,17 @@ public:
     // millis() when the last valid frame from the host arrived.
     uint32_t lastHostFrameMs() const { return lastHostFrameMs_; }
 
-    // Starts a frame with the next sequence number; add fields, then send().
-    // A frame that does not encode is not sent; it is counted and reported
-    // as ERR FRAME_ENCODE with its type.
-    FrameWriter& start(const char* type);
+    // Starts a frame with the next sequence number; add the type's fields,
+    // then send(). A frame that does not encode (too long, a bad character,
+    // another field count than its type's) is not sent; it is counted and
+    // reported as ERR FRAME_ENCODE with its type. Like reject() and report(),
+    // always inline: a call that takes a FrameType or ErrorCode whole reads
+    // the constant from memory, which on the AVR keeps it in RAM.
+    __attribute__((always_inline)) FrameWriter& start(Protocol::FrameType type)
+    {
+        writer_.begin(type, nextSeq_++);
+        return writer_;
+    }
     void send();
     uint16_t encodeFailures() const { return encodeFailures_; }
 
@@ -49,8 +56,17 @@ public:
     void announceStart(const char* device, const char* firmwareVersion);
 
     void acknowledge();
-    void reject(const char* code, const char* detail);
-    void report(const char* code, const char* detail);
+    // ERR answering the current command, and ERR on the board's own account
+    // (cmd_seq -1); codes and fixed details come from Protocol::Error and
+    // Protocol::ErrorDetail.
+    __attribute__((always_inline)) void reject(Protocol::ErrorCode code, const char* detail)
+    {
+        sendError(parser_.seq(), code.text, detail);
+    }
+    __attribute__((always_inline)) void report(Protocol::ErrorCode code, const char* detail)
+    {
+        sendError(-1, code.text, detail);
+    }
 
 private:
     void sendError(int32_t commandSeq, const char* code, const char* detail);

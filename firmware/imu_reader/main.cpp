@@ -15,6 +15,9 @@
 
 namespace {
 
+namespace Error = Protocol::Error;
+namespace Detail = Protocol::ErrorDetail;
+
 const char FIRMWARE_VERSION[] = "0.2.0";
 // CTRL_REG1_XM runs the accelerometer at 100 Hz; data-ready is polled only
 // near the end of each period, so sampling follows the sensor's own clock.
@@ -89,9 +92,9 @@ uint32_t lastSensorAttemptMs = 0;
 const char* sensorStatusName(Lsm9ds0Accel::Status status)
 {
     switch (status) {
-    case Lsm9ds0Accel::Status::NoAnswer: return "NO_ANSWER";
-    case Lsm9ds0Accel::Status::WrongId: return "WRONG_ID";
-    case Lsm9ds0Accel::Status::WriteFailed: return "WRITE_FAILED";
+    case Lsm9ds0Accel::Status::NoAnswer: return Detail::NO_ANSWER;
+    case Lsm9ds0Accel::Status::WrongId: return Detail::WRONG_ID;
+    case Lsm9ds0Accel::Status::WriteFailed: return Detail::WRITE_FAILED;
     default: return "OK";
     }
 }
@@ -114,7 +117,7 @@ void connectSensor()
         resetFilters();
         lastSampleMs = lastSensorAttemptMs;
     } else {
-        link.report("SENSOR_MISSING", sensorStatusName(status));
+        link.report(Error::SENSOR_MISSING, sensorStatusName(status));
     }
 }
 
@@ -122,18 +125,18 @@ void sensorLost(const char* why)
 {
     sensorReady = false;
     lastSensorAttemptMs = millis();
-    link.report("SENSOR_MISSING", why);
+    link.report(Error::SENSOR_MISSING, why);
 }
 
-// The ERR code for a block that cannot be used; 0 for a good or blank one.
-const char* blockErrorCode(BlockStatus status)
+// The ERR code for a block that cannot be used; false for a good or blank one.
+bool blockErrorCode(BlockStatus status, Protocol::ErrorCode& code)
 {
     switch (status) {
-    case BlockStatus::BadMagic: return "EEPROM_MAGIC";
-    case BlockStatus::BadVersion: return "EEPROM_VERSION";
-    case BlockStatus::BadCrc: return "EEPROM_CRC";
-    case BlockStatus::BadValues: return "EEPROM_VALUES";
-    default: return 0;
+    case BlockStatus::BadMagic: code = Error::EEPROM_MAGIC; return true;
+    case BlockStatus::BadVersion: code = Error::EEPROM_VERSION; return true;
+    case BlockStatus::BadCrc: code = Error::EEPROM_CRC; return true;
+    case BlockStatus::BadValues: code = Error::EEPROM_VALUES; return true;
+    default: return false;
     }
 }
 
@@ -149,8 +152,9 @@ void loadCoefficients()
     loadDefaultCoefficients(coefficients);
     coefficientSource = FROM_DEFAULTS;
     // A blank EEPROM (never saved) is normal; a damaged block is worth saying.
-    if (const char* code = blockErrorCode(status)) {
-        link.report(code, "DEFAULTS");
+    Protocol::ErrorCode code;
+    if (blockErrorCode(status, code)) {
+        link.report(code, Detail::DEFAULTS);
     }
 }
 
@@ -171,7 +175,7 @@ void saveCoefficients()
 void sendImuFrame(const int16_t raw[AXES], const float filtered[AXES], const float compensated[AXES],
                   float temperatureC, CompSet set)
 {
-    FrameWriter& frame = link.start(Protocol::Tag::IMU);
+    FrameWriter& frame = link.start(Protocol::Frame::IMU);
     frame.addUnsigned(millis());
     for (uint8_t axis = 0; axis < AXES; ++axis) {
         frame.addInt(raw[axis]);
@@ -193,7 +197,7 @@ void sample(uint32_t now)
     int16_t raw[AXES];
     int16_t temperatureRaw;
     if (!sensor.readAcceleration(raw) || !sensor.readTemperatureRaw(temperatureRaw)) {
-        sensorLost("READ_FAILED");
+        sensorLost(Detail::READ_FAILED);
         return;
     }
     // Read all the same, so the sensor hands over its next sample. While the
@@ -240,7 +244,7 @@ bool parseSetAndAxis(const FrameParser& command, uint8_t& set, uint8_t& axis)
 
 void sendCoefficients(uint8_t set, uint8_t axis)
 {
-    FrameWriter& frame = link.start(Protocol::Tag::COE);
+    FrameWriter& frame = link.start(Protocol::Frame::COE);
     frame.addChar(set == 0 ? 'W' : 'C');
     frame.addChar((char)('X' + axis));
     for (uint8_t term = 0; term < COMP_COEFFICIENT_COUNT; ++term) {
@@ -251,7 +255,7 @@ void sendCoefficients(uint8_t set, uint8_t axis)
 
 void sendConfiguration()
 {
-    FrameWriter& frame = link.start(Protocol::Tag::ICF);
+    FrameWriter& frame = link.start(Protocol::Frame::ICF);
     frame.addUnsigned(decimator.factor());
     frame.addUnsigned(streaming ? 1 : 0);
     frame.addChar(coefficientSource);
@@ -283,14 +287,14 @@ void handleCommand()
         int32_t factor = 0;
         if (command.fieldCount() < Protocol::FieldCount::SETDEC || !command.fieldInt(0, factor) ||
             factor < 1 || factor > 255) {
-            link.reject("BAD_ARG", "FACTOR_1_255");
+            link.reject(Error::BAD_ARG, Detail::FACTOR_1_255);
             return;
         }
         decimator.setFactor((uint8_t)factor);
         link.acknowledge();
     } else if (link.commandIs(Protocol::Tag::GETCOE)) {
         if (command.fieldCount() < Protocol::FieldCount::GETCOE || !parseSetAndAxis(command, set, axis)) {
-            link.reject("BAD_ARG", "SET_AXIS");
+            link.reject(Error::BAD_ARG, Detail::SET_AXIS);
             return;
         }
         sendCoefficients(set, axis);
@@ -302,11 +306,11 @@ void handleCommand()
             valid = command.fieldFloat((uint8_t)(2 + term), surface.p[term]) && isfinite(surface.p[term]);
         }
         if (!valid) {
-            link.reject("BAD_ARG", "COEFFICIENTS");
+            link.reject(Error::BAD_ARG, Detail::COEFFICIENTS);
             return;
         }
         if (!surfaceOutputFitsFrame(surface)) {
-            link.reject("BAD_ARG", "OUTPUT_TOO_LARGE");
+            link.reject(Error::BAD_ARG, Detail::OUTPUT_TOO_LARGE);
             return;
         }
         coefficients.set[set].axis[axis] = surface;
@@ -326,7 +330,7 @@ void handleCommand()
         startCommandedReset();
         resetting = true;
     } else {
-        link.reject("UNKNOWN_CMD", command.type());
+        link.reject(Error::UNKNOWN_CMD, command.type());
     }
 }
 
@@ -366,7 +370,7 @@ void loop()
             lastSampleMs = now;
             sample(now);
         } else if (now - lastSampleMs >= SENSOR_SILENT_MS) {
-            sensorLost("NO_DATA");
+            sensorLost(Detail::NO_DATA);
         }
     }
     idleUntilInterrupt();

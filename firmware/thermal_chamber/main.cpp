@@ -19,6 +19,9 @@
 
 namespace {
 
+namespace Error = Protocol::Error;
+namespace Detail = Protocol::ErrorDetail;
+
 const char FIRMWARE_VERSION[] = "0.2.0";
 // The reference (inner) face is the controlled one; the outer face is the
 // heatsink side, watched because each face's temperature depends on the other.
@@ -74,36 +77,36 @@ DriveCommand drive = {0, Direction::Off};
 const char* faultName(Fault value)
 {
     switch (value) {
-    case INNER_OPEN: return "INNER_OPEN";
-    case INNER_SHORT: return "INNER_SHORT";
-    case OUTER_OPEN: return "OUTER_OPEN";
-    case OUTER_SHORT: return "OUTER_SHORT";
-    case INNER_HOT: return "INNER_HOT";
-    case INNER_COLD: return "INNER_COLD";
-    case OUTER_HOT: return "OUTER_HOT";
-    case OUTER_COLD: return "OUTER_COLD";
-    case NO_RESPONSE: return "NO_RESPONSE";
-    case WRONG_WAY: return "WRONG_WAY";
-    case HOLD_LOST: return "HOLD_LOST";
-    case HOST_SILENT: return "HOST_SILENT";
+    case INNER_OPEN: return Detail::INNER_OPEN;
+    case INNER_SHORT: return Detail::INNER_SHORT;
+    case OUTER_OPEN: return Detail::OUTER_OPEN;
+    case OUTER_SHORT: return Detail::OUTER_SHORT;
+    case INNER_HOT: return Detail::INNER_HOT;
+    case INNER_COLD: return Detail::INNER_COLD;
+    case OUTER_HOT: return Detail::OUTER_HOT;
+    case OUTER_COLD: return Detail::OUTER_COLD;
+    case NO_RESPONSE: return Detail::NO_RESPONSE;
+    case WRONG_WAY: return Detail::WRONG_WAY;
+    case HOLD_LOST: return Detail::HOLD_LOST;
+    case HOST_SILENT: return Detail::HOST_SILENT;
     default: return "OK";
     }
 }
 
 // The ERR code a fault is reported with.
-const char* faultCategory(Fault value)
+Protocol::ErrorCode faultCategory(Fault value)
 {
     switch (value) {
     case INNER_OPEN:
     case INNER_SHORT:
     case OUTER_OPEN:
-    case OUTER_SHORT: return "THERMISTOR";
+    case OUTER_SHORT: return Error::THERMISTOR;
     case INNER_HOT:
     case INNER_COLD:
     case OUTER_HOT:
-    case OUTER_COLD: return "LIMIT";
-    case HOST_SILENT: return "HEARTBEAT";
-    default: return "RUNAWAY";
+    case OUTER_COLD: return Error::LIMIT;
+    case HOST_SILENT: return Error::HEARTBEAT;
+    default: return Error::RUNAWAY;
     }
 }
 
@@ -185,7 +188,7 @@ char directionLetter(Direction direction)
 
 void sendStatus(uint32_t now)
 {
-    FrameWriter& frame = link.start(Protocol::Tag::CHS);
+    FrameWriter& frame = link.start(Protocol::Frame::CHS);
     frame.addUnsigned(now);
     frame.addChar(phaseLetter());
     frame.addUnsigned(running ? programState.step : 0);
@@ -276,7 +279,7 @@ bool parseHoldStart(const char* text, HoldStart& value)
 void sendProgram()
 {
     const ProgramSettings& settings = program.settings();
-    FrameWriter& frame = link.start(Protocol::Tag::PRG);
+    FrameWriter& frame = link.start(Protocol::Frame::PRG);
     frame.addFixed(settings.start_c, 2);
     frame.addFixed(settings.max_c, 2);
     frame.addFixed(settings.step_c, 2);
@@ -309,7 +312,7 @@ static_assert(GUARD_FIELD_COUNT + 1 == Protocol::FieldCount::GRD, "GRD carries t
 void sendGuard()
 {
     const GuardSettings& settings = guard.settings();
-    FrameWriter& frame = link.start(Protocol::Tag::GRD);
+    FrameWriter& frame = link.start(Protocol::Frame::GRD);
     for (uint8_t i = 0; i < GUARD_FIELD_COUNT; ++i) {
         frame.addFixed(settings.*GUARD_FIELDS[i].member, GUARD_FIELDS[i].decimals);
     }
@@ -320,15 +323,15 @@ void sendGuard()
 const char* programErrorName(ProgramError error)
 {
     switch (error) {
-    case ProgramError::StartOutOfRange: return "START_RANGE";
-    case ProgramError::MaxOutOfRange: return "MAX_RANGE";
-    case ProgramError::StartNotBelowMax: return "START_GE_MAX";
-    case ProgramError::StepNotPositive: return "STEP_LE_0";
-    case ProgramError::StepLargerThanSpan: return "STEP_GT_SPAN";
-    case ProgramError::StepTooSmall: return "STEP_TOO_SMALL";
-    case ProgramError::HoldZero: return "HOLD_0";
-    case ProgramError::CycleTooLong: return "TOO_LONG";
-    case ProgramError::HoldStartUnknown: return "HOLD_START_TFA";
+    case ProgramError::StartOutOfRange: return Detail::START_RANGE;
+    case ProgramError::MaxOutOfRange: return Detail::MAX_RANGE;
+    case ProgramError::StartNotBelowMax: return Detail::START_GE_MAX;
+    case ProgramError::StepNotPositive: return Detail::STEP_LE_0;
+    case ProgramError::StepLargerThanSpan: return Detail::STEP_GT_SPAN;
+    case ProgramError::StepTooSmall: return Detail::STEP_TOO_SMALL;
+    case ProgramError::HoldZero: return Detail::HOLD_0;
+    case ProgramError::CycleTooLong: return Detail::TOO_LONG;
+    case ProgramError::HoldStartUnknown: return Detail::HOLD_START_TFA;
     default: return "OK";
     }
 }
@@ -348,13 +351,13 @@ void setProgram(const FrameParser& command)
                   (command.fieldCount() == holdStartField ||
                    parseHoldStart(command.field(holdStartField), settings.hold_start));
     if (running) {
-        link.reject("BUSY", "STOP_FIRST");
+        link.reject(Error::BUSY, Detail::STOP_FIRST);
         return;
     }
     // A refused program must not leave an older one for START to run.
     programAccepted = false;
     if (!parsed) {
-        link.reject("BAD_ARG", "SETPRG_FIELDS");
+        link.reject(Error::BAD_ARG, Detail::SETPRG_FIELDS);
         return;
     }
     settings.hold_s = (uint32_t)hold;
@@ -362,7 +365,7 @@ void setProgram(const FrameParser& command)
     settings.cycles = (uint16_t)cycles;
     ProgramError error = program.configure(settings);
     if (error != ProgramError::None) {
-        link.reject("BAD_ARG", programErrorName(error));
+        link.reject(Error::BAD_ARG, programErrorName(error));
         return;
     }
     programAccepted = true;
@@ -381,7 +384,7 @@ void setControl(const FrameParser& command)
         ++chosen;
     }
     if (!parsed || chosen > CONTROL_PR) {
-        link.reject("BAD_ARG", "SETCTL_FIELDS");
+        link.reject(Error::BAD_ARG, Detail::SETCTL_FIELDS);
         return;
     }
     controlMode = (ControlMode)chosen;
@@ -395,9 +398,9 @@ void setControl(const FrameParser& command)
 const char* guardErrorName(GuardError error)
 {
     switch (error) {
-    case GuardError::CheckOutOfRange: return "CHECK_RANGE";
-    case GuardError::LimitOutOfRange: return "LIMIT_RANGE";
-    case GuardError::LimitsInverted: return "LIMIT_MIN_GE_MAX";
+    case GuardError::CheckOutOfRange: return Detail::CHECK_RANGE;
+    case GuardError::LimitOutOfRange: return Detail::LIMIT_RANGE;
+    case GuardError::LimitsInverted: return Detail::LIMIT_MIN_GE_MAX;
     default: return "OK";
     }
 }
@@ -410,12 +413,12 @@ void setGuard(const FrameParser& command)
         parsed = command.fieldFloat(i, settings.*GUARD_FIELDS[i].member);
     }
     if (!parsed) {
-        link.reject("BAD_ARG", "SETGRD_FIELDS");
+        link.reject(Error::BAD_ARG, Detail::SETGRD_FIELDS);
         return;
     }
     GuardError error = guard.configure(settings);
     if (error != GuardError::None) {
-        link.reject("BAD_ARG", guardErrorName(error));
+        link.reject(Error::BAD_ARG, guardErrorName(error));
         return;
     }
     link.acknowledge();
@@ -426,7 +429,7 @@ void setHeartbeat(const FrameParser& command)
     int32_t seconds = 0;
     if (command.fieldCount() < Protocol::FieldCount::SETHB || !command.fieldInt(0, seconds) || seconds < 0 ||
         seconds > MAX_HEARTBEAT_S) {
-        link.reject("BAD_ARG", "HEARTBEAT_0_3600");
+        link.reject(Error::BAD_ARG, Detail::HEARTBEAT_0_3600);
         return;
     }
     heartbeatS = (uint16_t)seconds;
@@ -441,7 +444,7 @@ void clearFault()
         present = faultOf(guard.limitFault(inner.celsius, outer.celsius));
     }
     if (present != NO_FAULT) {
-        link.reject("FAULT", faultName(present));
+        link.reject(Error::FAULT, faultName(present));
         return;
     }
     fault = NO_FAULT;
@@ -454,11 +457,11 @@ void handleCommand(uint32_t now)
     const FrameParser& command = link.command();
     if (link.commandIs(Protocol::Tag::START)) {
         if (fault != NO_FAULT) {
-            link.reject("FAULT", faultName(fault));
+            link.reject(Error::FAULT, faultName(fault));
             return;
         }
         if (!programAccepted) {
-            link.reject("NO_PROGRAM", "SETPRG_FIRST");
+            link.reject(Error::NO_PROGRAM, Detail::SETPRG_FIRST);
             return;
         }
         running = true;
@@ -488,7 +491,7 @@ void handleCommand(uint32_t now)
     } else if (link.commandIs(Protocol::Tag::CLEAR)) {
         clearFault();
     } else {
-        link.reject("UNKNOWN_CMD", command.type());
+        link.reject(Error::UNKNOWN_CMD, command.type());
     }
 }
 

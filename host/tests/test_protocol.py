@@ -131,18 +131,73 @@ def test_table_matches_brief():
     }
 
 
+def load_generator():
+    spec = importlib.util.spec_from_file_location("generator", HOST_DIR / "tools" / "generate_protocol_spec.py")
+    generator = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(generator)
+    return generator
+
+
 def test_generated_spec_is_fresh():
     if not DEFINITION.exists():
         pytest.skip("not in the ThermoTilt repository: no ProtocolFrames.def")
-    spec = importlib.util.spec_from_file_location(
-        "generator", HOST_DIR / "tools" / "generate_protocol_spec.py"
-    )
-    generator = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(generator)
-    expected = generator.render(DEFINITION.read_text())
+    expected = load_generator().render(DEFINITION.read_text())
     assert Path(protocol_spec.__file__).read_text() == expected, (
         "thermotilt/protocol_spec.py is stale: run host/tools/generate_protocol_spec.py"
     )
+
+
+def docs_err_table(text):
+    """docs/protocol.md's ERR table as [(code, {token in its detail cell})]; a
+    token is a back-quoted upper-case word of two characters or more."""
+    section = text[text.index("### ERR") :]
+    section = section[: section.index("\n## ")]
+    rows = []
+    for line in section.splitlines():
+        cells = [cell.strip() for cell in line.strip().strip("|").split("|")]
+        code = re.fullmatch(r"`([A-Z][A-Z0-9_]+)`", cells[0])
+        if len(cells) == 3 and code:
+            rows.append((code.group(1), set(re.findall(r"`([A-Z][A-Z0-9_]+)`", cells[2]))))
+    return rows
+
+
+def test_docs_err_table_has_every_code_and_detail_token_of_the_definition():
+    docs = REPO_DIR / "docs" / "protocol.md"
+    if not docs.exists():
+        pytest.skip("not in the ThermoTilt repository: no docs/protocol.md")
+    rows = docs_err_table(docs.read_text())
+    assert [code for code, _ in rows] == list(protocol_spec.ERRORS), "docs/protocol.md's ERR rows differ from the .def's codes"
+    for code, documented in rows:
+        assert documented == set(protocol_spec.ERRORS[code][1]), f"ERR {code}: detail tokens differ"
+
+
+def test_the_chamber_codes_the_docs_once_lacked_are_defined():
+    assert protocol_spec.ERRORS["THERMISTOR"][1] == ("INNER_OPEN", "INNER_SHORT", "OUTER_OPEN", "OUTER_SHORT")
+    assert protocol_spec.ERRORS["BUSY"][1] == ("STOP_FIRST",)
+    assert "HOLD_LOST" in protocol_spec.ERRORS["FAULT"][1]
+    assert protocol_spec.ERRORS["UNKNOWN_CMD"][1] == ()
+
+
+@pytest.mark.parametrize(
+    "lines, complaint",
+    [
+        (['THERMOTILT_ERROR(BUSY, "one")', 'THERMOTILT_ERROR(BUSY, "two")'], "defined twice"),
+        (['THERMOTILT_ERROR(BUSY, "one")', 'THERMOTILT_ERROR_DETAIL(STOP_FIRST, "BUSY IDLE")'], "no ERR code IDLE"),
+        (
+            [
+                'THERMOTILT_ERROR(BUSY, "one")',
+                'THERMOTILT_ERROR_DETAIL(STOP_FIRST, "BUSY")',
+                'THERMOTILT_ERROR_DETAIL(STOP_FIRST, "BUSY")',
+            ],
+            "defined twice",
+        ),
+        (["THERMOTILT_ERROR(busy, one)"], "expected form"),
+    ],
+)
+def test_generator_refuses_a_broken_error_table(lines, complaint):
+    generator = load_generator()
+    with pytest.raises(generator.DefinitionError, match=complaint):
+        generator.parse_errors("\n".join(lines) + "\n")
 
 
 def test_docs_show_every_frame():

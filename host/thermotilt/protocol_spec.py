@@ -192,3 +192,156 @@ FRAMES = {
     "DEFCOE": ("host", ()),
     "RESET": ("host", ()),
 }
+
+# ERR code: (when a board sends it, (detail tokens, ...)); a code without
+# tokens carries a frame TYPE as its detail
+ERRORS = {
+    "BAD_FRAME": (
+        "a malformed line arrived (unsolicited, cmd_seq -1); the detail is the reason",
+        (
+            "TRUNCATED",
+            "TOO_LONG",
+            "BAD_CHAR",
+            "NO_CHECKSUM",
+            "BAD_CHECKSUM",
+            "BAD_TYPE",
+            "BAD_SEQ",
+            "TOO_MANY_FIELDS",
+        ),
+    ),
+    "UNKNOWN_CMD": (
+        "TYPE is not a command of this board; the detail is the TYPE",
+        (),
+    ),
+    "BAD_ARG": (
+        "too few fields or a value out of range; the detail names the argument",
+        (
+            "TOO_LONG",
+            "FACTOR_1_255",
+            "SET_AXIS",
+            "COEFFICIENTS",
+            "OUTPUT_TOO_LARGE",
+            "SETPRG_FIELDS",
+            "START_RANGE",
+            "MAX_RANGE",
+            "START_GE_MAX",
+            "STEP_LE_0",
+            "STEP_GT_SPAN",
+            "STEP_TOO_SMALL",
+            "HOLD_0",
+            "HOLD_START_TFA",
+            "SETCTL_FIELDS",
+            "SETGRD_FIELDS",
+            "CHECK_RANGE",
+            "LIMIT_RANGE",
+            "LIMIT_MIN_GE_MAX",
+            "HEARTBEAT_0_3600",
+        ),
+    ),
+    "SENSOR_MISSING": (
+        "imu: the LSM9DS0 does not answer, has the wrong id or stops delivering samples",
+        (
+            "NO_ANSWER",
+            "WRONG_ID",
+            "WRITE_FAILED",
+            "READ_FAILED",
+            "NO_DATA",
+        ),
+    ),
+    "EEPROM_MAGIC": (
+        "imu, at start-up: a written EEPROM without the coefficient block's magic",
+        (
+            "DEFAULTS",
+        ),
+    ),
+    "EEPROM_VERSION": (
+        "imu, at start-up: a coefficient block of another format version",
+        (
+            "DEFAULTS",
+        ),
+    ),
+    "EEPROM_CRC": (
+        "imu, at start-up: the coefficient block fails its CRC",
+        (
+            "DEFAULTS",
+        ),
+    ),
+    "EEPROM_VALUES": (
+        "imu, at start-up: a block with a sound CRC holding a surface SETCOE would refuse",
+        (
+            "DEFAULTS",
+        ),
+    ),
+    "RESET": (
+        "right after VER at start-up, when the last reset was abnormal",
+        (
+            "WATCHDOG",
+            "BROWNOUT",
+        ),
+    ),
+    "FRAME_ENCODE": (
+        "a frame did not encode and was not sent; the detail is its TYPE",
+        (),
+    ),
+    "THERMISTOR": (
+        "chamber: a thermistor reads open or short; bridge off, latched",
+        (
+            "INNER_OPEN",
+            "INNER_SHORT",
+            "OUTER_OPEN",
+            "OUTER_SHORT",
+        ),
+    ),
+    "LIMIT": (
+        "chamber: a face passed its absolute limit; bridge off, latched",
+        (
+            "INNER_HOT",
+            "INNER_COLD",
+            "OUTER_HOT",
+            "OUTER_COLD",
+        ),
+    ),
+    "RUNAWAY": (
+        "chamber: the inner face did not follow the drive; bridge off, latched",
+        (
+            "NO_RESPONSE",
+            "WRONG_WAY",
+            "HOLD_LOST",
+        ),
+    ),
+    "HEARTBEAT": (
+        "chamber: no frame from the host for heartbeat_s while running; bridge off, latched",
+        (
+            "HOST_SILENT",
+        ),
+    ),
+    "FAULT": (
+        "chamber: START or CLEAR refused because of a fault; the detail is the fault",
+        (
+            "INNER_OPEN",
+            "INNER_SHORT",
+            "OUTER_OPEN",
+            "OUTER_SHORT",
+            "INNER_HOT",
+            "INNER_COLD",
+            "OUTER_HOT",
+            "OUTER_COLD",
+            "NO_RESPONSE",
+            "WRONG_WAY",
+            "HOLD_LOST",
+            "HOST_SILENT",
+        ),
+    ),
+    "NO_PROGRAM": (
+        "chamber: START without an accepted SETPRG",
+        (
+            "SETPRG_FIRST",
+        ),
+    ),
+    "BUSY": (
+        "chamber: SETPRG while a program runs",
+        (
+            "STOP_FIRST",
+        ),
+    ),
+}

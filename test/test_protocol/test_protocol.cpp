@@ -250,6 +250,45 @@ static void test_writer_errs(void)
     TEST_ASSERT_NULL(writer.finish());
 }
 
+static void test_writer_checks_the_field_count_of_its_frame_type(void)
+{
+    FrameWriter writer(buffer, sizeof buffer);
+    writer.begin(Protocol::Frame::ACK, 1);
+    writer.addUnsigned(12);
+    TEST_ASSERT_NULL(writer.finish());
+
+    writer.begin(Protocol::Frame::ACK, 2);
+    writer.addUnsigned(12);
+    writer.addText("STOP");
+    TEST_ASSERT_EQUAL_STRING("$ACK,2,12,STOP*3255\r\n", writer.finish());
+
+    writer.begin(Protocol::Frame::ACK, 3);
+    writer.addUnsigned(12);
+    writer.addText("STOP");
+    writer.addText("EXTRA");
+    TEST_ASSERT_NULL(writer.finish());
+
+    writer.begin(Protocol::Frame::START, 4);
+    TEST_ASSERT_EQUAL_STRING("$START,4*D018\r\n", writer.finish());
+
+    // Begun with a bare TYPE, the writer takes any number of fields.
+    writer.begin(Protocol::Tag::ACK, 5);
+    writer.addUnsigned(12);
+    TEST_ASSERT_EQUAL_STRING("$ACK,5,12*DDFE\r\n", writer.finish());
+}
+
+static void test_error_codes_and_details_are_their_tokens(void)
+{
+    FrameWriter writer(buffer, sizeof buffer);
+    writer.begin(Protocol::Frame::ERR, 6);
+    writer.addInt(-1);
+    writer.addText(Protocol::Error::BAD_ARG.text);
+    writer.addText(Protocol::ErrorDetail::SET_AXIS);
+    TEST_ASSERT_EQUAL_STRING("$ERR,6,-1,BAD_ARG,SET_AXIS*A39D\r\n", writer.finish());
+    TEST_ASSERT_EQUAL_STRING("THERMISTOR", Protocol::Error::THERMISTOR.text);
+    TEST_ASSERT_EQUAL_STRING("STOP_FIRST", Protocol::ErrorDetail::STOP_FIRST);
+}
+
 static void test_directions(void)
 {
     TEST_ASSERT_TRUE(Protocol::isBoardFrame(Protocol::Tag::IMU));
@@ -274,6 +313,8 @@ int runUnityTests(void)
     RUN_TEST(test_numbers);
     RUN_TEST(test_seq_wrap);
     RUN_TEST(test_writer_errs);
+    RUN_TEST(test_writer_checks_the_field_count_of_its_frame_type);
+    RUN_TEST(test_error_codes_and_details_are_their_tokens);
     RUN_TEST(test_directions);
     return UNITY_END();
 }

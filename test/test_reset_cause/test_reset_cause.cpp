@@ -4,6 +4,8 @@
 
 #include "ResetCause.h"
 
+#include <Protocol.h>
+
 // The MCUSR bits as the ATmega328P and ATmega2560 datasheets number them.
 static const uint8_t PORF = 1 << 0;
 static const uint8_t EXTRF = 1 << 1;
@@ -86,6 +88,22 @@ static void test_every_name_is_a_frame_token(void)
     }
 }
 
+// After an abnormal reset a board sends ERR RESET with the name as its
+// detail, which ProtocolFrames.def defines for RESET: WATCHDOG or BROWNOUT.
+static void test_every_abnormal_reset_is_named_by_a_RESET_detail_token(void)
+{
+    for (uint16_t flags = 0; flags < 16; ++flags) {
+        for (uint8_t marked = 0; marked < 2; ++marked) {
+            if (!ResetCause::wasAbnormal((uint8_t)flags, marked != 0)) {
+                continue;
+            }
+            const char* text = ResetCause::name((uint8_t)flags, marked != 0);
+            TEST_ASSERT_TRUE(strcmp(text, Protocol::ErrorDetail::WATCHDOG) == 0 ||
+                             strcmp(text, Protocol::ErrorDetail::BROWNOUT) == 0);
+        }
+    }
+}
+
 int runUnityTests(void)
 {
     UNITY_BEGIN();
@@ -97,5 +115,6 @@ int runUnityTests(void)
     RUN_TEST(test_a_marked_reset_without_flags_was_commanded);
     RUN_TEST(test_another_cause_overrides_the_marker);
     RUN_TEST(test_every_name_is_a_frame_token);
+    RUN_TEST(test_every_abnormal_reset_is_named_by_a_RESET_detail_token);
     return UNITY_END();
 }

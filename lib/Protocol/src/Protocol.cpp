@@ -116,15 +116,22 @@ bool Protocol::isBoardFrame(const char *type)
 }
 
 FrameWriter::FrameWriter(char *buffer, uint16_t capacity)
-    : buffer_(buffer), contentLimit_(0), length_(0), fieldCount_(0), ok_(false), finished_(false)
+    : buffer_(buffer),
+      contentLimit_(0),
+      length_(0),
+      fieldCount_(0),
+      expectedFieldCount_(ANY_FIELD_COUNT),
+      ok_(false),
+      finished_(false)
 {
     uint16_t limit = capacity > TRAILER_SIZE ? (uint16_t)(capacity - TRAILER_SIZE) : 0u;
     const uint8_t longestContent = MAX_LINE - 1 - CHECKSUM_DIGITS;
     contentLimit_ = limit > longestContent ? longestContent : (uint8_t)limit;
 }
 
-void FrameWriter::begin(const char *type, uint16_t seq)
+void FrameWriter::beginFrame(const char *type, uint16_t seq, uint8_t expectedFieldCount)
 {
+    expectedFieldCount_ = expectedFieldCount;
     length_ = 0;
     finished_ = false;
     ok_ = isValidType(type);
@@ -244,7 +251,7 @@ void FrameWriter::addChar(char value)
 
 const char *FrameWriter::finish()
 {
-    if (!ok_) {
+    if (!ok_ || (expectedFieldCount_ != ANY_FIELD_COUNT && fieldCount_ != expectedFieldCount_)) {
         return 0;
     }
     if (!finished_) {

@@ -2,13 +2,12 @@
 #define THERMOTILT_PROTOCOL_H
 
 // ThermoTilt serial frames: $TYPE,SEQ,field,...*HHHH\r\n (see docs/protocol.md).
-// Frame types and fields are defined once, in ProtocolFrames.def.
+// Frame types and fields, ERR codes and their detail tokens are defined once,
+// in ProtocolFrames.def.
 
 #include <stdint.h>
 
-#define THERMOTILT_FRAME(tag, direction, fields)
 #include "ProtocolFrames.def"
-#undef THERMOTILT_FRAME
 
 namespace Protocol {
 
@@ -47,6 +46,48 @@ namespace FieldCount {
 #undef THERMOTILT_FRAME
 }
 
+// A frame type with its field count, e.g. Protocol::Frame::ACK. A FrameWriter
+// begun with one refuses to finish a frame with another number of fields.
+// On the AVR a constant like this lives in RAM once a call takes it whole, so
+// only inline functions take it and pass its members on.
+struct FrameType {
+    const char *tag;
+    uint8_t fieldCount;
+};
+
+namespace Frame {
+#define THERMOTILT_FRAME(tag, direction, fields) constexpr FrameType tag = {Tag::tag, FieldCount::tag};
+#include "ProtocolFrames.def"
+#undef THERMOTILT_FRAME
+}
+
+// An ERR frame's code, e.g. Protocol::Error::BAD_ARG. The boards' SerialLink
+// takes only this type (inline, as FrameType), so a board cannot send a code
+// that is not defined.
+struct ErrorCode {
+    const char *text;
+};
+
+namespace ErrorText {
+#define THERMOTILT_ERROR(code, meaning) constexpr char code[] = #code;
+#include "ProtocolFrames.def"
+#undef THERMOTILT_ERROR
+}
+
+namespace Error {
+#define THERMOTILT_ERROR(code, meaning) constexpr ErrorCode code = {ErrorText::code};
+#include "ProtocolFrames.def"
+#undef THERMOTILT_ERROR
+}
+
+// Detail tokens of ERR frames, e.g. Protocol::ErrorDetail::FACTOR_1_255. Like
+// string literals they take RAM on the AVR, and only where a board uses them.
+namespace ErrorDetail {
+#define THERMOTILT_ERROR_DETAIL(token, codes) constexpr char token[] = #token;
+#include "ProtocolFrames.def"
+#undef THERMOTILT_ERROR_DETAIL
+}
+
 // True for the types a board sends (IMU, CHS, ACK, ERR, ...): a board never
 // answers those, so an echoing terminal cannot make it talk to itself.
 bool isBoardFrame(const char *type);
@@ -69,14 +110,21 @@ uint16_t checksum(const char *text, uint8_t length);
 }  // namespace Protocol
 
 // Builds one frame in a caller-supplied buffer. Any error (overflow, bad
-// type, forbidden character in text, more than MAX_FIELDS fields) is
-// remembered and makes finish() fail, so a sketch can add all fields and
-// check once.
+// type, forbidden character in text, more than MAX_FIELDS fields, another
+// field count than the FrameType's) is remembered and makes finish() fail,
+// so a sketch can add all fields and check once.
 class FrameWriter {
 public:
     FrameWriter(char *buffer, uint16_t capacity);
 
-    void begin(const char *type, uint16_t seq);
+    // A frame of a defined type: finish() fails unless exactly its field
+    // count was added.
+    __attribute__((always_inline)) void begin(Protocol::FrameType type, uint16_t seq)
+    {
+        beginFrame(type.tag, seq, type.fieldCount);
+    }
+    // Any valid TYPE with any number of fields (tools, tests, fuzzing).
+    void begin(const char *type, uint16_t seq) { beginFrame(type, seq, ANY_FIELD_COUNT); }
     void addInt(int32_t value);
     void addUnsigned(uint32_t value);
     // Fixed point, e.g. addFixed(-12.345f, 2) -> "-12.35". Magnitudes of 1e9
@@ -94,6 +142,9 @@ public:
     bool ok() const { return ok_; }
 
 private:
+    static const uint8_t ANY_FIELD_COUNT = 0xFF;
+
+    void beginFrame(const char *type, uint16_t seq, uint8_t expectedFieldCount);
     bool startField();
     void append(const char *text);
     bool addNonFinite(float value);
@@ -102,6 +153,7 @@ private:
     uint8_t contentLimit_;
     uint8_t length_;
     uint8_t fieldCount_;
+    uint8_t expectedFieldCount_;
     bool ok_;
     bool finished_;
 };
