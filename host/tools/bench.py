@@ -8,10 +8,17 @@ their own, and runs build/native/integrity_bench (the twin's wire fault into
 the firmware's frame parser). Prints figures; asserts nothing (the targets,
 20x real time on one core and at most one corrupted frame accepted per
 million at a 0.1 % byte error rate, are for a person to compare).
+
+`bench.py --scatter [--seed N] [--disable TERM ...]` instead runs issue 7's
+long check of the sensor's scatter (about 40 minutes on one core): a
+campaign subset through the twin and `thermotilt fit`'s RMS errors beside
+Tables 2-3, and both field tests' RMS about the 25 degC reading before and
+after the firmware's compensation beside section 4.3.
 """
 
 from __future__ import annotations
 
+import argparse
 import subprocess
 import tempfile
 import time
@@ -20,9 +27,11 @@ from pathlib import Path
 import numpy as np
 
 from thermotilt import simulate
-from thermotilt.calibration.dataset import Campaign, SetData
+from thermotilt.calibration.dataset import Campaign, SetData, load
 from thermotilt.calibration.families import compare_families
 from thermotilt.calibration.fit import fit_surface
+from thermotilt.calibration.paper import FIELD_RMS_LSB, TABLES
+from thermotilt.calibration.validate import validate
 from thermotilt.protocol import build_frame
 from thermotilt.twin import Board
 from thermotilt.physics import Chamber, Model, Sensor
@@ -114,7 +123,54 @@ def families_seconds() -> tuple[float, int]:
     return time.perf_counter() - begin, temperature.size
 
 
+# The campaign subset of docs/calibration.md and docs/physics-model.md, fitted
+# like `thermotilt fit --settle-seconds 5`.
+SCATTER_POSITIONS = ("0", "X+30", "X-30", "X+15", "X-15", "Y+30", "Y-30")
+SCATTER_OPTIONS = ScenarioOptions(hold_s=30, rest_s=60, positions=SCATTER_POSITIONS)
+SCATTER_SETTLE_S = 5.0
+# Section 4.3 compensated each field run with one column of Tables 2-3.
+FIELD_SETS = {"field-warming": "W", "field-cooling": "C"}
+
+
+def scatter(model: Model, seed: int) -> None:
+    """Issue 7: what the twin's sensor leaves to the paper's fit and field check."""
+    off = [name for name in model.terms if not model.enabled(name)]
+    print(f"scatter, seed {seed}, terms off: {', '.join(off) or 'none'}")
+    with tempfile.TemporaryDirectory() as scratch:
+        out = Path(scratch) / "campaign"
+        summary = simulate.run(build("campaign", SCATTER_OPTIONS), model, out, seed=seed).summary
+        campaign = load(out, settle_s=SCATTER_SETTLE_S)
+        print(f"campaign {','.join(SCATTER_POSITIONS)}, {SCATTER_OPTIONS.hold_s} s holds: "
+              f"{summary['sim_seconds']:.0f} s simulated in {summary['wall_seconds']:.0f} s")
+        for axis in ("X", "Y"):
+            for set_name in ("W", "C"):
+                fit = fit_surface(campaign.sets[set_name], set_name, axis)
+                paper = TABLES[(axis, set_name)].rmse
+                print(f"  {axis} {set_name}: RMSE {fit.rmse:5.2f} LSB, Tables 2-3 {paper:5.2f} "
+                      f"(x {fit.rmse / paper:.2f}), {fit.points} points")
+        for name, set_name in FIELD_SETS.items():
+            out = Path(scratch) / name
+            summary = simulate.run(build(name, ScenarioOptions()), model, out, seed=seed).summary
+            validation = validate(out)
+            low, high = validation.temperature_range_c
+            print(f"{name}: the IMU read {low:.2f}..{high:.2f} degC; "
+                  f"{summary['sim_seconds']:.0f} s simulated in {summary['wall_seconds']:.0f} s")
+            for axis in ("X", "Y"):
+                result = validation.result(set_name, axis)
+                before, after = FIELD_RMS_LSB[(name, axis)]
+                print(f"  {axis}: RMS before {result.rms_before_lsb:6.1f} (paper {before:3.0f}), "
+                      f"after {result.rms_after_lsb:5.2f} (paper {after:2.0f}) LSB")
+
+
 def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scatter", action="store_true", help="issue 7's long check instead")
+    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--disable", action="append", default=[], metavar="TERM")
+    args = parser.parse_args()
+    if args.scatter:
+        scatter(Model.load().with_terms({name: False for name in args.disable}), args.seed)
+        return
     model = Model.load()
     chamber_us, sensor_us = physics_step_us(model)
     print(f"physics: chamber step {chamber_us:.1f} us, sensor step {sensor_us:.1f} us "
