@@ -15,6 +15,7 @@ from thermotilt.runlog import read_run_log
 from thermotilt.scenarios import campaign_positions
 
 from test_log import wait_for
+from twin_helpers import pty_twin
 
 THERMOTILT = [sys.executable, "-m", "thermotilt"]
 # 1 s timed holds: a 58 s cycle, about 2 wall seconds per position.
@@ -138,21 +139,8 @@ def test_all_is_the_papers_37_positions():
 @pytest.fixture
 def idle_twin(tmp_path):
     """Both firmware images idle behind pseudo-terminals, the table at X+30."""
-    twin = subprocess.Popen([*THERMOTILT, "simulate", "idle", "--pty", "--incl-x", "30", "--duration", "3000",
-                             "--out", str(tmp_path / "twin")],
-                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
-    try:
-        ports = {}
-        while len(ports) < 2:
-            line = twin.stdout.readline()
-            assert line, "the twin ended before announcing its ports"
-            board, _, path = line.strip().partition(": ")
-            if path.startswith("/dev/"):
-                ports[board] = path
+    with pty_twin(tmp_path / "twin", "idle", "--incl-x", "30", "--duration", "3000") as ports:
         yield ports
-    finally:
-        twin.send_signal(signal.SIGINT)
-        twin.wait(timeout=60)
 
 
 def boards_campaign(ports, out, answers, *extra):
@@ -194,5 +182,5 @@ def test_boards_campaign_without_a_board_is_one_line(tmp_path):
                              "--positions", "0", *SHORT], input="\n", capture_output=True, text=True,
                             timeout=60, check=False)
     assert result.returncode == 1
-    assert result.stderr.count("\n") == 1 and "0 failed: serial port:" in result.stderr
+    assert result.stderr.count("\n") == 1 and "1 position(s) failed: 0: serial port:" in result.stderr
     assert campaign_file(tmp_path / "c")["positions"][0]["status"] == "failed"

@@ -9,7 +9,6 @@ through a pseudo-terminal with pyserial and with `thermotilt log`.
 """
 
 import json
-import signal
 import subprocess
 import sys
 import time
@@ -23,6 +22,8 @@ from thermotilt.coefficients import PAPER_DEFAULTS
 from thermotilt.protocol import FrameReader, build_frame
 from thermotilt.runlog import ALL_COLUMNS, read_run_log
 from thermotilt.scenarios import ScenarioOptions, build
+
+from twin_helpers import pty_twin
 
 THERMOTILT = [sys.executable, "-m", "thermotilt"]
 # Stated in the README: the cycle's compensated X and Y stay within this many
@@ -263,16 +264,8 @@ def test_bad_use_is_one_readable_line(tmp_path):
 
 def test_the_twin_through_pseudo_terminals(tmp_path):
     out = tmp_path / "twin"
-    twin = subprocess.Popen([*THERMOTILT, "simulate", "cycle", "--pty", "--out", str(out)],
-                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
-    try:
-        ports = {}
-        while len(ports) < 2:
-            line = twin.stdout.readline()
-            assert line, "the twin ended before announcing its ports"
-            board, _, path = line.strip().partition(": ")
-            if path.startswith("/dev/"):
-                ports[board] = path
+    # Leaving the context is Ctrl-C: the twin stops and keeps what it simulated.
+    with pty_twin(out, "cycle") as ports:
         with serial.Serial(ports["imu_reader"], 115200, timeout=2) as imu:
             imu.write(build_frame("VERSION", 0).encode())
             reader = FrameReader()
@@ -288,10 +281,6 @@ def test_the_twin_through_pseudo_terminals(tmp_path):
              ports["thermal_chamber"], "--out", str(logged), "--rows", "100"],
             capture_output=True, text=True, timeout=120, check=False)
         assert result.returncode == 0, result.stderr
-    finally:
-        # Ctrl-C: the twin stops and keeps what it simulated.
-        twin.send_signal(signal.SIGINT)
-        twin.wait(timeout=60)
     assert json.loads((out / "summary.json").read_text())["interrupted"] is True
     logged_rows = read_run_log(str(logged))
     assert len(logged_rows) == 100

@@ -11,11 +11,9 @@ significant digits, the 148-byte block) and from the fit written here.
 
 import json
 import os
-import signal
 import struct
 import subprocess
 import sys
-from contextlib import contextmanager
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -36,6 +34,7 @@ from thermotilt.simulate import SimulationError
 from thermotilt.twin import Board
 
 from firmware_helpers import of_type
+from twin_helpers import pty_twin
 from test_bad_input import assert_one_line_error
 from test_bad_input import thermotilt as run
 
@@ -92,24 +91,10 @@ def assert_printed_equal(read: dict, table) -> None:
 # ---- through the twin's pseudo-terminals, as a user runs it ---------------
 
 
-@contextmanager
 def idle_twin(out: Path, *options):
     """`thermotilt simulate idle --pty` (its hour is far more than a test
     needs at ~20x real time): the two ports, then Ctrl-C."""
-    process = subprocess.Popen([*THERMOTILT, "simulate", "idle", "--pty", "--out", str(out), *map(str, options)],
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        ports = {}
-        while len(ports) < 2:
-            line = process.stdout.readline()
-            assert line, f"the twin ended before announcing its ports: {process.stderr.read()}"
-            board, _, path = line.strip().partition(": ")
-            if path.startswith("/dev/"):
-                ports[board] = path
-        yield ports
-    finally:
-        process.send_signal(signal.SIGINT)
-        process.communicate(timeout=60)
+    return pty_twin(out, "idle", *options)
 
 
 def test_upload_round_trip_through_the_twins_ports(fit_dir, tmp_path):

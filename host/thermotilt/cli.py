@@ -8,9 +8,9 @@ import json
 import os
 import sys
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
-from typing import IO, NoReturn, Sequence, TypeVar
+from typing import IO, TYPE_CHECKING, NoReturn, Sequence, TypeVar
 
 from tqdm import tqdm
 
@@ -25,6 +25,9 @@ from .coefficients import (
 )
 from .protocol import PROTOCOL_VERSION, FrameReader
 from .scenarios import CONTROLLERS, DEFAULT_HOLD_START, HOLD_STARTS
+
+if TYPE_CHECKING:
+    from .calibration.campaign import CampaignOutcome, PositionRecord
 
 PROGRAM = "thermotilt"
 # 128 + SIGINT, what a shell reports for a command stopped by Ctrl-C.
@@ -242,6 +245,20 @@ def _eeprom_block(path: str) -> bytes:
     return data
 
 
+def announced_ports(lines: Iterable[str], boards: int = 2) -> dict[str, str]:
+    """The pseudo-terminals `simulate --pty` announces ("imu_reader:
+    /dev/pts/3") among its output lines, by board; EOFError when the lines
+    end first."""
+    ports = {}
+    for line in lines:
+        board, _, path = line.strip().partition(": ")
+        if path.startswith("/dev/"):
+            ports[board] = path
+            if len(ports) == boards:
+                return ports
+    raise EOFError("the twin ended before announcing its ports")
+
+
 def _print_figures(scenario_name: str, rows: list[dict[str, str]]) -> None:
     """The paper's numbers for the scenarios that have them."""
     from .figures import drift_figures, fig8_figures, fig8_table, holds
@@ -293,10 +310,10 @@ def _command_log(args: argparse.Namespace) -> int:
 
 def _command_campaign(args: argparse.Namespace) -> int:
     from .calibration.campaign import (
-        DONE,
-        FAILED,
+        BoardsCampaign,
+        BoardsSetup,
         CampaignError,
-        PositionRecord,
+        Position,
         TwinCampaign,
         TwinSetup,
         select_positions,
@@ -306,62 +323,8 @@ def _command_campaign(args: argparse.Namespace) -> int:
     boards = args.imu_port is not None or args.chamber_port is not None
     if args.twin == boards or (boards and not (args.imu_port and args.chamber_port)):
         raise UsageError("campaign needs --twin, or --imu-port and --chamber-port for real boards")
-    if boards:
-        return _boards_campaign(args)
-    setup = TwinSetup(
-        ScenarioOptions(hold_s=args.hold_seconds, rest_s=args.rest_seconds, ambient_c=args.ambient,
-                        hold_start=args.hold_start, controller=args.controller),
-        seed=args.seed, model_path=args.model, enable=tuple(args.enable), disable=tuple(args.disable),
-    )
-    out_dir = Path(args.out)
-    try:
-        campaign = TwinCampaign(out_dir, select_positions(args.positions), setup,
-                                resume=args.resume, force=args.force)
-    except CampaignError as error:
-        raise UsageError(str(error)) from None
-    done = len(campaign.positions) - len(campaign.todo)
-    jobs = min(args.jobs, max(1, len(campaign.todo)))
-    print(f"campaign of {len(campaign.positions)} positions -> {out_dir}"
-          + (f" ({done} already done)" if done else "")
-          + f": {len(campaign.todo)} to run, {campaign.position_seconds:.0f} s simulated each, "
-            f"{jobs} at a time", flush=True)
-
-    def report(record: PositionRecord) -> None:
-        line = f"{record.label}: {record.status}"
-        if record.status == DONE:
-            line += f" in {record.wall_seconds:.0f} s"
-        if record.error:
-            line += f" ({record.error})"
-        tqdm.write(line, file=sys.stdout)
-        for error in record.reported_errors:
-            tqdm.write(f"{record.label}: reported {error}", file=sys.stdout)
-
-    total = round(len(campaign.todo) * campaign.position_seconds)
-    with tqdm(total=total, unit="sim s", disable=None, file=sys.stderr) as bar:
-        outcome = campaign.run(jobs, progress=bar.update, on_position=report)
-    if outcome.interrupted:
-        print("kept every finished position; add --resume to run the others")
-        return _interrupted()
-    failed = [record for record in outcome.records if record.status == FAILED]
-    if failed:
-        raise UsageError(f"{len(failed)} position(s) failed: "
-                         + "; ".join(f"{record.label}: {record.error}" for record in failed))
-    print(f"all {len(outcome.records)} positions done; fit them with: thermotilt fit {out_dir} --out FIT_DIR")
-    return 0
-
-
-def _boards_campaign(args: argparse.Namespace) -> int:
-    from .calibration.campaign import (
-        DONE,
-        FAILED,
-        BoardsCampaign,
-        BoardsSetup,
-        CampaignError,
-        Position,
-        PositionRecord,
-        select_positions,
-    )
-    from .scenarios import ScenarioOptions
+    program = ScenarioOptions(hold_s=args.hold_seconds, rest_s=args.rest_seconds, ambient_c=args.ambient,
+                              hold_start=args.hold_start, controller=args.controller)
 
     def confirm(position: Position) -> bool:
         prompt = (f"Set the tilt table to {position.label} (X {position.incl_x_deg:+g} deg, "
@@ -372,31 +335,60 @@ def _boards_campaign(args: argparse.Namespace) -> int:
             print("\nno answer: standard input is closed")
             return False
 
-    setup = BoardsSetup(args.imu_port, args.chamber_port,
-                        ScenarioOptions(hold_s=args.hold_seconds, rest_s=args.rest_seconds, ambient_c=args.ambient,
-                                        hold_start=args.hold_start, controller=args.controller),
-                        confirm, baud=args.baud, heartbeat_s=args.heartbeat_seconds)
     out_dir = Path(args.out)
     try:
-        campaign = BoardsCampaign(out_dir, select_positions(args.positions), setup,
-                                  resume=args.resume, force=args.force)
+        positions = select_positions(args.positions)
+        if boards:
+            campaign = BoardsCampaign(out_dir, positions, BoardsSetup(
+                args.imu_port, args.chamber_port, program, confirm, baud=args.baud,
+                heartbeat_s=args.heartbeat_seconds), resume=args.resume, force=args.force)
+        else:
+            campaign = TwinCampaign(out_dir, positions, TwinSetup(
+                program, seed=args.seed, model_path=args.model, enable=tuple(args.enable),
+                disable=tuple(args.disable)), resume=args.resume, force=args.force)
     except CampaignError as error:
         raise UsageError(str(error)) from None
-    print(f"campaign of {len(campaign.positions)} positions on {args.imu_port} and {args.chamber_port} "
-          f"-> {out_dir}: {len(campaign.todo)} to run", flush=True)
+    done = len(campaign.positions) - len(campaign.todo)
+    where = f" on {args.imu_port} and {args.chamber_port}" if boards else ""
+    print(f"campaign of {len(campaign.positions)} positions{where} -> {out_dir}"
+          + (f" ({done} already done)" if done else "") + f": {len(campaign.todo)} to run", end="")
+    if boards:
+        print(flush=True)
+        return _finish_campaign(campaign.run(on_position=_report_position), out_dir)
+    jobs = min(args.jobs, max(1, len(campaign.todo)))
+    print(f", {campaign.position_seconds:.0f} s simulated each at most, {jobs} at a time", flush=True)
+    total = round(len(campaign.todo) * campaign.position_seconds)
+    with tqdm(total=total, unit="sim s", disable=None, file=sys.stderr) as bar:
+        outcome = campaign.run(jobs, progress=bar.update, on_position=_report_position)
+    return _finish_campaign(outcome, out_dir)
 
-    def report(record: PositionRecord) -> None:
-        print(f"{record.label}: {record.status}"
-              + (f" in {record.wall_seconds:.0f} s" if record.status == DONE else "")
-              + (f" ({record.error})" if record.error else ""), flush=True)
 
-    outcome = campaign.run(on_position=report)
+def _report_position(record: PositionRecord) -> None:
+    from .calibration.campaign import DONE
+
+    line = f"{record.label}: {record.status}"
+    if record.status == DONE:
+        line += f" in {record.wall_seconds:.0f} s"
+    if record.error:
+        line += f" ({record.error})"
+    # Above the progress bar, if one is running.
+    tqdm.write(line, file=sys.stdout)
+    for error in record.reported_errors:
+        tqdm.write(f"{record.label}: reported {error}", file=sys.stdout)
+    sys.stdout.flush()
+
+
+def _finish_campaign(outcome: CampaignOutcome, out_dir: Path) -> int:
+    from .calibration.campaign import DONE, FAILED
+
     if outcome.interrupted:
         print("kept every finished position; add --resume to run the others")
         return _interrupted()
     failed = [record for record in outcome.records if record.status == FAILED]
     if failed:
-        raise UsageError(f"{failed[0].label} failed: {failed[0].error}; fix it, then add --resume")
+        raise UsageError(f"{len(failed)} position(s) failed: "
+                         + "; ".join(f"{record.label}: {record.error}" for record in failed)
+                         + "; fix it, then add --resume")
     left = [record.label for record in outcome.records if record.status != DONE]
     if left:
         raise UsageError(f"stopped with {len(left)} position(s) to run ({', '.join(left)}); "

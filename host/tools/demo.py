@@ -21,6 +21,8 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
+from thermotilt.cli import announced_ports
+
 THERMOTILT = [sys.executable, "-m", "thermotilt"]
 # Section 3.2's positions the issue asks for at least: 0, +-15, +-30, +-45 on X, +-30 on Y.
 POSITIONS = "0,X+15,X-15,X+30,X-30,X+45,X-45,Y+30,Y-30"
@@ -53,14 +55,10 @@ def upload_through_pty(fit: Path, board_dir: Path) -> Path:
     twin = subprocess.Popen([*THERMOTILT, "simulate", "idle", "--pty", "--out", str(board_dir), "--force"],
                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
     try:
-        ports = {}
-        while len(ports) < 2:
-            line = twin.stdout.readline()
-            if not line:
-                sys.exit("demo: the twin ended before announcing its ports")
-            board, _, path = line.strip().partition(": ")
-            if path.startswith("/dev/"):
-                ports[board] = path
+        try:
+            ports = announced_ports(twin.stdout)
+        except EOFError as error:
+            sys.exit(f"demo: {error}")
         thermotilt("upload", str(fit), "--port", ports["imu_reader"])
     finally:
         twin.send_signal(signal.SIGINT)

@@ -271,7 +271,22 @@ class CampaignOutcome:
     interrupted: bool
 
 
-class TwinCampaign:
+class _Campaign:
+    """campaign.json started (or resumed) in out_dir; ``todo`` the positions not yet done."""
+
+    def _start(self, out_dir: Path, positions: list[Position], header: dict[str, Any],
+               resume: bool, force: bool) -> None:
+        try:
+            out_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as error:
+            raise CampaignError(f"cannot create {out_dir}: {error.strerror or error}") from None
+        self.out_dir, self.positions = out_dir, positions
+        self.file = CampaignFile.start(out_dir, header, positions, resume, force)
+        self.todo = self.file.pending(positions)
+        self.file.save()
+
+
+class TwinCampaign(_Campaign):
     """A campaign in the twin: the plan checked and campaign.json started
     on construction, the positions not yet done run by ``run``."""
 
@@ -293,14 +308,8 @@ class TwinCampaign:
             "model": model.source,
             "terms": {name: model.enabled(name) for name in model.terms},
         }
-        try:
-            out_dir.mkdir(parents=True, exist_ok=True)
-        except OSError as error:
-            raise CampaignError(f"cannot create {out_dir}: {error.strerror or error}") from None
-        self.out_dir, self.positions, self.setup = out_dir, positions, setup
-        self.file = CampaignFile.start(out_dir, header, positions, resume, force)
-        self.todo = self.file.pending(positions)
-        self.file.save()
+        self.setup = setup
+        self._start(out_dir, positions, header, resume, force)
 
     def run(self, jobs: int, progress: Callable[[float], None] | None = None,
             on_position: Callable[[PositionRecord], None] | None = None) -> CampaignOutcome:
@@ -409,7 +418,7 @@ class BoardsSetup:
     heartbeat_s: int = DEFAULT_HEARTBEAT_S
 
 
-class BoardsCampaign:
+class BoardsCampaign(_Campaign):
     """A campaign on real boards, one position after another."""
 
     def __init__(self, out_dir: Path, positions: list[Position], setup: BoardsSetup,
@@ -421,14 +430,8 @@ class BoardsCampaign:
             "program": program_settings(setup.options),
             "ports": {"imu_reader": setup.imu_port, "thermal_chamber": setup.chamber_port},
         }
-        try:
-            out_dir.mkdir(parents=True, exist_ok=True)
-        except OSError as error:
-            raise CampaignError(f"cannot create {out_dir}: {error.strerror or error}") from None
-        self.out_dir, self.positions, self.setup = out_dir, positions, setup
-        self.file = CampaignFile.start(out_dir, header, positions, resume, force)
-        self.todo = self.file.pending(positions)
-        self.file.save()
+        self.setup = setup
+        self._start(out_dir, positions, header, resume, force)
 
     def run(self, on_position: Callable[[PositionRecord], None] | None = None) -> CampaignOutcome:
         for position in self.todo:

@@ -1,0 +1,30 @@
+"""The twin as a desk of boards for tests: `thermotilt simulate SCENARIO
+--pty` in a subprocess, its two pseudo-terminals, and Ctrl-C at the end."""
+
+import signal
+import subprocess
+import sys
+from contextlib import contextmanager
+from pathlib import Path
+
+import pytest
+
+from thermotilt.cli import announced_ports
+
+THERMOTILT = [sys.executable, "-m", "thermotilt"]
+
+
+@contextmanager
+def pty_twin(out: Path, scenario: str = "idle", *options):
+    """Yields {"imu_reader": path, "thermal_chamber": path}."""
+    process = subprocess.Popen([*THERMOTILT, "simulate", scenario, "--pty", "--out", str(out), *map(str, options)],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        try:
+            ports = announced_ports(process.stdout)
+        except EOFError:
+            pytest.fail(f"the twin ended before announcing its ports: {process.stderr.read()}")
+        yield ports
+    finally:
+        process.send_signal(signal.SIGINT)
+        process.communicate(timeout=60)
