@@ -31,18 +31,8 @@ from thermotilt.scenarios import (
     campaign_positions,
 )
 
-SENSOR_EFFECTS_OFF = {
-    "die_lag": False,
-    "drift": False,
-    "rate_sensitivity": False,
-    "temperature_offset": False,
-    "sensitivity_loss": False,
-    "noise": False,
-    "measuring_offset": False,
-    "drift_repeatability": False,
-    "bias_instability": False,
-}
-SCATTER_OFF = {"drift_repeatability": False, "bias_instability": False}
+from test_physics import SCATTER_OFF, SENSOR_EFFECTS_OFF
+
 # The paper's factor for "of the order of": what the issue asks of the twin.
 PAPER_FACTOR = 2.0
 
