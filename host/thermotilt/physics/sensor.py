@@ -41,6 +41,13 @@ class SensorSample:
     drift_z: float
     # The table position's index, a new mounting at every move.
     mounting: int
+    # The acceleration the registers were rounded from: ideal + drift + every
+    # additive error, before clipping and rounding.
+    unrounded_ax: float
+    unrounded_ay: float
+    unrounded_az: float
+    # The temperature the drift surfaces were evaluated at: the reported one.
+    drift_temperature_c: float
 
 
 def _clip_round(value: float, low: int, high: int) -> int:
@@ -175,24 +182,27 @@ class Sensor:
         for register in self._register:
             temperature_lsb = register(temperature_lsb)
 
+        # In SensorSample's field order: 19 keywords would cost 0.65 µs a step.
         return SensorSample(
-            ax=_clip_round(raw_x, INT16_MIN, INT16_MAX),
-            ay=_clip_round(raw_y, INT16_MIN, INT16_MAX),
-            az=_clip_round(raw_z, INT16_MIN, INT16_MAX),
-            temperature_raw=_clip_round(
-                temperature_lsb, _TEMPERATURE_RAW_MIN, _TEMPERATURE_RAW_MAX
-            ),
-            die_c=die,
-            reported_c=reported,
-            rate_c_per_s=rate,
-            drift_set=drift_set,
-            ideal_ax=ideal_x,
-            ideal_ay=ideal_y,
-            ideal_az=ideal_z,
-            drift_x=drift_x,
-            drift_y=drift_y,
-            drift_z=drift_z,
-            mounting=mounting,
+            _clip_round(raw_x, INT16_MIN, INT16_MAX),
+            _clip_round(raw_y, INT16_MIN, INT16_MAX),
+            _clip_round(raw_z, INT16_MIN, INT16_MAX),
+            _clip_round(temperature_lsb, _TEMPERATURE_RAW_MIN, _TEMPERATURE_RAW_MAX),
+            die,
+            reported,
+            rate,
+            drift_set,
+            ideal_x,
+            ideal_y,
+            ideal_z,
+            drift_x,
+            drift_y,
+            drift_z,
+            mounting,
+            raw_x,
+            raw_y,
+            raw_z,
+            reported,
         )
 
     def _update_trend(self, die: float) -> str:
