@@ -1,15 +1,36 @@
-"""The discovery workflow's candidate terms and the SensorSample fields
-the replay needs: the unrounded acceleration the registers were rounded
-from and the temperature the drift was evaluated at."""
+"""The discovery workflow's candidate terms: registered sensor terms, off
+by default, each checked against its formula as Sensor.step with the term
+on minus with it off, every default term (and its seeded draws) running in
+both; and the SensorSample fields the replay needs."""
 
 import math
+from pathlib import Path
 
+import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from thermotilt.physics import Model, Sensor
+from thermotilt.coefficients import PAPER_DEFAULTS
+from thermotilt.physics import DECLARATIONS, TERMS, Model, ModelError, Sensor
+from thermotilt.physics.terms import REGISTRY, SENSOR_STAGES, SensorContext
 
+from test_physics import CANDIDATES, SENSOR_EFFECTS_OFF
+
+DEFAULT_TOML = Path(__file__).resolve().parents[1] / "thermotilt" / "models" / "default.toml"
 PROPERTY = settings(max_examples=60, deadline=None)
+SOURCE = "candidate for discovery; no paper value"
+REFERENCE_C = 25.0
+AXES = "xyz"
+# Far below the register's ulp (3.6e-12 LSB at 16384) times the few sums of a step.
+EXACT = 1e-8
+
+STAGES = {
+    "sensor_lag": "structure",
+}
+DEFAULTS = {
+    "sensor_lag": {"time_constant_s": 30.0},
+}
 
 temperatures = st.floats(-10.0, 45.0)
 angles = st.floats(-90.0, 90.0)
@@ -21,6 +42,12 @@ paths = st.lists(st.tuples(temperatures, angles, angles), min_size=2, max_size=2
 seeds = st.integers(0, 2**32 - 1)
 
 
+def model_with(name, **values):
+    """The default model with one candidate switched on and these values."""
+    table = {"enabled": True, **DEFAULTS[name], **values}
+    return Model.from_document({name: table}, "test")
+
+
 def run(model, seed, path, dt_s=0.5):
     sensor = Sensor(model, seed, path[0][0])
     return [sensor.step(dt_s, *step) for step in path]
@@ -28,6 +55,113 @@ def run(model, seed, path, dt_s=0.5):
 
 def unrounded(sample):
     return sample.unrounded_ax, sample.unrounded_ay, sample.unrounded_az
+
+
+def ideal(sample):
+    return sample.ideal_ax, sample.ideal_ay, sample.ideal_az
+
+
+def drift(sample):
+    return sample.drift_x, sample.drift_y, sample.drift_z
+
+
+def errors(sample):
+    """What every term after the drift added."""
+    return tuple(u - i - d for u, i, d in zip(unrounded(sample), ideal(sample), drift(sample)))
+
+
+def same_temperatures(on, off):
+    for with_term, without in zip(on, off, strict=True):
+        assert (with_term.die_c, with_term.reported_c, with_term.rate_c_per_s,
+                with_term.drift_set, with_term.temperature_raw, with_term.mounting) == (
+            without.die_c, without.reported_c, without.rate_c_per_s,
+            without.drift_set, without.temperature_raw, without.mounting)
+
+
+def surfaces(drift_set, temperature_c, acceleration):
+    return tuple(PAPER_DEFAULTS.surface(drift_set, axis.upper()).evaluate(temperature_c, a)
+                 for axis, a in zip(AXES, acceleration))
+
+
+# --- registration -------------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", CANDIDATES)
+def test_each_candidate_is_a_registered_sensor_term_off_by_default(name):
+    assert name in TERMS
+    term = REGISTRY[name]
+    assert term.enabled_by_default is False
+    assert term.stage == STAGES[name] and term.stage in SENSOR_STAGES
+    enabled, *parameters = DECLARATIONS[name]
+    assert (enabled.name, enabled.default) == ("enabled", False)
+    assert {p.name: p.default for p in parameters} == DEFAULTS[name]
+    assert all(p.source == SOURCE and p.why for p in parameters)
+
+
+def test_the_candidates_stages_run_in_order():
+    stages = list(SENSOR_STAGES)
+    assert stages.index("reported") < stages.index("structure") < stages.index("drift")
+
+
+@pytest.mark.parametrize("name", CANDIDATES)
+def test_a_switched_off_candidate_binds_nothing(name):
+    context = SensorContext(16393.0, lambda: 0.0, lambda: 0.5, np.random.default_rng)
+    term = REGISTRY[name](Model.load().terms[name])
+    assert term.bind(context) is None
+    switched = REGISTRY[name](Model.load().with_terms({name: True}).terms[name])
+    assert callable(switched.bind(context))
+
+
+# --- model files --------------------------------------------------------------
+
+
+def test_default_toml_states_each_candidate_switched_off():
+    model = Model.load(DEFAULT_TOML)
+    for name in CANDIDATES:
+        assert model.terms[name] == {"enabled": False, **DEFAULTS[name]}
+    assert model.terms == Model.load().terms
+
+
+def test_a_model_file_without_the_candidate_tables_loads_them_switched_off(tmp_path):
+    text = DEFAULT_TOML.read_text(encoding="utf-8")
+    before = text[: text.index("# Candidates:")]
+    assert all(f"[{name}]" not in before for name in CANDIDATES)
+    path = tmp_path / "older.toml"
+    path.write_text(before, encoding="utf-8")
+    older = Model.load(path)
+    assert older.terms == Model.load().terms
+    assert not any(older.enabled(name) for name in CANDIDATES)
+
+
+def test_a_model_file_may_switch_one_candidate_on(tmp_path):
+    path = tmp_path / "lagging.toml"
+    path.write_text("[sensor_lag]\nenabled = true\ntime_constant_s = 12.5\n", encoding="utf-8")
+    model = Model.load(path)
+    assert model.terms["sensor_lag"] == {"enabled": True, "time_constant_s": 12.5}
+    assert not any(model.enabled(name) for name in CANDIDATES if name != "sensor_lag")
+    path.write_text("[sensor_lag]\nenabled = true\n", encoding="utf-8")
+    with pytest.raises(ModelError, match=r"\[sensor_lag\] missing parameter 'time_constant_s'"):
+        Model.load(path)
+
+
+@pytest.mark.parametrize(("name", "parameter", "value", "message"), [
+    ("sensor_lag", "time_constant_s", 0.0, "time_constant_s: must be > 0 and <= 3600 s"),
+    ("sensor_lag", "time_constant_s", -1.0, "time_constant_s: must be > 0 and <= 3600 s"),
+    ("sensor_lag", "time_constant_s", 3600.5, "time_constant_s: must be > 0 and <= 3600 s"),
+])
+def test_the_candidates_bounds_are_enforced(name, parameter, value, message):
+    with pytest.raises(ModelError, match=rf"\[{name}\] {message}"):
+        model_with(name, **{parameter: value})
+
+
+@pytest.mark.parametrize(("name", "parameter", "value"), [
+    ("sensor_lag", "time_constant_s", 3600.0),
+    ("sensor_lag", "time_constant_s", 1e-3),
+])
+def test_the_candidates_bounds_are_inclusive_where_stated(name, parameter, value):
+    model = model_with(name, **{parameter: value})
+    sample = Sensor(model, 1, 22.0).step(0.01, 23.0, 45.0, -45.0)
+    assert all(map(math.isfinite, unrounded(sample)))
 
 
 # --- the new SensorSample fields ----------------------------------------------
@@ -39,5 +173,43 @@ def test_the_registers_are_the_unrounded_acceleration_rounded(seed, path):
     for sample in run(Model.load(), seed, path):
         for register, value in zip((sample.ax, sample.ay, sample.az), unrounded(sample)):
             assert register == max(-32768, min(32767, math.floor(value + 0.5)))
-        # The drift is evaluated at the reported temperature.
+        # Without sensor_lag the drift is evaluated at the reported temperature.
         assert sample.drift_temperature_c == sample.reported_c
+
+
+# --- each candidate, on minus off ---------------------------------------------
+
+
+@PROPERTY
+@given(seed=seeds, path=paths, tau=st.floats(1e-3, 3600.0), dt_s=st.sampled_from([0.01, 0.5, 2.0]))
+def test_sensor_lag_evaluates_the_drift_at_a_lagged_reported_temperature(seed, path, tau, dt_s):
+    on = run(model_with("sensor_lag", time_constant_s=tau), seed, path, dt_s)
+    off = run(Model.load(), seed, path, dt_s)
+    same_temperatures(on, off)
+    # The structure starts at the first reported temperature: the die starts
+    # at the chamber's, the sensor reports it 1 degC low.
+    offset = Model.load().terms["temperature_offset"]["offset_c"]
+    structure = path[0][0] + offset
+    fraction = -math.expm1(-dt_s / tau)
+    for with_lag, without in zip(on, off):
+        structure += fraction * (with_lag.reported_c - structure)
+        assert with_lag.drift_temperature_c == pytest.approx(structure, abs=1e-9)
+        assert without.drift_temperature_c == without.reported_c
+        assert ideal(with_lag) == ideal(without)
+        expected = surfaces(with_lag.drift_set, with_lag.drift_temperature_c, ideal(with_lag))
+        assert drift(with_lag) == pytest.approx(expected, rel=1e-12, abs=EXACT)
+        added = tuple(a - b for a, b in zip(unrounded(with_lag), unrounded(without)))
+        lagged_minus_reported = tuple(
+            a - b for a, b in zip(expected, surfaces(with_lag.drift_set, with_lag.reported_c,
+                                                     ideal(with_lag))))
+        assert added == pytest.approx(lagged_minus_reported, rel=1e-9, abs=EXACT)
+        assert errors(with_lag) == pytest.approx(errors(without), abs=EXACT)
+
+
+def test_sensor_lag_is_first_order_and_leaves_the_register_alone():
+    quiet = Model.load().with_terms(SENSOR_EFFECTS_OFF | {"drift": True, "sensor_lag": True})
+    sensor = Sensor(quiet, seed=1, environment_c=20.0)
+    for _ in range(3000):  # 30 s, one time constant
+        sample = sensor.step(0.01, 30.0, 0.0, 0.0)
+    assert sample.reported_c == 30.0 and sample.temperature_raw == 72
+    assert sample.drift_temperature_c == pytest.approx(20.0 + 10.0 * (1 - math.exp(-1)), abs=1e-6)

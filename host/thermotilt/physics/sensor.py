@@ -46,7 +46,8 @@ class SensorSample:
     unrounded_ax: float
     unrounded_ay: float
     unrounded_az: float
-    # The temperature the drift surfaces were evaluated at: the reported one.
+    # The temperature the drift surfaces were evaluated at: the reported one,
+    # or the MEMS structure's lagged copy of it when sensor_lag is on.
     drift_temperature_c: float
 
 
@@ -83,12 +84,14 @@ class Sensor:
         "_schmitt_band",
         "_die",
         "_reported",
+        "_structure",
         "_gravity",
         "_ideal",
         "_drift",
         "_errors",
         "_register",
         "_die_c",
+        "_structure_c",
         "_trend_set",
         "_trend_extreme",
         "_angles",
@@ -124,6 +127,7 @@ class Sensor:
                 stages[term.stage].append(function)
         self._die = tuple(stages["die"])
         self._reported = tuple(stages["reported"])
+        self._structure = tuple(stages["structure"])
         (self._gravity,) = stages["gravity"]
         self._ideal = tuple(stages["ideal"])
         self._drift = stages["drift"][0] if stages["drift"] else None
@@ -131,6 +135,12 @@ class Sensor:
         self._register = tuple(stages["register"])
 
         self._die_c = float(environment_c)
+        # The MEMS structure starts at the temperature the sensor then
+        # reports, as the die starts at the environment's.
+        structure = self._die_c
+        for offset in self._reported:
+            structure = offset(structure)
+        self._structure_c = structure
         # Like the firmware's TrendDetector: starts warming, as the paper's cycles do.
         self._trend_set = "W"
         self._trend_extreme = self._die_c
@@ -155,6 +165,14 @@ class Sensor:
         reported = die
         for offset in self._reported:
             reported = offset(reported)
+        if self._structure:
+            previous_structure = self._structure_c
+            structure = reported
+            for lag in self._structure:
+                structure = lag(previous_structure, structure, dt_s)
+            self._structure_c = structure
+        else:
+            structure = reported
 
         if self._angles != (incl_x_deg, incl_y_deg):
             self._angles = (incl_x_deg, incl_y_deg)
@@ -166,7 +184,9 @@ class Sensor:
         ideal_x, ideal_y, ideal_z = self._acceleration
 
         if self._drift is not None:
-            drift_x, drift_y, drift_z = self._drift(drift_set, reported, ideal_x, ideal_y, ideal_z)
+            drift_x, drift_y, drift_z = self._drift(
+                drift_set, structure, ideal_x, ideal_y, ideal_z
+            )
             raw_x, raw_y, raw_z = ideal_x + drift_x, ideal_y + drift_y, ideal_z + drift_z
         else:
             drift_x = drift_y = drift_z = 0.0
@@ -202,7 +222,7 @@ class Sensor:
             raw_x,
             raw_y,
             raw_z,
-            reported,
+            structure,
         )
 
     def _update_trend(self, die: float) -> str:

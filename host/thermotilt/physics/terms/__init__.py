@@ -86,9 +86,11 @@ class ChamberTerm(Term):
 SENSOR_STAGES: Mapping[str, str] = {
     "die": "(previous die degC, target degC, dt s) -> die degC",
     "reported": "(die degC) -> the temperature the sensor reports, degC",
+    "structure": "(previous structure degC, reported degC, dt s) -> structure degC, the "
+    "temperature the drift is evaluated at; with no term here the reported one",
     "gravity": "(incl x deg, incl y deg) -> acceleration (x, y, z) LSB",
     "ideal": "(acceleration x, y, z) -> ideal acceleration (x, y, z) LSB",
-    "drift": "(set, reported degC, ideal x, y, z) -> thermal drift (x, y, z) LSB",
+    "drift": "(set, structure degC, ideal x, y, z) -> thermal drift (x, y, z) LSB",
     "error": "(set, reported degC, rate degC/s, dt s, mounting) -> additive error (x, y, z) "
     "LSB; mounting counts the table's positions from 0, one more at every move",
     "register": "(temperature LSB, unrounded) -> temperature LSB",

@@ -123,7 +123,8 @@ class Drift(SensorTerm):
     name = "drift"
     stage = "drift"
     summary = (
-        "f(T, a) per set and axis, warming set W or cooling set C, T the reported temperature"
+        "f(T, a) per set and axis, warming set W or cooling set C, T the reported temperature "
+        "(with `sensor_lag` on, the MEMS structure's lagged copy of it)"
     )
     parameters = (
         Parameter(
@@ -146,13 +147,13 @@ class Drift(SensorTerm):
         }
 
         def drift(
-            drift_set: str, reported_c: float, ideal_x: float, ideal_y: float, ideal_z: float
+            drift_set: str, temperature_c: float, ideal_x: float, ideal_y: float, ideal_z: float
         ) -> tuple[float, float, float]:
             surface_x, surface_y, surface_z = surfaces[drift_set]
             return (
-                _surface(surface_x, reported_c, ideal_x),
-                _surface(surface_y, reported_c, ideal_y),
-                _surface(surface_z, reported_c, ideal_z),
+                _surface(surface_x, temperature_c, ideal_x),
+                _surface(surface_y, temperature_c, ideal_y),
+                _surface(surface_z, temperature_c, ideal_z),
             )
 
         return drift
@@ -454,3 +455,38 @@ class BiasInstability(SensorTerm):
             return step(dt_s)
 
         return error
+
+
+# --- candidates: named effects the discovery workflow may switch on ---------
+#
+# Off by default; each default is a plausible magnitude once switched on.
+CANDIDATE_SOURCE = "candidate for discovery; no paper value"
+
+
+@register
+class SensorLag(SensorTerm):
+    name = "sensor_lag"
+    stage = "structure"
+    enabled_by_default = False
+    summary = (
+        "the MEMS structure lags the temperature sensor: the drift surfaces are evaluated at "
+        "a first-order lagged copy of the reported temperature (τ, starting at the first "
+        "reported temperature); the temperature register keeps the reported one"
+    )
+    parameters = (
+        Parameter(
+            "time_constant_s", Bounds(0.0, 3600.0, "s", low_exclusive=True), 30.0,
+            CANDIDATE_SOURCE,
+            "as `[die_lag]`; the LSM9DS0 is a system-in-package: its sensing element and "
+            "its temperature sensor share a 4 × 4 × 1 mm package, which does not lag itself "
+            "by hours",
+        ),
+    )
+
+    def bound(self, context: SensorContext) -> Callable[..., Any]:
+        fraction = LagFraction(self.values["time_constant_s"]).of_step
+
+        def structure(previous_c: float, reported_c: float, dt_s: float) -> float:
+            return previous_c + fraction(dt_s) * (reported_c - previous_c)
+
+        return structure
