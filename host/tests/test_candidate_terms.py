@@ -27,9 +27,11 @@ EXACT = 1e-8
 
 STAGES = {
     "sensor_lag": "structure",
+    "hysteresis": "error",
 }
 DEFAULTS = {
     "sensor_lag": {"time_constant_s": 30.0},
+    "hysteresis": {"cooling_offset_lsb": {"x": 20.0, "y": 20.0, "z": 0.0}},
 }
 
 temperatures = st.floats(-10.0, 45.0)
@@ -148,6 +150,8 @@ def test_a_model_file_may_switch_one_candidate_on(tmp_path):
     ("sensor_lag", "time_constant_s", 0.0, "time_constant_s: must be > 0 and <= 3600 s"),
     ("sensor_lag", "time_constant_s", -1.0, "time_constant_s: must be > 0 and <= 3600 s"),
     ("sensor_lag", "time_constant_s", 3600.5, "time_constant_s: must be > 0 and <= 3600 s"),
+    ("hysteresis", "cooling_offset_lsb", {"x": 32768.5, "y": 0.0, "z": 0.0},
+     r"cooling_offset_lsb\.x: must be >= -32768 and <= 32768 LSB"),
 ])
 def test_the_candidates_bounds_are_enforced(name, parameter, value, message):
     with pytest.raises(ModelError, match=rf"\[{name}\] {message}"):
@@ -157,6 +161,7 @@ def test_the_candidates_bounds_are_enforced(name, parameter, value, message):
 @pytest.mark.parametrize(("name", "parameter", "value"), [
     ("sensor_lag", "time_constant_s", 3600.0),
     ("sensor_lag", "time_constant_s", 1e-3),
+    ("hysteresis", "cooling_offset_lsb", {"x": -32768.0, "y": 32768.0, "z": 0.0}),
 ])
 def test_the_candidates_bounds_are_inclusive_where_stated(name, parameter, value):
     model = model_with(name, **{parameter: value})
@@ -213,3 +218,30 @@ def test_sensor_lag_is_first_order_and_leaves_the_register_alone():
         sample = sensor.step(0.01, 30.0, 0.0, 0.0)
     assert sample.reported_c == 30.0 and sample.temperature_raw == 72
     assert sample.drift_temperature_c == pytest.approx(20.0 + 10.0 * (1 - math.exp(-1)), abs=1e-6)
+
+
+@PROPERTY
+@given(seed=seeds, path=paths,
+       offset=st.fixed_dictionaries({axis: st.floats(-32768.0, 32768.0) for axis in AXES}))
+def test_hysteresis_adds_its_offset_while_the_trend_set_is_cooling(seed, path, offset):
+    on = run(model_with("hysteresis", cooling_offset_lsb=offset), seed, path)
+    off = run(Model.load(), seed, path)
+    same_temperatures(on, off)
+    for with_term, without in zip(on, off):
+        assert (ideal(with_term), drift(with_term)) == (ideal(without), drift(without))
+        added = tuple(a - b for a, b in zip(unrounded(with_term), unrounded(without)))
+        if with_term.drift_set == "C":
+            expected = tuple(offset[axis] for axis in AXES)
+        else:
+            expected = (0.0, 0.0, 0.0)
+        assert added == pytest.approx(expected, rel=1e-12, abs=EXACT)
+
+
+def test_hysteresis_follows_the_sets_of_a_warming_then_cooling_path():
+    # 25 -> 26 warms; 25 and 24 are more than the 0.5 degC band below the peak.
+    quiet = Model.load().with_terms(SENSOR_EFFECTS_OFF | {"hysteresis": True})
+    sensor = Sensor(quiet, 1, 25.0)
+    samples = [sensor.step(0.01, t, 0.0, 0.0) for t in (25.0, 26.0, 25.0, 24.0)]
+    assert [s.drift_set for s in samples] == ["W", "W", "C", "C"]
+    assert [(s.ax, s.ay, s.az) for s in samples] == [(0, 0, 16393), (0, 0, 16393),
+                                                     (20, 20, 16393), (20, 20, 16393)]

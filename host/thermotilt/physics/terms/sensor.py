@@ -490,3 +490,31 @@ class SensorLag(SensorTerm):
             return previous_c + fraction(dt_s) * (reported_c - previous_c)
 
         return structure
+
+
+@register
+class Hysteresis(SensorTerm):
+    name = "hysteresis"
+    stage = "error"
+    enabled_by_default = False
+    summary = (
+        "a per-axis offset added while the sensor's own trend set is cooling (C), beyond the "
+        "surfaces' and `measuring_offset`'s two sets"
+    )
+    parameters = (
+        Parameter(
+            "cooling_offset_lsb", _OFFSET, {"x": 20.0, "y": 20.0, "z": 0.0}, CANDIDATE_SOURCE,
+            _OFFSET_WHY,
+        ),
+    )
+
+    def bound(self, context: SensorContext) -> Callable[..., Any]:
+        cooling = tuple(self.values["cooling_offset_lsb"][axis] for axis in "xyz")
+        warming = (0.0, 0.0, 0.0)
+
+        def error(
+            drift_set: str, reported_c: float, rate: float, dt_s: float, mounting: int
+        ) -> tuple[float, float, float]:
+            return cooling if drift_set == "C" else warming
+
+        return error
