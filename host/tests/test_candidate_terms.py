@@ -28,10 +28,12 @@ EXACT = 1e-8
 STAGES = {
     "sensor_lag": "structure",
     "hysteresis": "error",
+    "scale_tempco": "scale",
 }
 DEFAULTS = {
     "sensor_lag": {"time_constant_s": 30.0},
     "hysteresis": {"cooling_offset_lsb": {"x": 20.0, "y": 20.0, "z": 0.0}},
+    "scale_tempco": {"ppm_per_c": {"x": 100.0, "y": 100.0, "z": 0.0}},
 }
 
 temperatures = st.floats(-10.0, 45.0)
@@ -103,6 +105,7 @@ def test_each_candidate_is_a_registered_sensor_term_off_by_default(name):
 def test_the_candidates_stages_run_in_order():
     stages = list(SENSOR_STAGES)
     assert stages.index("reported") < stages.index("structure") < stages.index("drift")
+    assert stages.index("drift") < stages.index("scale") < stages.index("error")
 
 
 @pytest.mark.parametrize("name", CANDIDATES)
@@ -152,6 +155,8 @@ def test_a_model_file_may_switch_one_candidate_on(tmp_path):
     ("sensor_lag", "time_constant_s", 3600.5, "time_constant_s: must be > 0 and <= 3600 s"),
     ("hysteresis", "cooling_offset_lsb", {"x": 32768.5, "y": 0.0, "z": 0.0},
      r"cooling_offset_lsb\.x: must be >= -32768 and <= 32768 LSB"),
+    ("scale_tempco", "ppm_per_c", {"x": 0.0, "y": -10001.0, "z": 0.0},
+     r"ppm_per_c\.y: must be >= -10000 and <= 10000 ppm per degC"),
 ])
 def test_the_candidates_bounds_are_enforced(name, parameter, value, message):
     with pytest.raises(ModelError, match=rf"\[{name}\] {message}"):
@@ -162,6 +167,7 @@ def test_the_candidates_bounds_are_enforced(name, parameter, value, message):
     ("sensor_lag", "time_constant_s", 3600.0),
     ("sensor_lag", "time_constant_s", 1e-3),
     ("hysteresis", "cooling_offset_lsb", {"x": -32768.0, "y": 32768.0, "z": 0.0}),
+    ("scale_tempco", "ppm_per_c", {"x": -10000.0, "y": 10000.0, "z": 0.0}),
 ])
 def test_the_candidates_bounds_are_inclusive_where_stated(name, parameter, value):
     model = model_with(name, **{parameter: value})
@@ -245,3 +251,28 @@ def test_hysteresis_follows_the_sets_of_a_warming_then_cooling_path():
     assert [s.drift_set for s in samples] == ["W", "W", "C", "C"]
     assert [(s.ax, s.ay, s.az) for s in samples] == [(0, 0, 16393), (0, 0, 16393),
                                                      (20, 20, 16393), (20, 20, 16393)]
+
+
+@PROPERTY
+@given(seed=seeds, path=paths,
+       ppm=st.fixed_dictionaries({axis: st.floats(-10000.0, 10000.0) for axis in AXES}))
+def test_scale_tempco_adds_c_times_the_excursion_from_25_c_times_the_ideal(seed, path, ppm):
+    on = run(model_with("scale_tempco", ppm_per_c=ppm), seed, path)
+    off = run(Model.load(), seed, path)
+    same_temperatures(on, off)
+    for with_term, without in zip(on, off):
+        assert (ideal(with_term), drift(with_term)) == (ideal(without), drift(without))
+        added = tuple(a - b for a, b in zip(unrounded(with_term), unrounded(without)))
+        expected = tuple(ppm[axis] * 1e-6 * (with_term.reported_c - REFERENCE_C) * a
+                         for axis, a in zip(AXES, ideal(without)))
+        assert added == pytest.approx(expected, rel=1e-9, abs=EXACT)
+
+
+def test_scale_tempco_uses_the_reported_temperature_not_the_lagged_one():
+    quiet = Model.load().with_terms(SENSOR_EFFECTS_OFF | {"scale_tempco": True,
+                                                         "sensor_lag": True})
+    # X pointing down reads 1 g; the structure has barely left 0 degC.
+    sample = Sensor(quiet, 1, 0.0).step(0.01, 45.0, 90.0, 0.0)
+    assert sample.reported_c == 45.0 and sample.drift_temperature_c < 1.0
+    g = sample.ideal_ax
+    assert sample.unrounded_ax - g == pytest.approx(100e-6 * (45.0 - 25.0) * g)

@@ -88,6 +88,7 @@ class Sensor:
         "_gravity",
         "_ideal",
         "_drift",
+        "_scale",
         "_errors",
         "_register",
         "_die_c",
@@ -131,6 +132,7 @@ class Sensor:
         (self._gravity,) = stages["gravity"]
         self._ideal = tuple(stages["ideal"])
         self._drift = stages["drift"][0] if stages["drift"] else None
+        self._scale = tuple(stages["scale"])
         self._errors = tuple(stages["error"])
         self._register = tuple(stages["register"])
 
@@ -191,6 +193,11 @@ class Sensor:
         else:
             drift_x = drift_y = drift_z = 0.0
             raw_x, raw_y, raw_z = ideal_x, ideal_y, ideal_z
+        for scale in self._scale:
+            error_x, error_y, error_z = scale(reported, ideal_x, ideal_y, ideal_z)
+            raw_x += error_x
+            raw_y += error_y
+            raw_z += error_z
         mounting = self._mounting
         for error in self._errors:
             error_x, error_y, error_z = error(drift_set, reported, rate, dt_s, mounting)

@@ -518,3 +518,39 @@ class Hysteresis(SensorTerm):
             return cooling if drift_set == "C" else warming
 
         return error
+
+
+@register
+class ScaleTempco(SensorTerm):
+    name = "scale_tempco"
+    stage = "scale"
+    enabled_by_default = False
+    summary = (
+        "the scale factor depends on temperature: each axis reads a·(1 + c·(T − 25 °C)), a "
+        "its ideal acceleration, c in ppm/°C, T the reported temperature"
+    )
+    parameters = (
+        Parameter(
+            "ppm_per_c", PerAxis(Bounds(-10000.0, 10000.0, "ppm per degC")),
+            {"x": 100.0, "y": 100.0, "z": 0.0}, CANDIDATE_SOURCE,
+            "1 %/°C would change the gain by 60 % between 25 °C and the operating range's "
+            "85 °C; ST's datasheets say the sensitivity \"changes very little over "
+            "temperature\"",
+        ),
+    )
+
+    def bound(self, context: SensorContext) -> Callable[..., Any]:
+        ppm = self.values["ppm_per_c"]
+        gain_x, gain_y, gain_z = ppm["x"] * 1e-6, ppm["y"] * 1e-6, ppm["z"] * 1e-6
+
+        def scale(
+            reported_c: float, ideal_x: float, ideal_y: float, ideal_z: float
+        ) -> tuple[float, float, float]:
+            excursion = reported_c - REFERENCE_C
+            return (
+                gain_x * excursion * ideal_x,
+                gain_y * excursion * ideal_y,
+                gain_z * excursion * ideal_z,
+            )
+
+        return scale
