@@ -29,11 +29,13 @@ STAGES = {
     "sensor_lag": "structure",
     "hysteresis": "error",
     "scale_tempco": "scale",
+    "cross_axis": "ideal",
 }
 DEFAULTS = {
     "sensor_lag": {"time_constant_s": 30.0},
     "hysteresis": {"cooling_offset_lsb": {"x": 20.0, "y": 20.0, "z": 0.0}},
     "scale_tempco": {"ppm_per_c": {"x": 100.0, "y": 100.0, "z": 0.0}},
+    "cross_axis": {"share": {"x": 0.005, "y": 0.005, "z": 0.0}},
 }
 
 temperatures = st.floats(-10.0, 45.0)
@@ -157,6 +159,9 @@ def test_a_model_file_may_switch_one_candidate_on(tmp_path):
      r"cooling_offset_lsb\.x: must be >= -32768 and <= 32768 LSB"),
     ("scale_tempco", "ppm_per_c", {"x": 0.0, "y": -10001.0, "z": 0.0},
      r"ppm_per_c\.y: must be >= -10000 and <= 10000 ppm per degC"),
+    ("cross_axis", "share", {"x": 0.0, "y": 0.0, "z": 0.11},
+     r"share\.z: must be >= -0\.1 and <= 0\.1, got"),
+    ("cross_axis", "share", {"x": 0.0, "y": 0.0}, r"share: expected a table"),
 ])
 def test_the_candidates_bounds_are_enforced(name, parameter, value, message):
     with pytest.raises(ModelError, match=rf"\[{name}\] {message}"):
@@ -168,6 +173,7 @@ def test_the_candidates_bounds_are_enforced(name, parameter, value, message):
     ("sensor_lag", "time_constant_s", 1e-3),
     ("hysteresis", "cooling_offset_lsb", {"x": -32768.0, "y": 32768.0, "z": 0.0}),
     ("scale_tempco", "ppm_per_c", {"x": -10000.0, "y": 10000.0, "z": 0.0}),
+    ("cross_axis", "share", {"x": -0.1, "y": 0.1, "z": 0.0}),
 ])
 def test_the_candidates_bounds_are_inclusive_where_stated(name, parameter, value):
     model = model_with(name, **{parameter: value})
@@ -276,3 +282,31 @@ def test_scale_tempco_uses_the_reported_temperature_not_the_lagged_one():
     assert sample.reported_c == 45.0 and sample.drift_temperature_c < 1.0
     g = sample.ideal_ax
     assert sample.unrounded_ax - g == pytest.approx(100e-6 * (45.0 - 25.0) * g)
+
+
+@PROPERTY
+@given(seed=seeds, path=paths,
+       share=st.fixed_dictionaries({axis: st.floats(-0.1, 0.1) for axis in AXES}))
+def test_cross_axis_mixes_in_a_share_of_another_axis(seed, path, share):
+    on = run(model_with("cross_axis", share=share), seed, path)
+    off = run(Model.load(), seed, path)
+    same_temperatures(on, off)
+    for with_term, without in zip(on, off):
+        x, y, z = ideal(without)  # after sensitivity_loss, before cross_axis
+        expected = (x + share["x"] * y, y + share["y"] * x, z + share["z"] * x)
+        assert ideal(with_term) == pytest.approx(expected, rel=1e-15, abs=1e-9)
+        # The drift sees the mixed acceleration; what follows it is unchanged.
+        assert drift(with_term) == pytest.approx(
+            surfaces(with_term.drift_set, with_term.reported_c, ideal(with_term)),
+            rel=1e-12, abs=EXACT)
+        assert errors(with_term) == pytest.approx(errors(without), abs=EXACT)
+
+
+def test_cross_axis_reads_a_share_of_x_on_y():
+    quiet = Model.load().with_terms(SENSOR_EFFECTS_OFF | {"cross_axis": True})
+    sample = Sensor(quiet, 1, 25.0).step(0.01, 25.0, 30.0, 0.0)
+    g = Model.load().constants["sensor"]["lsb_per_g"]
+    # 0.005 * g sin 30 = 40.98 LSB on Y; Z takes no share by default.
+    assert sample.ideal_ay == pytest.approx(0.005 * g * 0.5, abs=1e-9)
+    assert sample.ideal_az == pytest.approx(g * math.cos(math.radians(30.0)), abs=1e-9)
+    assert sample.ay == 41

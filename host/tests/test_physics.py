@@ -41,7 +41,7 @@ SENSOR_EFFECTS_OFF = {
     "bias_instability": False,
 }
 # The discovery workflow's candidate terms, off by default (test_candidate_terms.py).
-CANDIDATES = ("sensor_lag", "hysteresis", "scale_tempco")
+CANDIDATES = ("sensor_lag", "hysteresis", "scale_tempco", "cross_axis")
 # The sources of the paper's scatter the surfaces do not explain (test_scatter.py).
 SCATTER_OFF = {"drift_repeatability": False, "bias_instability": False}
 

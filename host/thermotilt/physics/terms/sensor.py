@@ -554,3 +554,31 @@ class ScaleTempco(SensorTerm):
             )
 
         return scale
+
+
+@register
+class CrossAxis(SensorTerm):
+    name = "cross_axis"
+    stage = "ideal"
+    enabled_by_default = False
+    summary = (
+        "each axis reads a share of another: x + s_x·a_y, y + s_y·a_x, z + s_z·a_x, a the "
+        "ideal accelerations before this term"
+    )
+    parameters = (
+        Parameter(
+            "share", PerAxis(Bounds(-0.1, 0.1)), {"x": 0.005, "y": 0.005, "z": 0.0},
+            CANDIDATE_SOURCE,
+            "sin 5.7° = 0.1: a board that far askew on its mount shows by eye (the default "
+            "0.005 is 0.29°)",
+        ),
+    )
+
+    def bound(self, context: SensorContext) -> Callable[..., Any]:
+        shares = self.values["share"]
+        share_x, share_y, share_z = shares["x"], shares["y"], shares["z"]
+
+        def ideal(ax: float, ay: float, az: float) -> tuple[float, float, float]:
+            return ax + share_x * ay, ay + share_y * ax, az + share_z * ax
+
+        return ideal
