@@ -1,0 +1,262 @@
+#include <string.h>
+#include <unity.h>
+
+#include <Compensation.h>
+#include <ImuProcessing.h>
+#include <Kalman.h>
+#include <LSM9DS0.h>
+
+// Static, not on the stack: the Nano's 2 KB hold them with Unity's own.
+static Coefficients coefficients;
+static ImuProcessing processing;
+static ImuProcessing unrounded;
+
+// The IMU reader's sample() and resetFilters() before lib/ImuProcessing,
+// line for line: the class must give these numbers bit for bit.
+static KalmanFilter referenceAccel[IMU_AXES];
+static KalmanFilter referenceTemperature;
+static Decimator referenceDecimator(IMU_DEFAULT_DECIMATION);
+static TrendDetector referenceTrend;
+
+void setUp(void)
+{
+    loadDefaultCoefficients(coefficients);
+    // Z is uncorrected by default; a surface of its own shows Z goes through.
+    const float z[COMP_COEFFICIENT_COUNT] = {12.5f, -0.75f, 0.0625f, 0.01f, -1e-4f, 2e-8f};
+    for (uint8_t term = 0; term < COMP_COEFFICIENT_COUNT; ++term) {
+        coefficients.set[0].axis[2].p[term] = z[term];
+        coefficients.set[1].axis[2].p[term] = -z[term];
+    }
+    processing = ImuProcessing();
+    unrounded = ImuProcessing();
+}
+
+void tearDown(void) {}
+
+static void assertSameFloat(float expected, float actual)
+{
+    TEST_ASSERT_EQUAL_MEMORY(&expected, &actual, sizeof(float));
+}
+
+static void assertSameOutput(const ImuOutput& expected, const ImuOutput& actual, bool withCompensated)
+{
+    for (uint8_t axis = 0; axis < IMU_AXES; ++axis) {
+        assertSameFloat(expected.filtered[axis], actual.filtered[axis]);
+        if (withCompensated) {
+            assertSameFloat(expected.compensated[axis], actual.compensated[axis]);
+        }
+    }
+    assertSameFloat(expected.temperatureC, actual.temperatureC);
+    TEST_ASSERT_EQUAL_UINT8((uint8_t)expected.set, (uint8_t)actual.set);
+}
+
+// A deterministic series: noisy tilt readings and a temperature that climbs
+// and falls by a few degC (raw 8 LSB/degC), so the trend turns.
+static uint32_t noiseState;
+
+static int16_t noise(int16_t span)
+{
+    noiseState = noiseState * 1664525UL + 1013904223UL;
+    return (int16_t)((int32_t)((noiseState >> 16) % (uint32_t)(2 * span + 1)) - span);
+}
+
+static void sampleAt(int16_t i, int16_t raw[IMU_AXES], int16_t& temperatureRaw)
+{
+    raw[0] = (int16_t)(-1700 + noise(40));
+    raw[1] = (int16_t)(-400 + noise(40) + (i > 300 ? 2000 : 0));
+    raw[2] = (int16_t)(16000 + noise(40));
+    int16_t phase = (int16_t)(i % 200);
+    temperatureRaw = (int16_t)((phase < 100 ? phase : 200 - phase) / 2 + noise(2));
+}
+
+static void test_first_sample_seeds_every_channel(void)
+{
+    const int16_t raw[IMU_AXES] = {-1700, 400, -16384};
+    ImuOutput out;
+    TEST_ASSERT_FALSE(processing.update(raw, 40, coefficients, out));
+    TEST_ASSERT_FLOAT_WITHIN(0.0f, -1700.0f, out.filtered[0]);
+    TEST_ASSERT_FLOAT_WITHIN(0.0f, 400.0f, out.filtered[1]);
+    TEST_ASSERT_FLOAT_WITHIN(0.0f, -16384.0f, out.filtered[2]);
+    // 40 raw at 8 LSB/degC plus the paper's 21 degC.
+    TEST_ASSERT_FLOAT_WITHIN(0.0f, 26.0f, out.temperatureC);
+    TEST_ASSERT_EQUAL_UINT8((uint8_t)CompSet::Warming, (uint8_t)out.set);
+}
+
+static void test_frame_every_decimation_samples_with_compensation(void)
+{
+    const int16_t raw[IMU_AXES] = {-1700, 400, 16000};
+    ImuOutput out;
+    for (int16_t i = 1; i <= 3 * IMU_DEFAULT_DECIMATION; ++i) {
+        memset(out.compensated, 0, sizeof out.compensated);
+        bool due = processing.update(raw, 32, coefficients, out);
+        TEST_ASSERT_EQUAL(i % IMU_DEFAULT_DECIMATION == 0, due);
+        for (uint8_t axis = 0; axis < IMU_AXES; ++axis) {
+            float expected = due ? compensate(coefficients.set[0].axis[axis], out.temperatureC, out.filtered[axis])
+                                 : 0.0f;
+            assertSameFloat(expected, out.compensated[axis]);
+        }
+    }
+    // Python, Table 3 warming at 25 degC and 400 LSB: 400 - (354 - 13.96*25
+    // + 5.747e-3*400 - 2.931e-3*25**2 - 1.915e-4*25*400 - 5.363e-8*400**2).
+    TEST_ASSERT_FLOAT_WITHIN(0.01f, 396.4567f, out.compensated[1]);
+}
+
+static void test_not_counting_filters_without_frames(void)
+{
+    const int16_t raw[IMU_AXES] = {100, 200, 300};
+    const int16_t other[IMU_AXES] = {110, 190, 300};
+    ImuOutput out;
+    for (uint8_t i = 0; i < 25; ++i) {
+        TEST_ASSERT_FALSE(processing.update(i == 0 ? raw : other, 0, coefficients, out, false));
+    }
+    TEST_ASSERT_TRUE(out.filtered[0] > 100.0f && out.filtered[0] < 110.0f);
+    // Counting again starts from where the count was: a frame after ten.
+    for (uint8_t i = 1; i < IMU_DEFAULT_DECIMATION; ++i) {
+        TEST_ASSERT_FALSE(processing.update(other, 0, coefficients, out));
+    }
+    TEST_ASSERT_TRUE(processing.update(other, 0, coefficients, out));
+}
+
+static void test_reset_reseeds_restarts_count_and_keeps_trend(void)
+{
+    processing = ImuProcessing(IMU_DEFAULT_DECIMATION, 0.5f);
+    const int16_t raw[IMU_AXES] = {0, 0, 0};
+    const int16_t moved[IMU_AXES] = {5000, -5000, 0};
+    ImuOutput out;
+    processing.update(raw, 80, coefficients, out);  // 31 degC
+    for (uint8_t i = 0; i < 4; ++i) {
+        processing.update(raw, 0, coefficients, out);  // 21 degC: cooling
+    }
+    TEST_ASSERT_EQUAL_UINT8((uint8_t)CompSet::Cooling, (uint8_t)processing.currentSet());
+    processing.reset();
+    TEST_ASSERT_FALSE(processing.update(moved, 0, coefficients, out));
+    TEST_ASSERT_FLOAT_WITHIN(0.0f, 5000.0f, out.filtered[0]);
+    TEST_ASSERT_FLOAT_WITHIN(0.0f, -5000.0f, out.filtered[1]);
+    TEST_ASSERT_FLOAT_WITHIN(0.0f, 21.0f, out.temperatureC);
+    TEST_ASSERT_EQUAL_UINT8((uint8_t)CompSet::Cooling, (uint8_t)out.set);
+    for (uint8_t i = 2; i < IMU_DEFAULT_DECIMATION; ++i) {
+        TEST_ASSERT_FALSE(processing.update(moved, 0, coefficients, out));
+    }
+    TEST_ASSERT_TRUE(processing.update(moved, 0, coefficients, out));
+    // The cooling surfaces compensate.
+    assertSameFloat(compensate(coefficients.set[1].axis[2], 21.0f, 0.0f), out.compensated[2]);
+}
+
+static void test_decimation_and_hysteresis_settings(void)
+{
+    processing = ImuProcessing(3, 0.25f);
+    TEST_ASSERT_EQUAL_UINT8(3, processing.decimation());
+    TEST_ASSERT_FLOAT_WITHIN(0.0f, 0.25f, processing.hysteresisC());
+    const int16_t raw[IMU_AXES] = {1, 2, 3};
+    ImuOutput out;
+    processing.update(raw, 0, coefficients, out);
+    processing.update(raw, 0, coefficients, out);
+    // SETDEC restarts the count; START/STOP too.
+    processing.setDecimation(2);
+    TEST_ASSERT_FALSE(processing.update(raw, 0, coefficients, out));
+    processing.restartDecimation();
+    TEST_ASSERT_FALSE(processing.update(raw, 0, coefficients, out));
+    TEST_ASSERT_TRUE(processing.update(raw, 0, coefficients, out));
+    processing.setDecimation(0);
+    TEST_ASSERT_EQUAL_UINT8(1, processing.decimation());
+    TEST_ASSERT_TRUE(processing.update(raw, 0, coefficients, out));
+}
+
+// The firmware before the class, with a RESEED at 150 and STOP..START over
+// 400..450: the same filtered values, sets, frames and compensated values.
+static void test_matches_the_firmware_code_it_replaced(void)
+{
+    noiseState = 7;
+    int16_t switches = 0;
+    CompSet previous = CompSet::Warming;
+    bool streaming = true;
+    for (int16_t i = 0; i < 600; ++i) {
+        int16_t raw[IMU_AXES];
+        int16_t temperatureRaw;
+        sampleAt(i, raw, temperatureRaw);
+        if (i == 150) {
+            for (uint8_t axis = 0; axis < IMU_AXES; ++axis) {
+                referenceAccel[axis].reset();
+            }
+            referenceTemperature.reset();
+            referenceDecimator.restart();
+            processing.reset();
+        }
+        if (i == 400 || i == 450) {
+            streaming = i == 450;
+            referenceDecimator.restart();
+            processing.restartDecimation();
+        }
+        ImuOutput expected;
+        expected.temperatureC = referenceTemperature.update(temperatureRawToC(temperatureRaw));
+        for (uint8_t axis = 0; axis < IMU_AXES; ++axis) {
+            expected.filtered[axis] = referenceAccel[axis].update(raw[axis]);
+        }
+        expected.set = referenceTrend.update(expected.temperatureC);
+        bool expectedDue = streaming && referenceDecimator.push();
+        if (expectedDue) {
+            const CoefficientSet& surfaces = coefficients.forTrend(expected.set);
+            for (uint8_t axis = 0; axis < IMU_AXES; ++axis) {
+                expected.compensated[axis] = compensate(surfaces.axis[axis], expected.temperatureC, expected.filtered[axis]);
+            }
+        }
+        ImuOutput out;
+        TEST_ASSERT_EQUAL(expectedDue, processing.update(raw, temperatureRaw, coefficients, out, streaming));
+        assertSameOutput(expected, out, expectedDue);
+        switches += expected.set != previous;
+        previous = expected.set;
+    }
+    // The series turned the trend both ways.
+    TEST_ASSERT_GREATER_THAN(1, switches);
+}
+
+// The unquantised path on integer inputs: the same bits, frames included.
+static void test_unrounded_equals_raw_on_integer_inputs(void)
+{
+    noiseState = 11;
+    for (int16_t i = 0; i < 400; ++i) {
+        int16_t raw[IMU_AXES];
+        int16_t temperatureRaw;
+        sampleAt(i, raw, temperatureRaw);
+        const float accel[IMU_AXES] = {(float)raw[0], (float)raw[1], (float)raw[2]};
+        float temperatureC = (float)temperatureRaw / 8.0f + 21.0f;
+        if (i == 123) {
+            processing.reset();
+            unrounded.reset();
+        }
+        ImuOutput expected;
+        ImuOutput out;
+        bool due = processing.update(raw, temperatureRaw, coefficients, expected);
+        TEST_ASSERT_EQUAL(due, unrounded.updateUnrounded(accel, temperatureC, coefficients, out));
+        assertSameOutput(expected, out, due);
+    }
+}
+
+static void test_unrounded_takes_fractions(void)
+{
+    const float accel[IMU_AXES] = {-1700.25f, 0.5f, 16000.125f};
+    ImuOutput out;
+    unrounded.updateUnrounded(accel, 24.3f, coefficients, out);
+    TEST_ASSERT_FLOAT_WITHIN(0.0f, -1700.25f, out.filtered[0]);
+    TEST_ASSERT_FLOAT_WITHIN(0.0f, 24.3f, out.temperatureC);
+    const float next[IMU_AXES] = {-1699.75f, 0.5f, 16000.125f};
+    unrounded.updateUnrounded(next, 24.3f, coefficients, out);
+    // The second sample gets a gain of about 1/2 (test_kalman).
+    TEST_ASSERT_FLOAT_WITHIN(0.001f, -1700.0f, out.filtered[0]);
+    ImuProcessing::compensate(coefficients, out);
+    assertSameFloat(compensate(coefficients.set[0].axis[0], out.temperatureC, out.filtered[0]), out.compensated[0]);
+}
+
+int runUnityTests(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_first_sample_seeds_every_channel);
+    RUN_TEST(test_frame_every_decimation_samples_with_compensation);
+    RUN_TEST(test_not_counting_filters_without_frames);
+    RUN_TEST(test_reset_reseeds_restarts_count_and_keeps_trend);
+    RUN_TEST(test_decimation_and_hysteresis_settings);
+    RUN_TEST(test_matches_the_firmware_code_it_replaced);
+    RUN_TEST(test_unrounded_equals_raw_on_integer_inputs);
+    RUN_TEST(test_unrounded_takes_fractions);
+    return UNITY_END();
+}
