@@ -6,7 +6,7 @@
 #include <Wire.h>
 
 #include <Compensation.h>
-#include <Kalman.h>
+#include <ImuProcessing.h>
 #include <LSM9DS0.h>
 #include <Protocol.h>
 
@@ -39,9 +39,8 @@ const uint32_t WIRE_TIMEOUT_US = 25000;
 // ~0.5 ms instead of ~2 ms of the 10 ms period, during which Wire keeps the
 // CPU awake. A level converter that cannot follow needs 100000 here.
 const uint32_t I2C_CLOCK_HZ = 400000;
-const uint8_t DEFAULT_DECIMATION = 10;
 const int COEFFICIENTS_EEPROM_ADDRESS = 0;
-const uint8_t AXES = 3;
+const uint8_t AXES = IMU_AXES;
 
 class WireBus : public I2cBus {
 public:
@@ -76,10 +75,8 @@ enum CoefficientSource : char { FROM_EEPROM = 'E', FROM_DEFAULTS = 'D', UPLOADED
 WireBus bus;
 Lsm9ds0Accel sensor(bus);
 SerialLink link;
-KalmanFilter accelFilters[AXES];
-KalmanFilter temperatureFilter;
-Decimator decimator(DEFAULT_DECIMATION);
-TrendDetector trend;
+// The filters, trend and decimation of every sample (lib/ImuProcessing).
+ImuProcessing processing;
 Coefficients coefficients;
 char coefficientSource = FROM_DEFAULTS;
 bool sensorReady = false;
@@ -99,22 +96,13 @@ const char* sensorStatusName(Lsm9ds0Accel::Status status)
     }
 }
 
-void resetFilters()
-{
-    for (uint8_t axis = 0; axis < AXES; ++axis) {
-        accelFilters[axis].reset();
-    }
-    temperatureFilter.reset();
-    decimator.restart();
-}
-
 void connectSensor()
 {
     lastSensorAttemptMs = millis();
     Lsm9ds0Accel::Status status = sensor.begin();
     sensorReady = status == Lsm9ds0Accel::Status::Ok;
     if (sensorReady) {
-        resetFilters();
+        processing.reset();
         lastSampleMs = lastSensorAttemptMs;
     } else {
         link.report(Error::SENSOR_MISSING, sensorStatusName(status));
@@ -172,8 +160,7 @@ void saveCoefficients()
     coefficientSource = FROM_EEPROM;
 }
 
-void sendImuFrame(const int16_t raw[AXES], const float filtered[AXES], const float compensated[AXES],
-                  float temperatureC, CompSet set)
+void sendImuFrame(const int16_t raw[AXES], const ImuOutput& out)
 {
     FrameWriter& frame = link.start(Protocol::Frame::IMU);
     frame.addUnsigned(millis());
@@ -181,13 +168,13 @@ void sendImuFrame(const int16_t raw[AXES], const float filtered[AXES], const flo
         frame.addInt(raw[axis]);
     }
     for (uint8_t axis = 0; axis < AXES; ++axis) {
-        frame.addFixed(filtered[axis], 1);
+        frame.addFixed(out.filtered[axis], 1);
     }
     for (uint8_t axis = 0; axis < AXES; ++axis) {
-        frame.addFixed(compensated[axis], 1);
+        frame.addFixed(out.compensated[axis], 1);
     }
-    frame.addFixed(temperatureC, 3);
-    frame.addChar(set == CompSet::Warming ? 'W' : 'C');
+    frame.addFixed(out.temperatureC, 3);
+    frame.addChar(out.set == CompSet::Warming ? 'W' : 'C');
     frame.addChar(coefficientSource);
     link.send();
 }
@@ -205,23 +192,11 @@ void sample(uint32_t now)
     if (now - lastSensorAttemptMs < TEMPERATURE_SETTLE_MS) {
         return;
     }
-    // Temperature goes through the same filter as acceleration, so f(T, a)
-    // sees the two with the same lag.
-    float temperatureC = temperatureFilter.update(temperatureRawToC(temperatureRaw));
-    float filtered[AXES];
-    for (uint8_t axis = 0; axis < AXES; ++axis) {
-        filtered[axis] = accelFilters[axis].update(raw[axis]);
+    // Filtered while stopped too; only streaming counts samples towards a frame.
+    ImuOutput out;
+    if (processing.update(raw, temperatureRaw, coefficients, out, streaming)) {
+        sendImuFrame(raw, out);
     }
-    CompSet set = trend.update(temperatureC);
-    if (!streaming || !decimator.push()) {
-        return;
-    }
-    const CoefficientSet& surfaces = coefficients.forTrend(set);
-    float compensated[AXES];
-    for (uint8_t axis = 0; axis < AXES; ++axis) {
-        compensated[axis] = compensate(surfaces.axis[axis], temperatureC, filtered[axis]);
-    }
-    sendImuFrame(raw, filtered, compensated, temperatureC, set);
 }
 
 bool parseSetAndAxis(const FrameParser& command, uint8_t& set, uint8_t& axis)
@@ -256,10 +231,10 @@ void sendCoefficients(uint8_t set, uint8_t axis)
 void sendConfiguration()
 {
     FrameWriter& frame = link.start(Protocol::Frame::ICF);
-    frame.addUnsigned(decimator.factor());
+    frame.addUnsigned(processing.decimation());
     frame.addUnsigned(streaming ? 1 : 0);
     frame.addChar(coefficientSource);
-    frame.addFixed(trend.hysteresisC(), 3);
+    frame.addFixed(processing.hysteresisC(), 3);
     link.send();
 }
 
@@ -270,12 +245,12 @@ void handleCommand()
     uint8_t axis = 0;
     if (link.commandIs(Protocol::Tag::START) || link.commandIs(Protocol::Tag::STOP)) {
         streaming = link.commandIs(Protocol::Tag::START);
-        decimator.restart();
+        processing.restartDecimation();
         link.acknowledge();
     } else if (link.commandIs(Protocol::Tag::RESEED)) {
         // After a tilt-table move: the filters would take ~90 s to forget the
         // old angle; seeded again, the next samples average from the new one.
-        resetFilters();
+        processing.reset();
         link.acknowledge();
     } else if (link.commandIs(Protocol::Tag::VERSION)) {
         link.sendVersion("imu_reader", FIRMWARE_VERSION);
@@ -290,7 +265,7 @@ void handleCommand()
             link.reject(Error::BAD_ARG, Detail::FACTOR_1_255);
             return;
         }
-        decimator.setFactor((uint8_t)factor);
+        processing.setDecimation((uint8_t)factor);
         link.acknowledge();
     } else if (link.commandIs(Protocol::Tag::GETCOE)) {
         if (command.fieldCount() < Protocol::FieldCount::GETCOE || !parseSetAndAxis(command, set, axis)) {
