@@ -34,3 +34,17 @@ add_executable(integrity_bench sim/integrity_bench.cpp sim/line_noise.c)
 target_include_directories(integrity_bench PRIVATE sim)
 target_compile_options(integrity_bench PRIVATE ${PROJECT_WARNINGS})
 target_link_libraries(integrity_bench PRIVATE thermotilt_libs)
+
+# Loaded by host/thermotilt/native.py through ctypes: the IMU reader's
+# per-sample processing (lib/ImuProcessing and what it uses) over a series,
+# the same sources as the firmware, built position-independent for the host.
+# No contraction into fused multiply-adds (which aarch64 hosts would emit):
+# the Nano rounds every float operation on its own. --no-undefined: a source
+# missing from this list fails the link, not the host's dlopen.
+add_library(thermotilt_host SHARED host/native/imu_processing.cpp
+  lib/ImuProcessing/src/ImuProcessing.cpp lib/Kalman/src/Kalman.cpp
+  lib/Compensation/src/Compensation.cpp lib/LSM9DS0/src/LSM9DS0.cpp)
+target_include_directories(thermotilt_host PRIVATE host/native ${LIBRARY_INCLUDES})
+target_compile_options(thermotilt_host PRIVATE ${PROJECT_WARNINGS} -ffp-contract=off)
+target_link_options(thermotilt_host PRIVATE -Wl,--no-undefined)
+target_link_libraries(thermotilt_host PRIVATE m)
