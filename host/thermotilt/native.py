@@ -1,0 +1,268 @@
+"""The IMU reader's own per-sample processing, run on the host.
+
+``build/native/libthermotilt_host.so`` (``host/native/imu_processing.h``) is
+``lib/ImuProcessing`` - the class the Nano's firmware runs on every 100 Hz
+sample: a Kalman filter per axis and for the temperature, the warming/cooling
+trend on the filtered temperature, decimation, and the drift compensation
+``filtered - f(T, filtered)`` with the surfaces of the set in force - compiled
+for this machine from the same sources, and reached through ctypes. It is
+the firmware's processing itself, not a second copy that could drift from it;
+``host/tests/test_native_processing.py`` runs the firmware in the twin and
+checks its frames against this.
+
+A series starts as the firmware starts streaming once it has found the
+sensor: filters unseeded, trend warming. ``reset[i]`` does what RESEED (or a
+reconnected sensor) does before sample i: the filters forget their state and
+the decimation count restarts; the trend keeps its state. Every sample counts
+towards a frame (the firmware streaming; STOP/START and SETDEC are not
+modelled). To replay a firmware run, start the series at the first sample
+the firmware kept: once it has found the sensor it drops 40 ms of samples
+(TEMPERATURE_SETTLE_MS in firmware/imu_reader/main.cpp) before filtering any.
+
+Both functions return a dict of numpy arrays, one value per sample; the
+names follow run.csv (docs/run-log.md), which has them for the frame rows:
+
+- ``ax_filt``, ``ay_filt``, ``az_filt`` (float32, LSB): Kalman-filtered;
+- ``temp_c`` (float32, degC): the filtered temperature (run.csv's imu_temp_c);
+- ``set`` (uint8): the surface set, ``WARMING`` 0 or ``COOLING`` 1
+  (run.csv's comp_set ``W``/``C``);
+- ``ax_comp``, ``ay_comp``, ``az_comp`` (float32, LSB): filtered minus
+  f(temp_c, filtered) of that set. The firmware evaluates them only for the
+  samples it sends; here every sample has them, from the same function;
+- ``frame_due`` (bool): the firmware sends this sample as an IMU frame (one
+  in ``decimation``).
+
+A frame prints the filtered and compensated values to 0.1 LSB and the
+temperature to 0.001 degC; these are the float32 values before that rounding.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+import numbers
+import operator
+from collections.abc import Iterable
+from functools import cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .coefficients import CoefficientTable
+from .twin import INT16_RANGE, TEMPERATURE_RAW_RANGE, build_dir
+
+WARMING = 0
+COOLING = 1
+SET_LETTERS = "WC"  # indexed by the set
+DEFAULT_DECIMATION = 10
+DEFAULT_HYSTERESIS_C = 0.5
+COEFFICIENT_COUNT = 36
+DECIMATION_RANGE = range(1, 256)  # SETDEC's
+OUTPUTS = ("ax_filt", "ay_filt", "az_filt", "temp_c", "set", "ax_comp", "ay_comp", "az_comp", "frame_due")
+
+_ABI_VERSION = 1  # THERMOTILT_HOST_ABI_VERSION
+_OK = 0
+
+
+class NativeLibraryError(RuntimeError):
+    """libthermotilt_host.so is missing, older than this module, or refused a call; one readable line."""
+
+
+def library_path() -> Path:
+    """build/native/libthermotilt_host.so of the build tree twin.build_dir() names."""
+    return build_dir() / "native" / "libthermotilt_host.so"
+
+
+@cache
+def _load_library(path: Path) -> ctypes.CDLL:
+    try:
+        library = ctypes.CDLL(str(path))
+    except OSError as error:
+        raise NativeLibraryError(f"cannot load {path}: {error}") from None
+    pointer = ctypes.c_void_p
+    arguments = [ctypes.c_size_t, pointer, pointer, pointer, ctypes.c_uint, ctypes.c_float, pointer,
+                 pointer, pointer, pointer, pointer, pointer]
+    prototypes: dict[str, tuple[type, list[type]]] = {
+        "thermotilt_host_abi_version": (ctypes.c_int, []),
+        "thermotilt_imu_process": (ctypes.c_int, arguments),
+        "thermotilt_imu_process_unrounded": (ctypes.c_int, arguments),
+    }
+    for name, (result, argument_types) in prototypes.items():
+        try:
+            function = getattr(library, name)
+        except AttributeError:
+            raise NativeLibraryError(f"{path} has no {name}: it is older than the host; run `make build`") from None
+        function.restype = result
+        function.argtypes = argument_types
+    version = library.thermotilt_host_abi_version()
+    if version != _ABI_VERSION:
+        raise NativeLibraryError(f"{path} has interface version {version}, this host needs {_ABI_VERSION}: "
+                                 f"run `make build`")
+    return library
+
+
+def _library() -> ctypes.CDLL:
+    path = library_path()
+    if not path.exists():
+        raise NativeLibraryError(f"{path} is missing: run `make build` first (or set THERMOTILT_BUILD_DIR)")
+    return _load_library(path)
+
+
+def _series(values: Any, what: str) -> np.ndarray:
+    array = np.asarray(values)
+    if array.ndim != 1:
+        raise ValueError(f"{what} must be a one-dimensional series, not of shape {array.shape}")
+    return array
+
+
+def _integers(values: Any, allowed: range, what: str) -> np.ndarray:
+    """values as int16, if every one is an integer in allowed."""
+    array = _series(values, what)
+    if array.size == 0:
+        return np.zeros(0, np.int16)
+    if array.dtype.kind == "b" or array.dtype.kind not in "iuf":
+        raise ValueError(f"{what} must hold integers, not {array.dtype}")
+    if array.dtype.kind == "f" and not (np.all(np.isfinite(array)) and np.all(array == np.round(array))):
+        raise ValueError(f"{what} must hold integers (the sensor's registers); "
+                         f"imu_process_unrounded takes fractions")
+    low, high = array.min(), array.max()
+    if low < allowed.start or high >= allowed.stop:
+        raise ValueError(f"{what} must lie in {allowed.start}..{allowed.stop - 1}, not {low}..{high}")
+    return np.ascontiguousarray(array, dtype=np.int16)
+
+
+def _floats(values: Any, what: str) -> np.ndarray:
+    """values as float32, the firmware's float, if every one is finite there."""
+    array = _series(values, what)
+    if array.size and (array.dtype.kind == "b" or array.dtype.kind not in "iuf"):
+        raise ValueError(f"{what} must hold numbers, not {array.dtype}")
+    with np.errstate(over="ignore"):
+        single = np.ascontiguousarray(array, dtype=np.float32)
+    if not np.all(np.isfinite(single)):
+        raise ValueError(f"{what} must be finite in float32 (|x| < 3.4e38)")
+    return single
+
+
+def _flags(values: Any, count: int) -> np.ndarray:
+    if values is None:
+        return np.zeros(count, np.uint8)
+    array = _series(values, "reset")
+    if array.size and array.dtype.kind not in "biu":
+        raise ValueError(f"reset must hold booleans, not {array.dtype}")
+    if array.size != count:
+        raise ValueError(f"reset has {array.size} values for {count} samples")
+    return np.ascontiguousarray(array != 0, dtype=np.uint8)
+
+
+def _coefficients(coefficients: CoefficientTable | Iterable[float] | None) -> np.ndarray | None:
+    """36 float32 in block order, as the firmware holds them; None: its defaults."""
+    if coefficients is None:
+        return None
+    if isinstance(coefficients, CoefficientTable):
+        coefficients = coefficients.values()
+    array = np.asarray(coefficients, dtype=np.float64).reshape(-1)
+    if array.size != COEFFICIENT_COUNT:
+        raise ValueError(f"need {COEFFICIENT_COUNT} coefficients (set W, C x axis X, Y, Z x p00..p02), "
+                         f"got {array.size}")
+    return _floats(array, "coefficients")
+
+
+def _settings(decimation: int, hysteresis_c: float) -> tuple[int, float]:
+    try:
+        factor = None if isinstance(decimation, bool) else operator.index(decimation)
+    except TypeError:
+        factor = None
+    if factor is None or factor not in DECIMATION_RANGE:
+        raise ValueError(f"decimation must be an integer in 1..255 (SETDEC), not {decimation!r}")
+    if not isinstance(hysteresis_c, numbers.Real) or not math.isfinite(hysteresis_c) or hysteresis_c < 0:
+        raise ValueError(f"hysteresis_c must be a finite number of degC >= 0, not {hysteresis_c!r}")
+    return factor, float(hysteresis_c)
+
+
+def _run(function_name: str, axes: tuple[np.ndarray, ...], temperature: np.ndarray, reset: Any,
+         decimation: int, hysteresis_c: float, coefficients: Any) -> dict[str, np.ndarray]:
+    count = temperature.size
+    for name, axis in zip(("ax", "ay", "az"), axes, strict=True):
+        if axis.size != count:
+            raise ValueError(f"{name} has {axis.size} samples, the temperature {count}")
+    factor, hysteresis = _settings(decimation, hysteresis_c)
+    flags = _flags(reset, count)
+    table = _coefficients(coefficients)
+    library = _library()
+    accel = np.ascontiguousarray(np.stack(axes, axis=1))
+    filtered = np.zeros((count, 3), np.float32)
+    compensated = np.zeros((count, 3), np.float32)
+    temperature_c = np.zeros(count, np.float32)
+    sets = np.zeros(count, np.uint8)
+    due = np.zeros(count, np.uint8)
+
+    def address(array: np.ndarray | None) -> int | None:
+        return None if array is None else array.ctypes.data
+
+    status = getattr(library, function_name)(
+        count, address(accel), address(temperature), address(flags), factor, hysteresis, address(table),
+        address(filtered), address(temperature_c), address(sets), address(compensated), address(due))
+    if status != _OK:
+        raise NativeLibraryError(f"{function_name} refused its arguments (status {status})")
+    return {
+        "ax_filt": filtered[:, 0].copy(),
+        "ay_filt": filtered[:, 1].copy(),
+        "az_filt": filtered[:, 2].copy(),
+        "temp_c": temperature_c,
+        "set": sets,
+        "ax_comp": compensated[:, 0].copy(),
+        "ay_comp": compensated[:, 1].copy(),
+        "az_comp": compensated[:, 2].copy(),
+        "frame_due": due.astype(bool),
+    }
+
+
+def imu_process(
+    ax: Any,
+    ay: Any,
+    az: Any,
+    temperature_raw: Any,
+    reset: Any = None,
+    decimation: int = DEFAULT_DECIMATION,
+    hysteresis_c: float = DEFAULT_HYSTERESIS_C,
+    coefficients: CoefficientTable | Iterable[float] | None = None,
+) -> dict[str, np.ndarray]:
+    """The firmware's processing of a series of 100 Hz samples as the LSM9DS0
+    gives them: ax, ay, az raw LSB (int16) and temperature_raw OUT_TEMP_XM
+    (12-bit, 8 LSB/degC; the firmware adds 21 degC). reset: a flag per sample
+    (RESEED before it), or None. decimation: SETDEC's factor; hysteresis_c: the
+    trend detector's (the firmware's 0.5). coefficients: a CoefficientTable or
+    36 numbers in block order (set W, C x axis X, Y, Z x p00, p10, p01, p20,
+    p11, p02), rounded to float32 as the firmware holds them; None for the
+    firmware's defaults (the paper's, Z uncorrected). Returns the arrays the
+    module docstring lists."""
+    temperature = _integers(temperature_raw, TEMPERATURE_RAW_RANGE, "temperature_raw")
+    axes = tuple(_integers(values, INT16_RANGE, name) for name, values in (("ax", ax), ("ay", ay), ("az", az)))
+    return _run("thermotilt_imu_process", axes, temperature, reset, decimation, hysteresis_c, coefficients)
+
+
+def imu_process_unrounded(
+    ax: Any,
+    ay: Any,
+    az: Any,
+    temperature_c: Any,
+    reset: Any = None,
+    decimation: int = DEFAULT_DECIMATION,
+    hysteresis_c: float = DEFAULT_HYSTERESIS_C,
+    coefficients: CoefficientTable | Iterable[float] | None = None,
+) -> dict[str, np.ndarray]:
+    """imu_process from inputs the sensor never quantised, e.g. a model's
+    predictions: ax, ay, az in LSB and temperature_c the sensor's temperature
+    in degC (what the firmware computes as raw / 8 + 21, before the filter).
+
+    What differs from the firmware path is only the inputs' quantisation: the
+    sensor gives whole LSB (int16) and whole 1/8 degC, while these go into the
+    same filters, trend, decimation and compensation as they are, rounded only
+    to float32, the type the firmware's Kalman update takes and computes in.
+    On whole LSB and temperatures raw / 8 + 21 it returns exactly what
+    imu_process returns."""
+    temperature = _floats(temperature_c, "temperature_c")
+    axes = tuple(_floats(values, name) for name, values in (("ax", ax), ("ay", ay), ("az", az)))
+    return _run("thermotilt_imu_process_unrounded", axes, temperature, reset, decimation, hysteresis_c,
+                coefficients)
