@@ -1,0 +1,53 @@
+"""A model as the document of a model file: what `Model.from_document` reads
+back to the same model, so a changed model can be written and used again."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import tomli_w
+
+from .model import Model
+
+
+def _plain(value: Any) -> Any:
+    if isinstance(value, Mapping):
+        return {key: _plain(item) for key, item in value.items()}
+    if isinstance(value, tuple):
+        return [_plain(item) for item in value]
+    return value
+
+
+def model_document(model: Model) -> dict[str, Any]:
+    """Every hardware section and term with all its values, and the faults."""
+    document: dict[str, Any] = {name: _plain(values) for name, values in model.constants.items()}
+    document.update({name: _plain(values) for name, values in model.terms.items()})
+    faults = []
+    for fault in model.faults:
+        table: dict[str, Any] = {"name": fault.name, "start_s": fault.start_s}
+        if fault.end_s is not None:
+            table["end_s"] = fault.end_s
+        if fault.rate is not None:
+            table["rate"] = fault.rate
+        faults.append(table)
+    if faults:
+        document["faults"] = faults
+    return document
+
+
+def with_values(model: Model, term: str, values: Mapping[str, Any]) -> Model:
+    """A copy with a term's parameters changed (and checked against their
+    declarations, as a model file's are)."""
+    document = model_document(model)
+    if term not in document:
+        raise KeyError(term)
+    document[term] = {**document[term], **_plain(values)}
+    return Model.from_document(document, model.source)
+
+
+def write_model(model: Model, path: Path, header: str = "") -> None:
+    """The model as a complete model file (every table spelled out)."""
+    comments = "".join(f"# {line}\n" if line else "#\n" for line in header.splitlines())
+    path.write_text(comments + tomli_w.dumps(model_document(model)), encoding="utf-8")
