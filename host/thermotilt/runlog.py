@@ -194,3 +194,48 @@ def read_run_log(path: str) -> list[dict[str, str]]:
                 f"{path}: row {number} has {len(cells)} cells, the header {len(header)}"
             )
     return [dict(zip(header, cells)) for cells in records[1:]]
+
+
+@dataclass(frozen=True)
+class RunColumns:
+    """A run.csv as numeric columns: empty or unreadable cells are NaN and
+    counted per column; text columns (``phase``, ``comp_set``) stay text."""
+
+    path: str
+    numbers: Mapping[str, Any]  # column -> numpy float array
+    texts: Mapping[str, list[str]]
+    unreadable: Mapping[str, int]  # column -> cells that were not numbers
+
+    @property
+    def rows(self) -> int:
+        return len(self.numbers["time_s"])
+
+
+TEXT_COLUMNS = frozenset({"phase", "chamber_fault", "comp_set", "coef_source"})
+
+
+def read_run_columns(path: str) -> RunColumns:
+    """A run.csv (read_run_log's checks) as columns for numeric work."""
+    import numpy as np
+
+    rows = read_run_log(path)
+    header = tuple(rows[0]) if rows else COLUMNS
+    numbers: dict[str, Any] = {}
+    texts: dict[str, list[str]] = {}
+    unreadable: dict[str, int] = {}
+    for column in header:
+        cells = [row[column] for row in rows]
+        if column in TEXT_COLUMNS or column == "true_drift_set":
+            texts[column] = cells
+            continue
+        values = np.full(len(cells), math.nan)
+        bad = 0
+        for index, cell in enumerate(cells):
+            if cell:
+                try:
+                    values[index] = float(cell)
+                except ValueError:
+                    bad += 1
+        numbers[column] = values
+        unreadable[column] = bad
+    return RunColumns(path, numbers, texts, unreadable)
