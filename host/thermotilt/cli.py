@@ -442,6 +442,71 @@ def _command_compare(args: argparse.Namespace) -> int:
     return 0
 
 
+def _command_discover(args: argparse.Namespace) -> int:
+    from .discovery import report
+    from .discovery.replay import DiscoveryDataError, load_measured
+    from .discovery.search import Search
+    from .native import NativeLibraryError
+    from .physics import Model, ModelError
+
+    try:
+        model = Model.load(args.model)
+        measured = load_measured(Path(args.measured), settle_s=args.settle_seconds)
+    except (ModelError, DiscoveryDataError) as error:
+        raise UsageError(str(error)) from None
+    for channel, why in measured.skipped_channels.items():
+        print(f"channel {channel} skipped: {why}")
+    if measured.skipped_rows:
+        print(f"{measured.skipped_rows} rows without chamber_c, time or angles skipped")
+    print(f"{len(measured.time_s)} rows, channels {', '.join(measured.channels)}")
+    try:
+        outcome = Search(measured, model, progress=print).run()
+    except NativeLibraryError as error:
+        raise UsageError(str(error)) from None
+    out_dir = Path(args.out)
+    try:
+        result = report.write(outcome, measured, model.source, out_dir)
+    except OSError as error:
+        raise UsageError(f"cannot write {out_dir}: {error.strerror or error}") from None
+    print(f"verdict: {result['verdict']}")
+    for effect in result["effects"]:
+        (parameter, value), = effect["parameters"].items()
+        low, high = effect["interval_95"][parameter]
+        print(f"  {effect['name']} on {effect['channel']}: {parameter} = {value:.4g} {effect['unit']} "
+              f"(95 % {low:.4g} .. {high:.4g}), adjusted p {effect['adjusted_p']:.2g}, "
+              f"gap -{100 * effect['gap_reduction']:.0f} %")
+    for group in result["ambiguous"]:
+        print(f"  ambiguous on {group['channel']}: {', '.join(group['names'])}; "
+              f"to separate them: {group['experiment']}")
+    if result["not_testable"]:
+        print(f"  not testable here: {', '.join(result['not_testable'])}")
+    for channel, gap in result["gap"].items():
+        print(f"  gap {channel}: {gap['replay']['before']:.3f} -> {gap['replay']['after']:.3f} {gap['unit']} RMS")
+    print(f"wrote {out_dir / 'discovery.json'}, model.toml, report.md, residuals.png")
+    return 0
+
+
+def _command_hide_effect(args: argparse.Namespace) -> int:
+    from .discovery.hide import hide_effect
+    from .discovery.replay import DiscoveryDataError
+    from .native import NativeLibraryError
+    from .physics import Model, ModelError
+
+    try:
+        model = Model.load(args.model)
+        truth = hide_effect(Path(args.inputs), Path(args.out), args.effect, args.seed, snr=args.snr,
+                            channel=args.channel, noise=args.noise, model=model, progress=print)
+    except (ModelError, DiscoveryDataError, NativeLibraryError) as error:
+        raise UsageError(str(error)) from None
+    except OSError as error:
+        raise UsageError(f"cannot write {args.out}: {error.strerror or error}") from None
+    hidden = (f"{truth.effect} on {truth.channel} ({truth.parameter} {truth.value:.4g}, "
+              f"SNR {truth.snr:.2f})" if truth.effect != "none" else "no effect")
+    print(f"wrote {args.out}/run.csv with {hidden}, {truth.noise} noise "
+          f"({truth.noise_rms:.3g} RMS); the truth is in truth.json")
+    return 0
+
+
 def _add_model_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=_within(int, *SEED_RANGE), default=1,
                         help="noise seed (default 1)")
@@ -629,6 +694,34 @@ def build_parser() -> argparse.ArgumentParser:
     upload.add_argument("--no-save", action="store_true",
                         help="upload to RAM only (coef_source U): no SAVECOE, no reset")
     upload.set_defaults(run=_command_upload)
+
+    discover = commands.add_parser(
+        "discover", help="where a measured run and the model's replay disagree, and which effect explains it"
+    )
+    discover.add_argument("measured", metavar="MEASURED", help="a run folder or run.csv (true_* columns are ignored)")
+    discover.add_argument("--model", help="physics model file (default: the packaged default.toml)")
+    discover.add_argument("--out", required=True, help="folder for discovery.json, model.toml, report.md")
+    discover.add_argument("--settle-seconds", type=_within(float, 0.0, 3600.0), default=120.0,
+                          help="leave out rows this close to the start and to a table move (default 120)")
+    discover.set_defaults(run=_command_discover)
+
+    hide = commands.add_parser(
+        "hide-effect", help="a measured-looking run with one candidate effect hidden in it, for testing discover"
+    )
+    hide.add_argument("--inputs", required=True, metavar="RUN",
+                      help="a run (folder or run.csv) whose chamber temperature and table angles to reuse, "
+                           "e.g. from thermotilt simulate")
+    hide.add_argument("--effect", required=True, help="a candidate's name, none or random")
+    hide.add_argument("--seed", type=_within(int, *SEED_RANGE), default=1, help="noise and draw seed")
+    hide.add_argument("--snr", type=_within(float, 0.01, 1000.0),
+                      help="effect RMS over noise RMS on its channel (default: drawn from 0.5..8)")
+    hide.add_argument("--channel", choices=("temperature", "X", "Y", "Z"),
+                      help="the channel the effect is sized on (default: drawn)")
+    hide.add_argument("--noise", choices=("model", "white", "autocorrelated"), default="model",
+                      help="the model's noise terms, white noise only, or 5x the model's flicker")
+    hide.add_argument("--model", help="physics model file the effect is added to (default: the packaged one)")
+    hide.add_argument("--out", required=True, help="folder for run.csv and truth.json")
+    hide.set_defaults(run=_command_hide_effect)
 
     log = commands.add_parser("log", help="log real boards (or the twin's --pty ports) to run.csv")
     log.add_argument("--port", required=True, help="the IMU reader's serial port")

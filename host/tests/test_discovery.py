@@ -1,0 +1,165 @@
+"""thermotilt discover on runs with a known effect hidden in them
+(thermotilt hide-effect), on null runs, and on bad input."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from thermotilt.discovery.candidates import BY_NAME
+from thermotilt.discovery.hide import hide_effect, staircase_inputs
+from thermotilt.discovery.replay import load_measured
+from thermotilt.discovery.search import Search
+from thermotilt.physics import Model
+
+# Every candidate on the channel it is sized on, on staircase_inputs' three
+# positions (X +30, X -30, Y +30 deg), so that each is excited somewhere
+# (sensitivity_loss needs two inclinations on its axis, cross_axis the other
+# axis tilted).
+CASES = (
+    ("sensor_lag", "X"),
+    ("rate_sensitivity", "Y"),
+    ("hysteresis", "X"),
+    ("sensitivity_loss", "X"),
+    ("scale_tempco", "Y"),
+    ("cross_axis", "Y"),
+    ("temperature_offset", "temperature"),
+)
+
+
+def _cli(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "thermotilt", *args], capture_output=True, text=True)
+
+
+@pytest.fixture(scope="module")
+def inputs(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return staircase_inputs(tmp_path_factory.mktemp("inputs") / "run.csv")
+
+
+def _discover(run: Path):
+    return Search(load_measured(run), Model.load()).run()
+
+
+@pytest.mark.parametrize("effect, channel", CASES)
+def test_an_effect_hidden_at_snr_4_is_named_with_its_value_inside_the_interval(
+    inputs: Path, tmp_path: Path, effect: str, channel: str
+) -> None:
+    truth = hide_effect(inputs, tmp_path, effect, seed=3, snr=4.0, channel=channel)
+    outcome = _discover(tmp_path / "run.csv")
+    assert outcome.verdict == "found"
+    found = outcome.effects[0]
+    assert found.candidate == effect
+    if BY_NAME[effect].per_axis:
+        assert found.channel == channel
+    low, high = found.interval
+    assert low <= truth.value <= high
+    # The gap left is the noise: at SNR 4 the hidden effect is 4x the noise
+    # RMS, so the residual before is sqrt(17) x the noise, and the fitted
+    # effect takes at least 80 % of what separates that from the noise
+    # (issue 9's target for gap shrink relative to the true model).
+    before, after = outcome.gap[channel]["before"], outcome.gap[channel]["after"]
+    assert before - after >= 0.8 * (before - truth.noise_rms)
+
+
+@pytest.mark.parametrize("noise", ["white", "model", "autocorrelated"])
+def test_null_runs_give_none(inputs: Path, tmp_path: Path, noise: str) -> None:
+    hide_effect(inputs, tmp_path, "none", seed=5, noise=noise)
+    outcome = _discover(tmp_path / "run.csv")
+    assert outcome.verdict == "none", [(e.candidate, e.channel, e.adjusted_p) for e in outcome.effects]
+
+
+def test_sensor_lag_and_rate_sensitivity_on_one_ramp_rate_are_ambiguous(tmp_path: Path) -> None:
+    # No holds: one slow ramp up and down over 20..30 degC, where the drift's
+    # slope hardly changes, so a lag of the structure and a rate term look
+    # the same (a wider range or holds tell them apart: the SNR 4 case).
+    ramps = staircase_inputs(tmp_path / "inputs" / "run.csv", positions=((30.0, 0.0),),
+                             low_c=20.0, high_c=30.0, step_c=10.0, hold_s=0.0, ramp_c_per_s=0.01)
+    hide_effect(ramps, tmp_path / "hidden", "sensor_lag", seed=7, snr=4.0, channel="X")
+    outcome = _discover(tmp_path / "hidden" / "run.csv")
+    assert outcome.verdict == "ambiguous"
+    assert {"sensor_lag", "rate_sensitivity"} <= set(outcome.ambiguous[0].names)
+    assert "ramp" in outcome.ambiguous[0].experiment or "hold" in outcome.ambiguous[0].experiment
+
+
+def test_sensitivity_loss_at_one_inclination_is_not_testable(tmp_path: Path) -> None:
+    single = staircase_inputs(tmp_path / "inputs" / "run.csv", positions=((30.0, 0.0),))
+    hide_effect(single, tmp_path / "null", "none", seed=2)
+    outcome = _discover(tmp_path / "null" / "run.csv")
+    assert "sensitivity_loss" in outcome.not_testable
+
+
+def test_discover_writes_a_model_that_loads_and_closes_the_gap(inputs: Path, tmp_path: Path) -> None:
+    hide_effect(inputs, tmp_path / "hidden", "hysteresis", seed=11, snr=4.0, channel="Y")
+    result = _cli("discover", str(tmp_path / "hidden"), "--out", str(tmp_path / "found"))
+    assert result.returncode == 0, result.stderr
+    assert "verdict: found" in result.stdout
+    document = json.loads((tmp_path / "found" / "discovery.json").read_text())
+    assert document["verdict"] == "found"
+    assert document["effects"][0]["name"] == "hysteresis"
+    model = Model.load(tmp_path / "found" / "model.toml")
+    assert model.enabled("hysteresis")
+    gap = document["gap"]["Y"]["replay"]
+    assert gap["after"] < gap["before"]
+    # Discovery on the same run with the written model finds nothing more.
+    again = Search(load_measured(tmp_path / "hidden"), model).run()
+    assert again.verdict == "none"
+    assert (tmp_path / "found" / "report.md").read_text().count("hysteresis") >= 1
+    assert (tmp_path / "found" / "residuals.png").stat().st_size > 0
+
+
+def test_truth_stays_out_of_the_run(inputs: Path, tmp_path: Path) -> None:
+    hide_effect(inputs, tmp_path, "cross_axis", seed=1, snr=2.0, channel="Y")
+    header = (tmp_path / "run.csv").read_text().splitlines()[0]
+    assert "true_" not in header
+    assert json.loads((tmp_path / "truth.json").read_text())["effect"] == "cross_axis"
+
+
+def test_a_model_that_does_not_load_is_one_line(tmp_path: Path, inputs: Path) -> None:
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[drift]\nenabled = 3\n")
+    result = _cli("discover", str(inputs), "--model", str(bad), "--out", str(tmp_path / "out"))
+    assert result.returncode == 1
+    assert len(result.stderr.strip().splitlines()) == 1
+    assert "bad.toml" in result.stderr
+
+
+def test_a_run_without_rows_is_one_line(tmp_path: Path, inputs: Path) -> None:
+    empty = tmp_path / "run.csv"
+    empty.write_text(inputs.read_text().splitlines()[0] + "\n")
+    result = _cli("discover", str(empty), "--out", str(tmp_path / "out"))
+    assert result.returncode == 1
+    assert result.stderr.strip() == f"thermotilt: error: {empty}: no rows"
+
+
+def test_a_run_without_the_chamber_temperature_is_one_line(tmp_path: Path, inputs: Path) -> None:
+    lines = inputs.read_text().splitlines()
+    header = lines[0].split(",")
+    column = header.index("chamber_c")
+    stripped = [",".join("" if i == column else cell for i, cell in enumerate(line.split(",")))
+                for line in lines[1:]]
+    (tmp_path / "run.csv").write_text("\n".join([lines[0], *stripped]) + "\n")
+    result = _cli("discover", str(tmp_path / "run.csv"), "--out", str(tmp_path / "out"))
+    assert result.returncode == 1
+    assert "chamber_c" in result.stderr and len(result.stderr.strip().splitlines()) == 1
+
+
+def test_a_channel_without_its_column_is_skipped_and_said(tmp_path: Path, inputs: Path) -> None:
+    hide_effect(inputs, tmp_path / "run", "none", seed=4, noise="white")
+    lines = (tmp_path / "run" / "run.csv").read_text().splitlines()
+    column = lines[0].split(",").index("az_filt")
+    stripped = [",".join("" if i == column else cell for i, cell in enumerate(line.split(",")))
+                for line in lines[1:]]
+    (tmp_path / "run" / "run.csv").write_text("\n".join([lines[0], *stripped]) + "\n")
+    result = _cli("discover", str(tmp_path / "run"), "--out", str(tmp_path / "out"))
+    assert result.returncode == 0, result.stderr
+    assert "channel Z skipped: the log has no az_filt" in result.stdout
+
+
+def test_every_candidate_is_a_registered_term() -> None:
+    model = Model.load()
+    for name, candidate in BY_NAME.items():
+        assert candidate.parameter in model.terms[name]

@@ -1,0 +1,321 @@
+"""Measured-looking runs with an effect hidden in them, to test discovery on.
+
+The chamber side of a real run (its inner-face temperature, table angles,
+program columns) is kept; the sensor side is generated again: the physics
+model's sensor, with one candidate term changed, stepped on the IMU's 100 Hz
+grid with all its noise terms, and the firmware's own processing
+(``thermotilt.native``) turning each sample into filtered, compensated and
+decimated frames. The run folder gets a run.csv without ``true_*`` columns;
+what was hidden goes to ``truth.json``, which discovery never reads.
+
+SNR is the effect's RMS over the noise's RMS on the channel it acts on, both
+over the rows discovery compares (settled rows; about the mean on the
+acceleration channels, whose constant offset discovery cannot see): the
+effect is the replayed difference the changed term makes, the noise what
+the random terms add to the firmware's output.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .. import native
+from ..physics import Model, Sensor
+from ..runlog import COLUMNS, format_number, read_run_columns
+from .candidates import BY_NAME, CANDIDATES, Candidate
+from .replay import (
+    DEFAULT_SETTLE_S,
+    FIRMWARE_OUTPUTS,
+    SAMPLE_PERIOD_S,
+    DiscoveryDataError,
+    Measured,
+    SampleGrid,
+    load_measured,
+    replay,
+    run_csv_of,
+)
+from .search import gap_rms
+
+NOISES = ("model", "white", "autocorrelated")
+# "autocorrelated": the model's flicker floor this many times larger.
+AUTOCORRELATED_FLICKER_FACTOR = 5.0
+DEFAULT_SNR_RANGE = (0.5, 8.0)
+# The firmware's frame cadence (firmware/imu_reader DEFAULT_DECIMATION).
+DECIMATION = 10
+# The chamber's columns, copied from the input run's nearest row.
+_CHAMBER_COLUMNS = ("ambient_c", "setpoint_c", "chamber_c", "outer_c", "pwm", "direction",
+                    "phase", "chamber_fault")
+
+
+@dataclass(frozen=True)
+class Truth:
+    effect: str  # a candidate's name, or "none"
+    channel: str | None
+    parameter: str | None
+    value: float | None  # the parameter's value in the hidden model
+    model_value: float | None  # its value in the model discovery is given
+    snr: float | None
+    effect_rms: float | None
+    noise_rms: float
+    noise: str
+    seed: int
+    inputs: str
+
+
+def noisy(model: Model, noise: str) -> Model:
+    """The model with the noise of this kind."""
+    if noise == "model":
+        return model
+    if noise == "white":
+        return model.with_terms({"bias_instability": False, "drift_repeatability": False})
+    if noise == "autocorrelated":
+        from ..physics.document import with_values
+
+        floors = model.terms["bias_instability"]["allan_floor_lsb"]
+        return with_values(model, "bias_instability", {
+            "enabled": True,
+            "allan_floor_lsb": {axis: AUTOCORRELATED_FLICKER_FACTOR * floors[axis] for axis in "xyz"},
+        })
+    raise ValueError(f"unknown noise {noise!r}; choose from {', '.join(NOISES)}")
+
+
+def _generate(measured: Measured, model: Model, seed: int) -> dict[str, np.ndarray]:
+    """The sensor stepped at 100 Hz through the run and the firmware's
+    processing of every sample: per-sample arrays on the grid."""
+    grid = SampleGrid.of(measured.time_s, measured.mounting)
+    chamber_c = grid.sample(measured.time_s, measured.chamber_c)
+    row = np.minimum(np.searchsorted(measured.time_s, grid.time_s, side="right") - 1,
+                     len(measured.time_s) - 1)
+    incl_x = measured.incl_x_deg[row].tolist()
+    incl_y = measured.incl_y_deg[row].tolist()
+    sensor = Sensor(model, seed, float(chamber_c[0]))
+    count = len(grid.time_s)
+    registers = np.empty((4, count), dtype=np.int16)
+    for index, environment_c in enumerate(chamber_c.tolist()):
+        sample = sensor.step(SAMPLE_PERIOD_S, environment_c, incl_x[index], incl_y[index])
+        registers[:, index] = (sample.ax, sample.ay, sample.az, sample.temperature_raw)
+    processed = native.imu_process(registers[0], registers[1], registers[2], registers[3],
+                                   grid.reset, decimation=DECIMATION)
+    processed.update(raw_x=registers[0], raw_y=registers[1], raw_z=registers[2],
+                     grid_time_s=grid.time_s, incl_x=np.asarray(incl_x), incl_y=np.asarray(incl_y))
+    return processed
+
+
+def _channel_values(processed: Mapping[str, np.ndarray], frames: np.ndarray) -> dict[str, np.ndarray]:
+    return {channel: processed[output][frames].astype(float)
+            for channel, output in FIRMWARE_OUTPUTS.items()}
+
+
+def _frames_measured(inputs: Measured, processed: Mapping[str, np.ndarray],
+                     frames: np.ndarray) -> Measured:
+    """The generated frames as a Measured (the same inputs, at the frame times)."""
+    time_s = processed["grid_time_s"][frames]
+    row = np.minimum(np.searchsorted(inputs.time_s, time_s, side="right") - 1, len(inputs.time_s) - 1)
+    values = _channel_values(processed, frames)
+    mounting = inputs.mounting[row]
+    first = time_s[np.searchsorted(mounting, mounting)]
+    settled = (time_s - first >= DEFAULT_SETTLE_S) & (time_s - time_s[0] >= DEFAULT_SETTLE_S)
+    return Measured(
+        source="generated", time_s=time_s, chamber_c=np.interp(time_s, inputs.time_s, inputs.chamber_c),
+        incl_x_deg=inputs.incl_x_deg[row], incl_y_deg=inputs.incl_y_deg[row], mounting=mounting,
+        observed=values, used={channel: settled.copy() for channel in values}, skipped_rows=0,
+        skipped_channels={},
+    )
+
+
+def _scaled(candidate: Candidate, model: Model, frames: Measured, channel: str,
+            target_rms: float, sign: float) -> tuple[float, float]:
+    """The parameter value whose replayed effect on the channel has this RMS,
+    and that RMS."""
+    used = frames.used[channel]
+    base = replay(frames, model)[channel][used]
+    start = candidate.value(model, channel)
+
+    def effect_rms(value: float) -> float:
+        changed = replay(frames, candidate.changed(model, {channel: value}))[channel][used]
+        return gap_rms(channel, changed - base)
+
+    if candidate.additive:
+        unit = effect_rms(start + candidate.probe) / candidate.probe
+        value = start + sign * target_rms / unit
+        low, high = candidate.bounds
+        if not low <= value <= high:
+            value = start - sign * target_rms / unit
+        return value, effect_rms(value)
+    low, high = math.log(candidate.bounds[0]), math.log(candidate.bounds[1])
+    for _ in range(30):
+        middle = 0.5 * (low + high)
+        if effect_rms(math.exp(middle)) < target_rms:
+            low = middle
+        else:
+            high = middle
+    value = math.exp(0.5 * (low + high))
+    return value, effect_rms(value)
+
+
+def hide_effect(
+    inputs_path: Path,
+    out_dir: Path,
+    effect: str,
+    seed: int,
+    snr: float | None = None,
+    channel: str | None = None,
+    noise: str = "model",
+    model: Model | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> Truth:
+    """Write out_dir/run.csv with the effect hidden and out_dir/truth.json."""
+    say = progress or (lambda message: None)
+    model = Model.load() if model is None else model
+    rng = np.random.default_rng(seed)
+    if effect == "random":
+        effect = CANDIDATES[int(rng.integers(len(CANDIDATES)))].name
+    if effect != "none" and effect not in BY_NAME:
+        raise DiscoveryDataError(
+            f"unknown effect {effect!r}; choose none, random or one of {', '.join(BY_NAME)}"
+        )
+    inputs = load_measured(inputs_path, inputs_only=True)
+    base_model = noisy(model, noise)
+    say("generating the noise")
+    processed = _generate(inputs, base_model, seed)
+    frames = np.flatnonzero(processed["frame_due"])
+    generated = _frames_measured(inputs, processed, frames)
+
+    truth_model = base_model
+    hidden: dict[str, object] = {"channel": None, "parameter": None, "value": None,
+                                 "model_value": None, "snr": None, "effect_rms": None}
+    if effect != "none":
+        candidate = BY_NAME[effect]
+        choices = [c for c in candidate.channels if c in generated.channels]
+        channel = channel or choices[int(rng.integers(len(choices)))]
+        if channel not in choices:
+            raise DiscoveryDataError(f"{effect} acts on {', '.join(choices)}, not {channel}")
+        if snr is None:
+            snr = float(np.exp(rng.uniform(*np.log(DEFAULT_SNR_RANGE))))
+    noise_channel = channel or "X"
+    noise_rms = gap_rms(noise_channel, (generated.observed[noise_channel]
+                                        - replay(generated, model)[noise_channel])[generated.used[noise_channel]])
+    if effect != "none":
+        sign = 1.0 if rng.random() < 0.5 else -1.0
+        say(f"sizing {effect} on {channel} for SNR {snr:g}")
+        value, effect_rms = _scaled(candidate, model, generated, channel, snr * noise_rms, sign)
+        truth_model = candidate.changed(base_model, {channel: value})
+        say("generating the run with the effect")
+        processed = _generate(inputs, truth_model, seed)
+        hidden = {"channel": channel, "parameter": candidate.parameter, "value": value,
+                  "model_value": candidate.value(model, channel), "snr": effect_rms / noise_rms,
+                  "effect_rms": effect_rms}
+    out_dir.mkdir(parents=True, exist_ok=True)
+    _write_run(out_dir / "run.csv", inputs_path, processed, frames)
+    truth = Truth(effect=effect, noise_rms=noise_rms, noise=noise, seed=seed,
+                  inputs=str(inputs_path), **hidden)  # type: ignore[arg-type]
+    (out_dir / "truth.json").write_text(json.dumps(vars(truth), indent=2) + "\n", encoding="utf-8")
+    return truth
+
+
+def _write_run(path: Path, inputs_path: Path, processed: Mapping[str, np.ndarray],
+               frames: np.ndarray) -> None:
+    columns = read_run_columns(str(run_csv_of(inputs_path)))
+    input_time = columns.numbers["time_s"]
+    known = np.isfinite(input_time)
+    input_rows = np.flatnonzero(known)
+    time_s = processed["grid_time_s"][frames]
+    nearest = input_rows[np.minimum(np.searchsorted(input_time[known], time_s, side="right") - 1,
+                                    len(input_rows) - 1)]
+    since_move = np.zeros(len(frames))
+    start = time_s[0]
+    last = (None, None)
+    for index, (x, y, t) in enumerate(zip(processed["incl_x"][frames], processed["incl_y"][frames], time_s)):
+        if (x, y) != last:
+            last, start = (x, y), t
+        since_move[index] = t - start
+
+    # The inner face as the sensor saw it; the other chamber cells are the
+    # input's row at or before the frame, as a logger holds the last CHS frame.
+    chamber_c = np.interp(time_s, input_time[known], columns.numbers["chamber_c"][known])
+
+    def cell(column: str, row: int) -> str:
+        if column in columns.texts:
+            return columns.texts[column][row]
+        return format_number(float(columns.numbers[column][row]), 3)
+
+    with open(path, "w", newline="", encoding="utf-8") as stream:
+        writer = csv.writer(stream, lineterminator="\n")
+        writer.writerow(COLUMNS)
+        for index, sample in enumerate(frames.tolist()):
+            row = int(nearest[index])
+            values = {column: cell(column, row) for column in _CHAMBER_COLUMNS}
+            values.update(
+                time_s=format_number(float(time_s[index]), 3),
+                chamber_c=format_number(float(chamber_c[index]), 3),
+                imu_temp_c=format_number(float(processed["temp_c"][sample]), 3),
+                incl_x_deg=format_number(float(processed["incl_x"][sample]), 3),
+                incl_y_deg=format_number(float(processed["incl_y"][sample]), 3),
+                since_move_s=format_number(float(since_move[index]), 3),
+                ax_raw=str(int(processed["raw_x"][sample])), ay_raw=str(int(processed["raw_y"][sample])),
+                az_raw=str(int(processed["raw_z"][sample])),
+                ax_filt=format_number(float(processed["ax_filt"][sample]), 1),
+                ay_filt=format_number(float(processed["ay_filt"][sample]), 1),
+                az_filt=format_number(float(processed["az_filt"][sample]), 1),
+                ax_comp=format_number(float(processed["ax_comp"][sample]), 1),
+                ay_comp=format_number(float(processed["ay_comp"][sample]), 1),
+                az_comp=format_number(float(processed["az_comp"][sample]), 1),
+                comp_set="C" if processed["set"][sample] else "W",
+                coef_source="D",
+                imu_seq=str(index % 65536),
+            )
+            writer.writerow([values.get(column, "") for column in COLUMNS])
+
+
+
+def staircase_inputs(
+    path: Path,
+    positions: tuple[tuple[float, float], ...] = ((30.0, 0.0), (-30.0, 0.0), (0.0, 30.0)),
+    low_c: float = 0.0,
+    high_c: float = 40.0,
+    step_c: float = 5.0,
+    hold_s: float = 40.0,
+    chamber_time_constant_s: float = 8.0,
+    ramp_c_per_s: float = 0.3,
+    settle_s: float = DEFAULT_SETTLE_S,
+) -> Path:
+    """A run.csv of inputs only (time, chamber temperature, table angles),
+    for tests and benchmarks where the twin's minutes per run do not fit: at
+    every position a staircase low..high..low in step_c steps held hold_s,
+    the inner face following the setpoint at most ramp_c_per_s and through a
+    first-order lag, sampled at the IMU's 10 Hz frames."""
+    steps_up = int(round((high_c - low_c) / step_c))
+    up = [low_c + step_c * k for k in range(1, steps_up + 1)]
+    # Each position: settle at the low end, then up and back down.
+    segments = [(low_c, settle_s)] + [(level, hold_s) for level in up + up[-2::-1] + [low_c]]
+    period_s = DECIMATION * SAMPLE_PERIOD_S
+    lag = 1.0 - math.exp(-period_s / chamber_time_constant_s)
+    rows = []
+    time_s, driven_c, face_c = 0.0, low_c, low_c
+    for incl_x, incl_y in positions:
+        moved = time_s
+        for level, hold in segments:
+            duration = abs(level - driven_c) / ramp_c_per_s + hold
+            for _ in range(int(round(duration / period_s))):
+                driven_c += float(np.clip(level - driven_c, -ramp_c_per_s * period_s,
+                                          ramp_c_per_s * period_s))
+                face_c += (driven_c - face_c) * lag
+                rows.append((time_s, level, face_c, incl_x, incl_y, time_s - moved))
+                time_s += period_s
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "w", newline="", encoding="utf-8") as stream:
+        writer = csv.writer(stream, lineterminator="\n")
+        writer.writerow(COLUMNS)
+        for time_s, setpoint, chamber, incl_x, incl_y, since_move in rows:
+            values = {"time_s": f"{time_s:.3f}", "ambient_c": "22.000", "setpoint_c": f"{setpoint:.3f}",
+                      "chamber_c": f"{chamber:.3f}", "incl_x_deg": f"{incl_x:.3f}",
+                      "incl_y_deg": f"{incl_y:.3f}", "since_move_s": f"{since_move:.3f}"}
+            writer.writerow([values.get(column, "") for column in COLUMNS])
+    return path

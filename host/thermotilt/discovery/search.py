@@ -1,0 +1,456 @@
+"""Which candidate explains the gap between a run and its replay, decided
+with inference that survives the residual's autocorrelation.
+
+Each channel's residual (measured minus replay) is averaged over blocks of
+BLOCK_S within each table position, which leaves a few hundred points whose
+correlation is modelled, not ignored: an AR(1) process within a position
+plus, on the acceleration channels, the random drift slope per mounting the
+model itself declares (`drift_repeatability`). Both are estimated or read
+once per channel, every block is whitened with that covariance (GLS), and
+each candidate's effect (its replayed regressor) is tested on the whitened
+blocks with Newey-West (HAC) standard errors, a guard against correlation the
+AR(1) misses. The p-values of all candidates and channels of a round are
+adjusted for the false-discovery rate (Benjamini-Hochberg); a candidate is
+found only when it is significant after that and shrinks the channel's RMS
+residual by at least MIN_GAP_REDUCTION. docs/discovery.md states the rules.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+import statsmodels.api as sm
+from scipy import stats
+from scipy.linalg import solve_triangular
+from scipy.optimize import minimize_scalar
+from statsmodels.stats.multitest import multipletests
+
+from ..physics import Model
+from ..physics.terms.sensor import FLICKER_TIME_CONSTANTS_S, FLICKER_VARIANCE_PER_FLOOR
+from .candidates import CANDIDATES, Candidate, experiment
+from .replay import ACCELERATION_CHANNELS, Measured, SampleGrid, replay
+
+ALPHA = 0.05
+# Long against the Kalman filters' ~10 s and short against a 60 s
+# staircase hold, so a block still follows the temperature.
+BLOCK_S = 20.0
+# A candidate must take at least this share off the channel's RMS residual:
+# an effect as large as the noise (SNR 1) takes 29 %, SNR 0.5 takes 11 %.
+MIN_GAP_REDUCTION = 0.10
+# A regressor this well explained by the nuisance columns (the channel's
+# constant offset) cannot be told from them on this run.
+NOT_TESTABLE_R2 = 0.999
+# Two effects this correlated on a run (whitened, beyond the nuisance)
+# cannot be told apart by it, whatever their fits say.
+COLLINEAR = 0.99
+MAX_ROUNDS = 4
+# Longer runs get longer blocks, so the block covariance stays this small.
+MAX_BLOCKS = 2000
+# The least share of the residual blocks' variance left to the AR(1) part,
+# however much of it the declared flicker could explain.
+NUGGET_SHARE = 0.05
+REFERENCE_C = 25.0
+
+
+@dataclass(frozen=True)
+class Test:
+    """One candidate on one channel in one round. value: the parameter's
+    value that explains the residual best (for an additive candidate the
+    model's plus the fitted change), with its 95 % interval; p_value: that
+    the effect is zero."""
+
+    candidate: str
+    channel: str
+    testable: bool
+    value: float = float("nan")
+    interval: tuple[float, float] = (float("nan"), float("nan"))
+    p_value: float = float("nan")
+    adjusted_p: float = float("nan")
+    gap_reduction: float = float("nan")
+
+    @property
+    def key(self) -> tuple[str, str]:
+        return self.candidate, self.channel
+
+
+@dataclass(frozen=True)
+class Effect:
+    candidate: str
+    channel: str
+    parameter: str
+    unit: str
+    value: float  # the parameter's new value in the written model
+    interval: tuple[float, float]
+    adjusted_p: float
+    gap_reduction: float
+
+
+@dataclass(frozen=True)
+class Ambiguity:
+    names: tuple[str, ...]
+    channel: str
+    experiment: str
+
+
+@dataclass
+class Outcome:
+    verdict: str
+    model: Model
+    effects: list[Effect] = field(default_factory=list)
+    ambiguous: list[Ambiguity] = field(default_factory=list)
+    not_testable: list[str] = field(default_factory=list)
+    rounds: list[list[Test]] = field(default_factory=list)
+    residual_before: dict[str, np.ndarray] = field(default_factory=dict)
+    residual_after: dict[str, np.ndarray] = field(default_factory=dict)
+    gap: dict[str, dict[str, float]] = field(default_factory=dict)
+
+
+def _nuisance(channel: str) -> bool:
+    """The acceleration channels carry an unknown constant offset (the
+    sensor's mounting on the table); the temperature channel does not."""
+    return channel in ACCELERATION_CHANNELS
+
+
+def gap_rms(channel: str, residual: np.ndarray) -> float:
+    """RMS of a residual as this module judges it: about its mean where the
+    channel has an unknown offset."""
+    centred = residual - residual.mean() if _nuisance(channel) else residual
+    return float(np.sqrt(np.mean(centred**2)))
+
+
+@dataclass(frozen=True)
+class Fit:
+    """The regressors' coefficients, standard errors and two-sided p-values
+    of a fit on whitened blocks.
+
+    The whitening is by a covariance stated in LSB (not up to a scale), so
+    the standard error is the GLS one with that covariance as it is; it
+    carries the random slope per mounting, which one run shows only once
+    per position and no residual-based error can see. The Newey-West (HAC)
+    error of the whitened fit guards against correlation the covariance
+    misses: the larger of the two is used."""
+
+    params: np.ndarray
+    bse: np.ndarray
+    pvalues: np.ndarray
+
+    @classmethod
+    def of(cls, y_w: np.ndarray, design: np.ndarray, count: int) -> Fit:
+        model = sm.OLS(y_w, design)
+        lags = int(np.floor(4 * (len(y_w) / 100.0) ** (2.0 / 9.0)))
+        robust = model.fit(cov_type="HAC", cov_kwds={"maxlags": lags})
+        known = np.sqrt(np.diag(np.linalg.pinv(design.T @ design)))
+        bse = np.maximum(known, robust.bse)[-count:]
+        params = robust.params[-count:]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            z = np.abs(params / bse)
+        return cls(params, bse, 2.0 * stats.norm.sf(z))
+
+
+@dataclass(frozen=True)
+class DeclaredNoise:
+    """The noise the model declares on a channel, as block covariances: a
+    random drift slope per mounting (LSB/degC) and flicker, one Gauss-Markov
+    process per time constant with its variance (LSB^2)."""
+
+    slope_sigma: float = 0.0
+    flicker: tuple[tuple[float, float], ...] = ()  # (time constant s, variance)
+
+    @classmethod
+    def of(cls, model: Model, channel: str) -> DeclaredNoise:
+        if channel not in ACCELERATION_CHANNELS:
+            return cls()
+        axis = channel.lower()
+        slope = (float(model.terms["drift_repeatability"]["sigma_lsb_per_c"][axis])
+                 if model.enabled("drift_repeatability") else 0.0)
+        flicker: tuple[tuple[float, float], ...] = ()
+        if model.enabled("bias_instability"):
+            floor = float(model.terms["bias_instability"]["allan_floor_lsb"][axis])
+            variance = floor**2 * FLICKER_VARIANCE_PER_FLOOR
+            flicker = tuple((tau, variance) for tau in FLICKER_TIME_CONSTANTS_S)
+        return cls(slope, flicker)
+
+
+class Channel:
+    """One channel's blocks and its whitening, fixed for a round.
+
+    The whitening has two stages: first the covariance the model declares
+    (DeclaredNoise, over the whole run: flicker does not stop at a table
+    move), then an AR(1) fitted to what that leaves, for correlation the
+    model does not declare (the temperature register's 1/8 degC steps, or a
+    real rig's)."""
+
+    def __init__(self, measured: Measured, channel: str, residual: np.ndarray,
+                 temperature_c: np.ndarray, noise: DeclaredNoise) -> None:
+        self.name = channel
+        used = measured.used[channel]
+        self.rows = used
+        self.residual_rows = residual[used]
+        mounting = measured.mounting[used]
+        time_s = measured.time_s[used]
+        start = time_s[np.searchsorted(mounting, mounting)]
+        span = time_s[-1] - time_s[0]
+        block_s = max(BLOCK_S, span / MAX_BLOCKS)
+        keys = mounting * 10**9 + np.floor((time_s - start) / block_s).astype(np.int64)
+        _, self._block, counts = np.unique(keys, return_inverse=True, return_counts=True)
+        self._counts = counts
+        self._mounting = np.rint(self.blocks(mounting.astype(float))).astype(np.int64)
+        block_time = self.blocks(time_s)
+        excursion = self.blocks(temperature_c[used]) - REFERENCE_C
+        self.y = self.blocks(self.residual_rows)
+        self.nuisance = np.ones((len(self.y), 1)) if _nuisance(channel) else np.empty((len(self.y), 0))
+        self.whiten = self._whitening(block_time, excursion, block_s, noise)
+        self.y_w = self.whiten(self.y)
+        self.nuisance_w = self.whiten(self.nuisance)
+
+    def blocks(self, values: np.ndarray) -> np.ndarray:
+        return np.bincount(self._block, weights=values) / self._counts
+
+    def _whitening(self, block_time: np.ndarray, excursion: np.ndarray, block_s: float,
+                   noise: DeclaredNoise) -> Callable[[np.ndarray], np.ndarray]:
+        count = len(self.y)
+        lag_s = np.abs(np.subtract.outer(block_time, block_time))
+        same = np.equal.outer(self._mounting, self._mounting)
+        declared = noise.slope_sigma**2 * np.outer(excursion, excursion) * same
+        flicker_variance = flicker_lag1 = 0.0
+        for tau, variance in noise.flicker:
+            # A block's mean keeps the share of a process slower than the
+            # block, about 2 tau / block of a faster one.
+            kept = variance * min(1.0, 2.0 * tau / block_s)
+            declared += kept * np.exp(-lag_s / tau)
+            flicker_variance += kept
+            flicker_lag1 += kept * np.exp(-block_s / tau)
+        # What the declared noise leaves: the residual after a free offset
+        # and slope per mounting (so that no effect constant or linear
+        # within a position is taken for noise), as an AR(1) within each.
+        columns = []
+        for m in np.unique(self._mounting):
+            inside = (self._mounting == m).astype(float)
+            columns += [inside[:, None], (inside * excursion)[:, None]]
+        design = np.hstack(columns)
+        left = self.y - design @ np.linalg.lstsq(design, self.y, rcond=None)[0]
+        total = max(float(np.mean(left**2)), 1e-12)
+        excess = max(total - flicker_variance, NUGGET_SHARE * total)
+        neighbours = self._mounting[1:] == self._mounting[:-1]
+        lag1 = float(np.mean((left[1:] * left[:-1])[neighbours])) if neighbours.any() else 0.0
+        rho = float(np.clip((lag1 - flicker_lag1) / excess, 0.0, 0.99))
+        index = np.arange(count)
+        ar = excess * rho ** np.abs(np.subtract.outer(index, index)) * same
+        lower = np.linalg.cholesky(declared + ar + 1e-9 * total * np.eye(count))
+
+        def whiten(values: np.ndarray) -> np.ndarray:
+            return solve_triangular(lower, values, lower=True)
+
+        return whiten
+
+    def fit(self, regressors: np.ndarray) -> Fit:
+        """GLS of the residual blocks on the nuisance and these regressors
+        (block means, one column each)."""
+        design = np.hstack([self.nuisance_w, self.whiten(regressors)])
+        return Fit.of(self.y_w, design, regressors.shape[1])
+
+    def beyond_nuisance(self, whitened: np.ndarray) -> np.ndarray:
+        """What of whitened blocks the nuisance columns do not explain."""
+        if not self.nuisance_w.shape[1]:
+            return whitened
+        return whitened - self.nuisance_w @ np.linalg.lstsq(self.nuisance_w, whitened, rcond=None)[0]
+
+    def testable(self, regressor: np.ndarray) -> bool:
+        g = self.whiten(regressor)
+        total = float(g @ g)
+        if total == 0.0:
+            return False
+        left = self.beyond_nuisance(g)
+        return 1.0 - float(left @ left) / total < NOT_TESTABLE_R2
+
+    def reduction(self, explained_rows: np.ndarray) -> float:
+        """The share of the RMS residual an effect takes off."""
+        before = gap_rms(self.name, self.residual_rows)
+        after = gap_rms(self.name, self.residual_rows - explained_rows)
+        return 1.0 - after / before if before > 0 else 0.0
+
+
+class Search:
+    """Rounds of candidate tests on one measured run."""
+
+    def __init__(self, measured: Measured, model: Model,
+                 progress: Callable[[str], None] | None = None) -> None:
+        self.measured = measured
+        self.grid = SampleGrid.of(measured.time_s, measured.mounting)
+        self.model = model
+        self._progress = progress or (lambda message: None)
+
+    def predict(self, model: Model) -> dict[str, np.ndarray]:
+        return replay(self.measured, model, self.grid)
+
+    def residuals(self, predicted: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+        return {channel: self.measured.observed[channel] - predicted[channel]
+                for channel in self.measured.channels}
+
+    def run(self) -> Outcome:
+        model = self.model
+        base = self.predict(model)
+        outcome = Outcome(verdict="none", model=model)
+        outcome.residual_before = self.residuals(base)
+        done: set[tuple[str, str]] = set()
+        for round_index in range(MAX_ROUNDS):
+            self._progress(f"round {round_index + 1}: testing {len(CANDIDATES)} candidates")
+            residual = self.residuals(base)
+            channels = {
+                channel: Channel(self.measured, channel, residual[channel], base["temperature"],
+                                 DeclaredNoise.of(model, channel))
+                for channel in self.measured.channels
+            }
+            regressors = {candidate.name: self._regressors(candidate, model, base)
+                          for candidate in CANDIDATES}
+            tests = self._tests(model, base, channels, regressors, done)
+            outcome.rounds.append(tests)
+            if round_index == 0:
+                outcome.not_testable = sorted(
+                    {t.candidate for t in tests}
+                    - {t.candidate for t in tests if t.testable}
+                )
+            accepted = sorted(
+                (t for t in tests if t.adjusted_p < ALPHA and t.gap_reduction >= MIN_GAP_REDUCTION),
+                key=lambda t: -t.gap_reduction,
+            )
+            if not accepted:
+                break
+            best = accepted[0]
+            rivals = self._rivals(best, accepted[1:], channels[best.channel], regressors)
+            if rivals:
+                names = tuple(sorted({best.candidate, *rivals}))
+                outcome.ambiguous.append(
+                    Ambiguity(names, best.channel, experiment(frozenset(names)))
+                )
+                # The channel's residual still holds the unresolved effect,
+                # which would confound every later test on it.
+                done.update((candidate.name, best.channel) for candidate in CANDIDATES)
+                continue
+            candidate = next(c for c in CANDIDATES if c.name == best.candidate)
+            effect, model = self._add(candidate, best, model)
+            outcome.effects.append(effect)
+            done.add(best.key)
+            base = self.predict(model)
+        outcome.model = model
+        outcome.residual_after = self.residuals(base)
+        outcome.verdict = "found" if outcome.effects else "ambiguous" if outcome.ambiguous else "none"
+        outcome.gap = {
+            channel: {
+                "before": gap_rms(channel, outcome.residual_before[channel][self.measured.used[channel]]),
+                "after": gap_rms(channel, outcome.residual_after[channel][self.measured.used[channel]]),
+            }
+            for channel in self.measured.channels
+        }
+        return outcome
+
+    def _regressors(self, candidate: Candidate, model: Model,
+                    base: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """Per channel, the replayed effect of one unit of the parameter
+        (rows), from a replay with the parameter moved by `probe`."""
+        channels = [c for c in candidate.channels if c in self.measured.channels]
+        if not channels:
+            return {}
+        moved = self.predict(candidate.changed(
+            model, {c: candidate.value(model, c) + candidate.probe for c in channels}
+        ))
+        return {c: (moved[c] - base[c]) / candidate.probe for c in channels}
+
+    def _tests(self, model: Model, base: Mapping[str, np.ndarray], channels: Mapping[str, Channel],
+               regressors: dict[str, dict[str, np.ndarray]], done: set[tuple[str, str]]) -> list[Test]:
+        """Every candidate on every channel it acts on. A candidate that is
+        not additive (a time constant) is fitted first and tested through
+        the effect at its fitted value; its regressor is then that effect."""
+        tests: list[Test] = []
+        for candidate in CANDIDATES:
+            for channel_name, regressor_rows in regressors[candidate.name].items():
+                if (candidate.name, channel_name) in done:
+                    continue
+                channel = channels[channel_name]
+                g = channel.blocks(regressor_rows[channel.rows])
+                if not np.all(np.isfinite(g)) or not channel.testable(g):
+                    tests.append(Test(candidate.name, channel_name, testable=False))
+                    continue
+                if candidate.additive:
+                    result = channel.fit(g[:, None])
+                    change, half_width = float(result.params[0]), 1.96 * float(result.bse[0])
+                    value = candidate.value(model, channel_name) + change
+                    interval = (value - half_width, value + half_width)
+                    p_value, explained = float(result.pvalues[0]), change * regressor_rows
+                else:
+                    value, interval, effect_rows = self._fit_nonlinear(candidate, channel_name, model,
+                                                                       base, channel)
+                    result = channel.fit(channel.blocks(effect_rows[channel.rows])[:, None])
+                    p_value, explained = float(result.pvalues[0]), effect_rows
+                    regressors[candidate.name][channel_name] = effect_rows
+                tests.append(Test(
+                    candidate.name, channel_name, testable=True, value=value, interval=interval,
+                    p_value=p_value, gap_reduction=channel.reduction(explained[channel.rows]),
+                ))
+        testable = [t for t in tests if t.testable]
+        if testable:
+            adjusted = multipletests([t.p_value for t in testable], alpha=ALPHA, method="fdr_bh")[1]
+            by_key = {t.key: float(p) for t, p in zip(testable, adjusted)}
+            tests = [replace(t, adjusted_p=by_key.get(t.key, float("nan"))) for t in tests]
+        return tests
+
+    def _rivals(self, best: Test, others: list[Test], channel: Channel,
+                regressors: Mapping[str, Mapping[str, np.ndarray]]) -> list[str]:
+        """Others that explain the same residual: their effects on this run
+        (whitened, beyond the nuisance) are collinear with the best's, or,
+        fitted together with it, neither keeps a significant share of its own."""
+        def effect(test: Test) -> np.ndarray:
+            return channel.blocks(regressors[test.candidate][test.channel][channel.rows])
+
+        g_best = effect(best)
+        w_best = channel.beyond_nuisance(channel.whiten(g_best))
+        rivals = []
+        for other in others:
+            if other.channel != best.channel:
+                continue
+            g_other = effect(other)
+            w_other = channel.beyond_nuisance(channel.whiten(g_other))
+            correlation = abs(float(w_best @ w_other)) / float(np.linalg.norm(w_best) * np.linalg.norm(w_other))
+            if correlation >= COLLINEAR:
+                rivals.append(other.candidate)
+                continue
+            joint = channel.fit(np.column_stack([g_best, g_other]))
+            if joint.pvalues[0] >= ALPHA and joint.pvalues[1] >= ALPHA:
+                rivals.append(other.candidate)
+        return rivals
+
+    def _add(self, candidate: Candidate, test: Test, model: Model) -> tuple[Effect, Model]:
+        """The found value into the model."""
+        value = float(np.clip(test.value, *candidate.bounds))
+        self._progress(f"found {candidate.name} on {test.channel}: {candidate.parameter} = {value:.4g}")
+        effect = Effect(candidate.name, test.channel, candidate.parameter, candidate.unit, value,
+                        test.interval, test.adjusted_p, test.gap_reduction)
+        return effect, candidate.changed(model, {test.channel: value})
+
+    def _fit_nonlinear(self, candidate: Candidate, channel_name: str, model: Model,
+                       base: Mapping[str, np.ndarray], channel: Channel
+                       ) -> tuple[float, tuple[float, float], np.ndarray]:
+        """Least squares of the whitened blocks over the parameter's value
+        (log scale, within its bounds), each value a replay: the value, its
+        interval from the replay's slope there (the linearised GLS), and the
+        effect at that value (rows)."""
+
+        def effect(value: float) -> np.ndarray:
+            return self.predict(candidate.changed(model, {channel_name: value}))[channel_name] - base[channel_name]
+
+        def cost(log_value: float) -> float:
+            left = channel.y - channel.blocks(effect(float(np.exp(log_value)))[channel.rows])
+            left = channel.beyond_nuisance(channel.whiten(left))
+            return float(left @ left)
+
+        low, high = np.log(candidate.bounds[0]), np.log(candidate.bounds[1])
+        best = minimize_scalar(cost, bounds=(low, high), method="bounded", options={"xatol": 1e-2})
+        value = float(np.exp(best.x))
+        step = max(1e-2 * value, candidate.bounds[0] / 10)
+        slope = (effect(value + step) - effect(max(value - step, candidate.bounds[0] / 10))) / (
+            value + step - max(value - step, candidate.bounds[0] / 10))
+        result = channel.fit(channel.blocks(slope[channel.rows])[:, None])
+        half_width = 1.96 * float(result.bse[0])
+        return value, (value - half_width, value + half_width), effect(value)
