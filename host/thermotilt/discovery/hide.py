@@ -28,6 +28,7 @@ import numpy as np
 
 from .. import native
 from ..physics import Model, Sensor
+from ..physics.document import with_values
 from ..runlog import COLUMNS, format_number, read_run_columns
 from .candidates import BY_NAME, CANDIDATES, Candidate
 from .replay import (
@@ -76,8 +77,6 @@ def noisy(model: Model, noise: str) -> Model:
     if noise == "white":
         return model.with_terms({"bias_instability": False, "drift_repeatability": False})
     if noise == "autocorrelated":
-        from ..physics.document import with_values
-
         floors = model.terms["bias_instability"]["allan_floor_lsb"]
         return with_values(model, "bias_instability", {
             "enabled": True,

@@ -28,7 +28,11 @@ from scipy.optimize import minimize_scalar
 from statsmodels.stats.multitest import multipletests
 
 from ..physics import Model
-from ..physics.terms.sensor import FLICKER_TIME_CONSTANTS_S, FLICKER_VARIANCE_PER_FLOOR
+from ..physics.terms.sensor import (
+    FLICKER_TIME_CONSTANTS_S,
+    FLICKER_VARIANCE_PER_FLOOR,
+    REFERENCE_C,
+)
 from .candidates import CANDIDATES, Candidate, experiment
 from .replay import ACCELERATION_CHANNELS, Measured, SampleGrid, replay
 
@@ -51,7 +55,6 @@ MAX_BLOCKS = 2000
 # The least share of the residual blocks' variance left to the AR(1) part,
 # however much of it the declared flicker could explain.
 NUGGET_SHARE = 0.05
-REFERENCE_C = 25.0
 
 
 @dataclass(frozen=True)
