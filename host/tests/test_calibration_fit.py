@@ -278,3 +278,13 @@ def test_compare_refuses_what_fit_did_not_write(tmp_path):
                             capture_output=True, text=True, timeout=60, check=False)
     assert result.returncode == 1 and result.stderr.count("\n") == 1
     assert "not a coefficients.json written by thermotilt fit" in result.stderr
+
+
+def test_many_short_positions_keep_their_hac_bounds(monkeypatch):
+    # 38 positions of 50 rows: the lag window of a tenth of all rows (190)
+    # would exceed every position's rows, which Newey-West within positions
+    # cannot take (statsmodels: "all groups are empty taking lags").
+    monkeypatch.setattr(sys.modules[__name__], "ANGLES_DEG", tuple(range(-45, 46, 5)) * 2)
+    fit = fit_surface(synthetic_set(np.random.default_rng(1), rows_per_position=50), "W", "X")
+    assert fit.hac_lags == 49
+    assert all(low < high for low, high in fit.hac_bounds)

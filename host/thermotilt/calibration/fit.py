@@ -109,7 +109,10 @@ def fit_surface(data: SetData, set_name: str, axis: str) -> SurfaceFit:
             "six coefficients (the fit needs several temperatures at several inclinations)"
         )
     ols = sm.OLS(residual, columns).fit(method="qr")
-    lags = hac_lags(ols.resid)
+    # Newey-West within a position cannot take lags beyond its rows; many
+    # short positions (37 of them in a full campaign) reach that first.
+    shortest = int(np.min(np.unique(data.position, return_counts=True)[1]))
+    lags = min(hac_lags(ols.resid), max(1, shortest - 1))
     hac = ols.get_robustcov_results(cov_type="hac-panel", groups=data.position, maxlags=lags)
     unscale = _unscale()
     alpha = 1.0 - CONFIDENCE
