@@ -451,9 +451,9 @@ class Search:
         low, high = np.log(candidate.bounds[0]), np.log(candidate.bounds[1])
         best = minimize_scalar(cost, bounds=(low, high), method="bounded", options={"xatol": 1e-2})
         value = float(np.exp(best.x))
-        step = max(1e-2 * value, candidate.bounds[0] / 10)
-        slope = (effect(value + step) - effect(max(value - step, candidate.bounds[0] / 10))) / (
-            value + step - max(value - step, candidate.bounds[0] / 10))
+        step = 1e-2 * value
+        below, above = max(value - step, candidate.bounds[0]), min(value + step, candidate.bounds[1])
+        slope = (effect(above) - effect(below)) / (above - below)
         result = channel.fit(channel.blocks(slope[channel.rows])[:, None])
         half_width = 1.96 * float(result.bse[0])
         return value, (value - half_width, value + half_width), effect(value)
