@@ -184,3 +184,17 @@ def test_boards_campaign_without_a_board_is_one_line(tmp_path):
     assert result.returncode == 1
     assert result.stderr.count("\n") == 1 and "1 position(s) failed: 0: serial port:" in result.stderr
     assert campaign_file(tmp_path / "c")["positions"][0]["status"] == "failed"
+
+
+def test_one_job_reports_progress_while_a_position_runs(tmp_path):
+    from thermotilt.calibration.campaign import PARTIAL_DIR, TwinCampaign, TwinSetup
+    from thermotilt.scenarios import ScenarioOptions
+
+    out = tmp_path / "campaign"
+    program = ScenarioOptions(hold_s=1, rest_s=0, hold_start="T")
+    campaign = TwinCampaign(out, select_positions("0"), TwinSetup(program, seed=1))
+    running = []
+    campaign.run(1, progress=lambda seconds: running.append((out / PARTIAL_DIR / "0").exists()))
+    # The bar moves while the position still runs in its partial folder,
+    # not all at once after it ends.
+    assert running.count(True) > 1

@@ -331,19 +331,26 @@ class TwinCampaign(_Campaign):
         return CampaignOutcome([self.file.records[p.label] for p in self.positions], interrupted)
 
 
+class _ProgressNow:
+    """What a worker's progress queue is when the position runs in this
+    process: each put reaches the progress bar at once."""
+
+    def __init__(self, progress: Callable[[float], None] | None) -> None:
+        self._progress = progress
+
+    def put(self, seconds: float) -> None:
+        if self._progress is not None:
+            self._progress(seconds)
+
+
 def _run_here(todo: list[Position], setup: TwinSetup, out_dir: Path,
               progress: Callable[[float], None] | None,
               finished: Callable[[PositionRecord], None]) -> bool:
     global _progress_queue
-    local: queue.SimpleQueue[float] = queue.SimpleQueue()
-    _progress_queue = local
+    _progress_queue = _ProgressNow(progress)
     try:
         for position in todo:
-            try:
-                record = run_twin_position(setup, position, out_dir)
-            finally:
-                while not local.empty() and progress is not None:
-                    progress(local.get())
+            record = run_twin_position(setup, position, out_dir)
             finished(record)
             if record.status == INTERRUPTED:
                 return True
