@@ -163,3 +163,11 @@ def test_every_candidate_is_a_registered_term() -> None:
     model = Model.load()
     for name, candidate in BY_NAME.items():
         assert candidate.parameter in model.terms[name]
+
+
+def test_an_effect_the_inputs_do_not_excite_cannot_be_hidden(inputs: Path, tmp_path: Path) -> None:
+    # Every position holds Z at g cos 30 deg: a gain loss there is one constant offset.
+    result = _cli("hide-effect", "--inputs", str(inputs), "--effect", "sensitivity_loss",
+                  "--channel", "Z", "--snr", "4", "--out", str(tmp_path / "out"))
+    assert result.returncode == 1
+    assert "hardly excite" in result.stderr and len(result.stderr.strip().splitlines()) == 1

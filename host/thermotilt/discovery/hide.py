@@ -129,6 +129,11 @@ def _frames_measured(inputs: Measured, processed: Mapping[str, np.ndarray],
     )
 
 
+class _NotExcited(Exception):
+    """The effect cannot reach the asked size on this channel within its
+    parameter's bounds: the inputs hardly excite it there."""
+
+
 def _scaled(candidate: Candidate, model: Model, frames: Measured, channel: str,
             target_rms: float, sign: float) -> tuple[float, float]:
     """The parameter value whose replayed effect on the channel has this RMS,
@@ -136,6 +141,7 @@ def _scaled(candidate: Candidate, model: Model, frames: Measured, channel: str,
     used = frames.used[channel]
     base = replay(frames, model)[channel][used]
     start = candidate.value(model, channel)
+    low, high = candidate.bounds
 
     def effect_rms(value: float) -> float:
         changed = replay(frames, candidate.changed(model, {channel: value}))[channel][used]
@@ -143,20 +149,27 @@ def _scaled(candidate: Candidate, model: Model, frames: Measured, channel: str,
 
     if candidate.additive:
         unit = effect_rms(start + candidate.probe) / candidate.probe
-        value = start + sign * target_rms / unit
-        low, high = candidate.bounds
-        if not low <= value <= high:
-            value = start - sign * target_rms / unit
-        return value, effect_rms(value)
-    low, high = math.log(candidate.bounds[0]), math.log(candidate.bounds[1])
+        for direction in (sign, -sign):
+            value = start + direction * target_rms / unit if unit > 0 else math.inf
+            if low <= value <= high:
+                return value, effect_rms(value)
+        raise _NotExcited
+    if effect_rms(high) < target_rms:
+        raise _NotExcited
+    log_low, log_high = math.log(low), math.log(high)
     for _ in range(30):
-        middle = 0.5 * (low + high)
+        middle = 0.5 * (log_low + log_high)
         if effect_rms(math.exp(middle)) < target_rms:
-            low = middle
+            log_low = middle
         else:
-            high = middle
-    value = math.exp(0.5 * (low + high))
+            log_high = middle
+    value = math.exp(0.5 * (log_low + log_high))
     return value, effect_rms(value)
+
+
+def _noise_rms(generated: Measured, model: Model, channel: str) -> float:
+    used = generated.used[channel]
+    return gap_rms(channel, (generated.observed[channel] - replay(generated, model)[channel])[used])
 
 
 def hide_effect(
@@ -190,21 +203,31 @@ def hide_effect(
     truth_model = base_model
     hidden: dict[str, object] = {"channel": None, "parameter": None, "value": None,
                                  "model_value": None, "snr": None, "effect_rms": None}
-    if effect != "none":
+    if effect == "none":
+        noise_rms = _noise_rms(generated, model, channel or "X")
+    else:
         candidate = BY_NAME[effect]
         choices = [c for c in candidate.channels if c in generated.channels]
-        channel = channel or choices[int(rng.integers(len(choices)))]
-        if channel not in choices:
+        if channel is not None and channel not in choices:
             raise DiscoveryDataError(f"{effect} acts on {', '.join(choices)}, not {channel}")
+        order = [channel] if channel else [choices[i] for i in rng.permutation(len(choices))]
         if snr is None:
             snr = float(np.exp(rng.uniform(*np.log(DEFAULT_SNR_RANGE))))
-    noise_channel = channel or "X"
-    noise_rms = gap_rms(noise_channel, (generated.observed[noise_channel]
-                                        - replay(generated, model)[noise_channel])[generated.used[noise_channel]])
-    if effect != "none":
         sign = 1.0 if rng.random() < 0.5 else -1.0
-        say(f"sizing {effect} on {channel} for SNR {snr:g}")
-        value, effect_rms = _scaled(candidate, model, generated, channel, snr * noise_rms, sign)
+        for option in order:
+            noise_rms = _noise_rms(generated, model, option)
+            say(f"sizing {effect} on {option} for SNR {snr:g}")
+            try:
+                value, effect_rms = _scaled(candidate, model, generated, option, snr * noise_rms, sign)
+            except _NotExcited:
+                continue
+            channel = option
+            break
+        else:
+            raise DiscoveryDataError(
+                f"{effect} cannot reach SNR {snr:g} on {', '.join(order)} within its bounds "
+                f"{candidate.bounds[0]:g}..{candidate.bounds[1]:g}: these inputs hardly excite it"
+            )
         truth_model = candidate.changed(base_model, {channel: value})
         say("generating the run with the effect")
         processed = _generate(inputs, truth_model, seed)
