@@ -1,7 +1,9 @@
 """Measured-looking runs with an effect hidden in them, to test discovery on.
 
-The chamber side of a real run (its inner-face temperature, table angles,
-program columns) is kept; the sensor side is generated again: the physics
+The chamber side of a run (its chamber temperature, taken as the inner face
+the sensor sits on, table angles, program columns) is kept, its chamber_c
+written as the inner thermistor reads that face (the model's
+``thermistor_lag``); the sensor side is generated again: the physics
 model's sensor, with one candidate term changed, stepped on the IMU's 100 Hz
 grid with all its noise terms, and the firmware's own processing
 (``thermotilt.native``) turning each sample into filtered, compensated and
@@ -29,6 +31,7 @@ import numpy as np
 from .. import native
 from ..physics import Model, Sensor
 from ..physics.document import with_values
+from ..physics.terms.lag import LagFraction
 from ..runlog import COLUMNS, format_number, read_run_columns
 from .candidates import BY_NAME, CANDIDATES, Candidate
 from .replay import (
@@ -112,9 +115,25 @@ def _channel_values(processed: Mapping[str, np.ndarray], frames: np.ndarray) -> 
             for channel, output in FIRMWARE_OUTPUTS.items()}
 
 
+def thermistor_reading(time_s: np.ndarray, face_c: np.ndarray, model: Model) -> np.ndarray:
+    """What the inner thermistor reads of the face through the model's
+    `thermistor_lag` (each step towards the step's mean face temperature)."""
+    if not model.enabled("thermistor_lag"):
+        return face_c
+    fraction = LagFraction(float(model.terms["thermistor_lag"]["time_constant_s"])).of_step
+    reading = np.empty_like(face_c)
+    reading[0] = face_c[0]
+    for index in range(1, len(face_c)):
+        target = 0.5 * (face_c[index] + face_c[index - 1])
+        step = fraction(float(time_s[index] - time_s[index - 1]))
+        reading[index] = reading[index - 1] + step * (target - reading[index - 1])
+    return reading
+
+
 def _frames_measured(inputs: Measured, processed: Mapping[str, np.ndarray],
-                     frames: np.ndarray) -> Measured:
-    """The generated frames as a Measured (the same inputs, at the frame times)."""
+                     frames: np.ndarray, model: Model) -> Measured:
+    """The generated frames as a Measured (the same inputs at the frame
+    times; the inner face as its thermistor reads it)."""
     time_s = processed["grid_time_s"][frames]
     row = np.minimum(np.searchsorted(inputs.time_s, time_s, side="right") - 1, len(inputs.time_s) - 1)
     values = _channel_values(processed, frames)
@@ -122,7 +141,8 @@ def _frames_measured(inputs: Measured, processed: Mapping[str, np.ndarray],
     first = time_s[np.searchsorted(mounting, mounting)]
     settled = (time_s - first >= DEFAULT_SETTLE_S) & (time_s - time_s[0] >= DEFAULT_SETTLE_S)
     return Measured(
-        source="generated", time_s=time_s, chamber_c=np.interp(time_s, inputs.time_s, inputs.chamber_c),
+        source="generated", time_s=time_s,
+        chamber_c=thermistor_reading(time_s, np.interp(time_s, inputs.time_s, inputs.chamber_c), model),
         incl_x_deg=inputs.incl_x_deg[row], incl_y_deg=inputs.incl_y_deg[row], mounting=mounting,
         observed=values, used={channel: settled.copy() for channel in values}, skipped_rows=0,
         skipped_channels={},
@@ -198,7 +218,7 @@ def hide_effect(
     say("generating the noise")
     processed = _generate(inputs, base_model, seed)
     frames = np.flatnonzero(processed["frame_due"])
-    generated = _frames_measured(inputs, processed, frames)
+    generated = _frames_measured(inputs, processed, frames, model)
 
     truth_model = base_model
     hidden: dict[str, object] = {"channel": None, "parameter": None, "value": None,
@@ -235,7 +255,7 @@ def hide_effect(
                   "model_value": candidate.value(model, channel), "snr": effect_rms / noise_rms,
                   "effect_rms": effect_rms}
     out_dir.mkdir(parents=True, exist_ok=True)
-    _write_run(out_dir / "run.csv", inputs_path, processed, frames)
+    _write_run(out_dir / "run.csv", inputs_path, processed, frames, generated.chamber_c)
     truth = Truth(effect=effect, noise_rms=noise_rms, noise=noise, seed=seed,
                   inputs=str(inputs_path), **hidden)  # type: ignore[arg-type]
     (out_dir / "truth.json").write_text(json.dumps(vars(truth), indent=2) + "\n", encoding="utf-8")
@@ -243,7 +263,7 @@ def hide_effect(
 
 
 def _write_run(path: Path, inputs_path: Path, processed: Mapping[str, np.ndarray],
-               frames: np.ndarray) -> None:
+               frames: np.ndarray, chamber_c: np.ndarray) -> None:
     columns = read_run_columns(str(run_csv_of(inputs_path)))
     input_time = columns.numbers["time_s"]
     known = np.isfinite(input_time)
@@ -259,9 +279,9 @@ def _write_run(path: Path, inputs_path: Path, processed: Mapping[str, np.ndarray
             last, start = (x, y), t
         since_move[index] = t - start
 
-    # The inner face as the sensor saw it; the other chamber cells are the
-    # input's row at or before the frame, as a logger holds the last CHS frame.
-    chamber_c = np.interp(time_s, input_time[known], columns.numbers["chamber_c"][known])
+    # chamber_c is the inner thermistor's reading of the face the sensor saw;
+    # the other chamber cells are the input's row at or before the frame, as
+    # a logger holds the last CHS frame.
 
     def cell(column: str, row: int) -> str:
         if column in columns.texts:

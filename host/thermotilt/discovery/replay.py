@@ -1,7 +1,8 @@
 """The model replayed open loop on a measured run's inputs.
 
 The sensor part of the physics model (the same `Sensor` the twin steps) is
-driven by the logged inner-face temperature (``chamber_c``) and table
+driven by the inner face's temperature, as the logged thermistor reading
+(``chamber_c``) and the model's ``thermistor_lag`` imply, and the table
 angles, with its random terms switched off; what it would have put in the
 registers then goes through the firmware's own processing (Kalman filters,
 trend detector; ``thermotilt.native``, the firmware's C++ compiled for the
@@ -16,7 +17,7 @@ model error shows where it acts instead of being absorbed by a controller.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -44,6 +45,9 @@ INPUT_COLUMNS = ("time_s", "chamber_c", "incl_x_deg", "incl_y_deg")
 STOCHASTIC_TERMS = ("noise", "bias_instability", "drift_repeatability")
 # The IMU samples at 100 Hz (firmware/imu_reader).
 SAMPLE_PERIOD_S = 0.01
+# The thermistor's rate for the face behind it (inner_face_c): long against
+# the reading's 0.01 degC steps and its frames, short against the 2.5 s lag.
+FACE_RATE_HALF_WINDOW_S = 1.0
 # How often the replay steps the model's sensor (sensor_steps).
 SENSOR_STEP_S = 0.2
 # The firmware's Kalman filters seed on their first sample and take ~1/gain
@@ -224,13 +228,29 @@ def sensor_values(measured: Measured, model: Model, steps: np.ndarray, seed: int
     return values
 
 
+def inner_face_c(time_s: np.ndarray, chamber_c: np.ndarray, model: Model) -> np.ndarray:
+    """The inner face's temperature from its thermistor's reading, as the
+    model's `thermistor_lag` implies: a first-order lag reads r' = (face - r)
+    / tau, so face = r + tau r', the rate taken over +-FACE_RATE_HALF_WINDOW_S."""
+    if not model.enabled("thermistor_lag"):
+        return chamber_c
+    tau = float(model.terms["thermistor_lag"]["time_constant_s"])
+    early = np.interp(time_s - FACE_RATE_HALF_WINDOW_S, time_s, chamber_c)
+    late = np.interp(time_s + FACE_RATE_HALF_WINDOW_S, time_s, chamber_c)
+    span = (np.minimum(time_s + FACE_RATE_HALF_WINDOW_S, time_s[-1])
+            - np.maximum(time_s - FACE_RATE_HALF_WINDOW_S, time_s[0]))
+    return chamber_c + tau * (late - early) / span
+
+
 def replay(measured: Measured, model: Model, grid: SampleGrid | None = None) -> dict[str, np.ndarray]:
     """Each channel as the model predicts it at the measured rows: the
-    sensor at the rows sensor_steps chooses, the firmware's processing on the
-    100 Hz grid between them."""
+    sensor, on the inner face the thermistor reading implies, at the rows
+    sensor_steps chooses, the firmware's processing on the 100 Hz grid
+    between them."""
     grid = SampleGrid.of(measured.time_s, measured.mounting) if grid is None else grid
     steps = sensor_steps(measured)
-    values = sensor_values(measured, deterministic(model), steps)
+    face = replace(measured, chamber_c=inner_face_c(measured.time_s, measured.chamber_c, model))
+    values = sensor_values(face, deterministic(model), steps)
     samples = [grid.sample(measured.time_s[steps], row) for row in values]
     filtered = native.imu_process_unrounded(samples[1], samples[2], samples[3], samples[0], grid.reset)
     return {channel: filtered[output][grid.row_index].astype(float)
