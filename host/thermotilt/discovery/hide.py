@@ -31,7 +31,7 @@ import numpy as np
 from .. import native
 from ..physics import Model, Sensor
 from ..physics.document import with_values
-from ..physics.terms.lag import LagFraction
+from ..physics.terms.lag import first_order
 from ..runlog import COLUMNS, format_number, read_run_columns
 from .candidates import BY_NAME, CANDIDATES, Candidate
 from .replay import (
@@ -120,13 +120,12 @@ def thermistor_reading(time_s: np.ndarray, face_c: np.ndarray, model: Model) -> 
     `thermistor_lag` (each step towards the step's mean face temperature)."""
     if not model.enabled("thermistor_lag"):
         return face_c
-    fraction = LagFraction(float(model.terms["thermistor_lag"]["time_constant_s"])).of_step
+    follow = first_order(float(model.terms["thermistor_lag"]["time_constant_s"]))
     reading = np.empty_like(face_c)
     reading[0] = face_c[0]
     for index in range(1, len(face_c)):
         target = 0.5 * (face_c[index] + face_c[index - 1])
-        step = fraction(float(time_s[index] - time_s[index - 1]))
-        reading[index] = reading[index - 1] + step * (target - reading[index - 1])
+        reading[index] = follow(reading[index - 1], target, float(time_s[index] - time_s[index - 1]))
     return reading
 
 

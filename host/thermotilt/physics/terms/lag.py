@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 
 class LagFraction:
@@ -22,3 +23,14 @@ class LagFraction:
             self._dt_s = dt_s
             self._fraction = -math.expm1(-dt_s / self._tau_s)
         return self._fraction
+
+
+def first_order(tau_s: float) -> Callable[[float, float, float], float]:
+    """(previous value, target, dt s) -> the value a first-order lag of
+    time constant tau_s reaches after dt towards the target."""
+    fraction = LagFraction(tau_s).of_step
+
+    def follow(previous: float, target: float, dt_s: float) -> float:
+        return previous + fraction(dt_s) * (target - previous)
+
+    return follow

@@ -13,7 +13,7 @@ from scipy.signal import lfilter
 from ...coefficients import AXES, PAPER_DEFAULTS, SETS, CoefficientTable, Surface
 from ..parameters import Bounds, Parameter, PerAxis, Surfaces
 from . import SensorContext, SensorTerm, Section, hardware, register
-from .lag import LagFraction
+from .lag import first_order
 
 INT16_MIN, INT16_MAX = -32768, 32767
 INT16_SPAN = INT16_MAX - INT16_MIN + 1
@@ -71,12 +71,7 @@ class DieLag(SensorTerm):
     )
 
     def bound(self, context: SensorContext) -> Callable[..., Any]:
-        fraction = LagFraction(self.values["time_constant_s"]).of_step
-
-        def die(previous_c: float, target_c: float, dt_s: float) -> float:
-            return previous_c + fraction(dt_s) * (target_c - previous_c)
-
-        return die
+        return first_order(self.values["time_constant_s"])
 
 
 @register
@@ -484,12 +479,7 @@ class SensorLag(SensorTerm):
     )
 
     def bound(self, context: SensorContext) -> Callable[..., Any]:
-        fraction = LagFraction(self.values["time_constant_s"]).of_step
-
-        def structure(previous_c: float, reported_c: float, dt_s: float) -> float:
-            return previous_c + fraction(dt_s) * (reported_c - previous_c)
-
-        return structure
+        return first_order(self.values["time_constant_s"])
 
 
 @register
