@@ -44,6 +44,7 @@ from .replay import (
     load_measured,
     replay,
     run_csv_of,
+    settled_rows,
 )
 from .search import gap_rms
 
@@ -137,8 +138,7 @@ def _frames_measured(inputs: Measured, processed: Mapping[str, np.ndarray],
     row = np.minimum(np.searchsorted(inputs.time_s, time_s, side="right") - 1, len(inputs.time_s) - 1)
     values = _channel_values(processed, frames)
     mounting = inputs.mounting[row]
-    first = time_s[np.searchsorted(mounting, mounting)]
-    settled = (time_s - first >= DEFAULT_SETTLE_S) & (time_s - time_s[0] >= DEFAULT_SETTLE_S)
+    settled = settled_rows(time_s, mounting, DEFAULT_SETTLE_S)
     return Measured(
         source="generated", time_s=time_s,
         chamber_c=thermistor_reading(time_s, np.interp(time_s, inputs.time_s, inputs.chamber_c), model),

@@ -92,6 +92,13 @@ def run_csv_of(path: Path) -> Path:
     return path
 
 
+def settled_rows(time_s: np.ndarray, mounting: np.ndarray, settle_s: float) -> np.ndarray:
+    """The rows at least settle_s after the run's start and after their
+    mounting's first row (mounting never decreases)."""
+    first_of_mounting = time_s[np.searchsorted(mounting, mounting)]
+    return (time_s - first_of_mounting >= settle_s) & (time_s - time_s[0] >= settle_s)
+
+
 def load_measured(path: Path, settle_s: float = DEFAULT_SETTLE_S, inputs_only: bool = False) -> Measured:
     """A run's inputs and channels; inputs_only: a run that only drives a
     replay (thermotilt hide-effect's) and need not have any channel."""
@@ -124,8 +131,7 @@ def load_measured(path: Path, settle_s: float = DEFAULT_SETTLE_S, inputs_only: b
     if np.isfinite(since_move).all():
         moved[1:] |= np.diff(since_move) < 0
     mounting = np.cumsum(moved)
-    first_of_mounting = time_s[np.searchsorted(mounting, mounting)]
-    settled = (time_s - first_of_mounting >= settle_s) & (time_s - time_s[0] >= settle_s)
+    settled = settled_rows(time_s, mounting, settle_s)
 
     observed: dict[str, np.ndarray] = {}
     used: dict[str, np.ndarray] = {}
