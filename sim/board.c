@@ -247,10 +247,12 @@ void board_capture_uart0(board_t *board, board_uart_byte_fn on_byte, void *conte
 }
 
 /*
- * simavr 1.6 converts whole millivolts as Vin * 1023 / Vref, one code below
- * the datasheet's Vin * 1024 / Vref over most of the range (0.1 degC on a
- * thermistor). It gets the smallest whole millivolt value that it converts
- * to the datasheet's code instead, so the firmware reads what a real ATmega
+ * The datasheet's ideal ADC reads Vin * 1024 / Vref with its first
+ * transition (0 to 1) at half an LSB ("ADC Accuracy Definitions"): it
+ * rounds, so a reading is not biased by half a code (0.045 degC on a
+ * thermistor at 25 degC). simavr 1.6 converts whole millivolts as
+ * Vin * 1023 / Vref instead; it gets the smallest whole millivolt value that
+ * it converts to the ideal code, so the firmware reads what a real ATmega
  * would, for any fraction of a millivolt.
  */
 void board_set_adc_millivolts(board_t *board, uint8_t channel, double millivolts)
@@ -258,8 +260,8 @@ void board_set_adc_millivolts(board_t *board, uint8_t channel, double millivolts
     enum { ADC_STEPS = 1024, ADC_MAX_CODE = 1023 };
     uint32_t code = 0;
     if (millivolts > 0) {
-        double exact = millivolts * ADC_STEPS / SUPPLY_MILLIVOLTS;
-        code = exact >= ADC_MAX_CODE ? ADC_MAX_CODE : (uint32_t)exact;
+        double ideal = millivolts * ADC_STEPS / SUPPLY_MILLIVOLTS + 0.5;
+        code = ideal >= ADC_MAX_CODE ? ADC_MAX_CODE : (uint32_t)ideal;
     }
     uint32_t simavr_millivolts = (code * SUPPLY_MILLIVOLTS + ADC_MAX_CODE - 1) / ADC_MAX_CODE;
     avr_raise_irq(avr_io_getirq(board->avr, AVR_IOCTL_ADC_GETIRQ, ADC_IRQ_ADC0 + channel), simavr_millivolts);

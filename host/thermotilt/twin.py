@@ -303,7 +303,7 @@ class Board:
 
     def set_adc_millivolts(self, channel: int, millivolts: float) -> None:
         """Holds analog input A0..A7 at a voltage; the firmware reads the
-        datasheet's code, millivolts * 1024 / 5000 truncated to 0..1023."""
+        datasheet's ideal code, millivolts * 1024 / 5000 rounded to 0..1023."""
         channel = self._adc_channel(channel)
         if not math.isfinite(millivolts) or not 0.0 <= millivolts <= SUPPLY_MILLIVOLTS:
             raise ValueError(f"millivolts must be in 0..{SUPPLY_MILLIVOLTS:g}, not {millivolts!r}")
