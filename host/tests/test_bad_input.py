@@ -165,7 +165,8 @@ def toml_number(number):
 def model_with(tmp_path, section, name, kind, number):
     value = toml_number(number)
     if isinstance(kind, PerAxis):
-        value = f"{{ x = 0.0, y = 0.0, z = {value} }}"
+        *first, last = kind.keys
+        value = "{ " + "".join(f"{key} = 0.0, " for key in first) + f"{last} = {value} }}"
     path = tmp_path / "model.toml"
     path.write_text(with_parameter(default_text(), section, name, value), encoding="utf-8")
     return path
@@ -173,7 +174,7 @@ def model_with(tmp_path, section, name, kind, number):
 
 @pytest.mark.parametrize(("section", "name", "kind"), list(bounded_parameters()))
 def test_every_parameter_is_held_to_its_range(tmp_path, section, name, kind):
-    bounds, where = (kind.bounds, f"{name}.z") if isinstance(kind, PerAxis) else (kind, name)
+    bounds, where = (kind.bounds, f"{name}.{kind.keys[-1]}") if isinstance(kind, PerAxis) else (kind, name)
     below = bounds.low if bounds.low_exclusive else bounds.low - max(1.0, abs(bounds.low))
     for number in (below, bounds.high + max(1.0, abs(bounds.high)), math.nan, math.inf):
         with pytest.raises(ModelError) as raised:
@@ -559,8 +560,8 @@ def test_any_values_within_the_ranges_make_a_model_that_steps(tmp_path_factory, 
                 document[section][name] = data.draw(within(kind), label=f"{section}.{name}")
             elif isinstance(kind, PerAxis):
                 document[section][name] = {
-                    axis: data.draw(within(kind.bounds), label=f"{section}.{name}.{axis}")
-                    for axis in "xyz"
+                    key: data.draw(within(kind.bounds), label=f"{section}.{name}.{key}")
+                    for key in kind.keys
                 }
     model = load_or_model_error(tmp_path_factory.mktemp("model") / "model.toml",
                                 toml_document(document))

@@ -48,6 +48,8 @@ class Chamber:
         "heatsink_failed",
         "_inner_capacity",
         "_drives",
+        "_seen_duties",
+        "_reading_offsets",
         "_outer_node",
         "_outer_capacity",
         "_cell_conductance",
@@ -73,6 +75,9 @@ class Chamber:
         flows = [term.heat_flows() for term in terms]
         nodes, links = _summed(flows)
         self._drives = tuple(flow.drive for flow in flows if flow.drive is not None)
+        self._seen_duties = tuple(flow.seen_duty for flow in flows if flow.seen_duty is not None)
+        offsets = [offset for term in terms if (offset := term.reading_offsets_c()) is not None]
+        self._reading_offsets = (sum(o[0] for o in offsets), sum(o[1] for o in offsets)) if offsets else None
         self._outer_node = "outer" in nodes
         self._outer_capacity = nodes.get("outer", 0.0)
         self._cell_conductance = links.get(("inner", "outer"), 0.0)
@@ -102,6 +107,13 @@ class Chamber:
         self.inner_thermistor_detached = False
         self.heatsink_failed = False
 
+    def start_at_readings(self, inner_reading_c: float, outer_reading_c: float) -> None:
+        """Both faces and their thermistors at rest where these readings
+        (as readings_c gives them) put them."""
+        inner_offset, outer_offset = self._reading_offsets or (0.0, 0.0)
+        self.inner_c = self.inner_thermistor_c = inner_reading_c - inner_offset
+        self.outer_c = self.outer_thermistor_c = outer_reading_c - outer_offset
+
     def step(self, dt_s: float, duty: float, direction: int, ambient_c: float) -> None:
         """Advance dt_s with the bridge at this mean duty (0..1); direction +1
         heats the inner face, -1 cools it, 0 lets no current flow."""
@@ -113,6 +125,8 @@ class Chamber:
             raise ValueError(f"direction must be -1, 0 or +1, got {direction}")
         if direction == 0:
             duty = 0.0
+        for seen in self._seen_duties:
+            duty = seen(duty)
         inner_drive_w = outer_drive_w = 0.0
         for drive in self._drives:
             inner_w, outer_w = drive(duty, direction)
@@ -150,13 +164,20 @@ class Chamber:
             self.inner_thermistor_c = inner_sensed
             self.outer_thermistor_c = outer
 
+    def readings_c(self) -> tuple[float, float]:
+        """The temperatures the inner and outer thermistors stand for: their
+        own, shifted by any term's reading offset (a part off its nominal
+        curve reads as if it were that much warmer)."""
+        if self._reading_offsets is None:
+            return self.inner_thermistor_c, self.outer_thermistor_c
+        inner_offset, outer_offset = self._reading_offsets
+        return self.inner_thermistor_c + inner_offset, self.outer_thermistor_c + outer_offset
+
     def thermistor_millivolts(self) -> tuple[float, float]:
         """Divider voltages at A0 (inner) and A1 (outer): the NTC to ground
         under the reference resistor from the supply."""
-        return (
-            self._divider_millivolts(self.inner_thermistor_c),
-            self._divider_millivolts(self.outer_thermistor_c),
-        )
+        inner_c, outer_c = self.readings_c()
+        return self._divider_millivolts(inner_c), self._divider_millivolts(outer_c)
 
     def _divider_millivolts(self, celsius: float) -> float:
         kelvin = celsius + _ZERO_CELSIUS_K

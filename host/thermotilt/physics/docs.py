@@ -48,7 +48,7 @@ def _label_and_range(section: str, parameter: Parameter) -> tuple[str, str]:
     label = f"`[{section}] {parameter.name}`"
     kind = parameter.kind
     if isinstance(kind, PerAxis):
-        return f"{label} x, y, z", _range(kind.bounds)
+        return f"{label} {', '.join(kind.keys)}", _range(kind.bounds)
     if isinstance(kind, Surfaces):
         names = ", ".join(kind.term_names)
         return f"{label} {names}", ", ".join(f"±{_number(b.high)}" for b in kind.term_bounds)

@@ -63,17 +63,19 @@ class Bounds:
 
 @dataclass(frozen=True)
 class PerAxis:
-    """A table {x, y, z} of numbers within the same bounds."""
+    """A table of numbers within the same bounds, one per key: the sensor's
+    axes {x, y, z} unless the parameter names other keys (the chamber's
+    faces {inner, outer})."""
 
     bounds: Bounds
+    keys: tuple[str, ...] = ("x", "y", "z")
 
     def check(self, value: Any, where: str) -> Any:
-        if not isinstance(value, dict) or set(value) != {"x", "y", "z"}:
-            raise ModelError(
-                f"{where}: expected a table {{x = .., y = .., z = ..}}, got {reprlib.repr(value)}"
-            )
+        if not isinstance(value, dict) or set(value) != set(self.keys):
+            shape = ", ".join(f"{key} = .." for key in self.keys)
+            raise ModelError(f"{where}: expected a table {{{shape}}}, got {reprlib.repr(value)}")
         return MappingProxyType(
-            {axis: self.bounds.check(value[axis], f"{where}.{axis}") for axis in "xyz"}
+            {key: self.bounds.check(value[key], f"{where}.{key}") for key in self.keys}
         )
 
 

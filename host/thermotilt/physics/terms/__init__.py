@@ -56,11 +56,13 @@ class HeatFlows:
     nodes: heat capacity (J/K) of a node the term adds; conductances: W/K
     between two nodes ("inner", "outer", "ambient"); drive: W into the inner
     and outer nodes at a mean duty (0..1) and direction (+1 heats the inner
-    face, -1 cools it), constant over a step."""
+    face, -1 cools it), constant over a step; seen_duty: the duty the cell
+    sees for the one the bridge is given, before any drive acts on it."""
 
     nodes: Mapping[str, float] = field(default_factory=dict)
     conductances: Mapping[tuple[str, str], float] = field(default_factory=dict)
     drive: Callable[[float, int], tuple[float, float]] | None = None
+    seen_duty: Callable[[float], float] | None = None
 
 
 class ChamberTerm(Term):
@@ -78,6 +80,11 @@ class ChamberTerm(Term):
 
     def thermistor_lag_s(self) -> float | None:
         """The thermistors' first-order time constant, if this term sets one."""
+        return None
+
+    def reading_offsets_c(self) -> tuple[float, float] | None:
+        """What the inner and outer thermistors read above their own
+        temperature, if this term shifts them."""
         return None
 
 

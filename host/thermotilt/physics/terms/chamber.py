@@ -7,7 +7,7 @@ drive is an L298N with both bridges paralleled, 4 A (ST's L298 datasheet:
 
 from __future__ import annotations
 
-from ..parameters import Bounds, Parameter
+from ..parameters import Bounds, Parameter, PerAxis
 from . import ChamberTerm, HeatFlows, Section, hardware, register
 
 HEAT_CAPACITY = Bounds(4.0, 1e5, "J/K")
@@ -177,3 +177,52 @@ class ThermistorLag(ChamberTerm):
 
     def thermistor_lag_s(self) -> float | None:
         return self.values["time_constant_s"] if self.enabled else None
+
+
+@register
+class DriveDeadZone(ChamberTerm):
+    name = "drive_dead_zone"
+    enabled_by_default = False
+    summary = (
+        "a share t of every PWM period moves no heat (the bridge's switching and the cell's "
+        "current rise): the cell sees (d − t)/(1 − t), nothing below t, full duty still full"
+    )
+    parameters = (
+        Parameter(
+            "threshold_duty", Bounds(0.0, 0.5), 0.02,
+            "assumed: the L298N's ~2 µs switching delays are 0.1 % of the 2 ms PWM period "
+            "(pin 9, 490 Hz); 2 % leaves room for a slow current rise in the cell's leads",
+            "0 is an ideal bridge; a bridge losing half of every period is no longer fit to "
+            "drive the cell",
+        ),
+    )
+
+    def flows(self) -> HeatFlows:
+        threshold = self.values["threshold_duty"]
+
+        def seen_duty(duty: float) -> float:
+            return max(0.0, (duty - threshold) / (1.0 - threshold))
+
+        return HeatFlows(seen_duty=seen_duty)
+
+
+@register
+class ThermistorOffset(ChamberTerm):
+    name = "thermistor_offset"
+    enabled_by_default = False
+    summary = "each thermistor reads its face this much warmer (a part or divider off nominal)"
+    parameters = (
+        Parameter(
+            "offset_c", PerAxis(Bounds(-5.0, 5.0, "degC"), keys=("inner", "outer")),
+            {"inner": 0.0, "outer": 0.0},
+            "a candidate: 0 until discovery fits it",
+            "the CLW1064's 1 % R25 and 1 % β tolerances and a 1 % divider resistor shift a "
+            "reading by up to ~0.7 °C within −10…45 °C; 5 °C is a part of another β",
+        ),
+    )
+
+    def reading_offsets_c(self) -> tuple[float, float] | None:
+        if not self.enabled:
+            return None
+        offsets = self.values["offset_c"]
+        return float(offsets["inner"]), float(offsets["outer"])
