@@ -211,7 +211,7 @@ class RunColumns:
         return len(self.numbers["time_s"])
 
 
-TEXT_COLUMNS = frozenset({"phase", "chamber_fault", "comp_set", "coef_source"})
+TEXT_COLUMNS = frozenset({"direction", "phase", "chamber_fault", "comp_set", "coef_source"})
 
 
 def read_run_columns(path: str) -> RunColumns:
