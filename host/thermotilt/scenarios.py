@@ -9,7 +9,7 @@ sent exactly as the host would send it to the real Mega (SETPRG, START).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable
 
 # The firmware prints its version and reads its thermistors first; commands
@@ -97,6 +97,8 @@ class Scenario:
     # the duration then only bounds a program whose waiting steps are timed
     # with a margin (reach_allowance_s).
     ends_with_program: bool = False
+    # What it was built with (build), so that a run can be made again.
+    options: ScenarioOptions | None = None
 
 
 @dataclass(frozen=True)
@@ -355,4 +357,4 @@ def build(name: str, options: ScenarioOptions) -> Scenario:
     for angle in (options.incl_x_deg, options.incl_y_deg):
         if not -90.0 <= angle <= 90.0:
             raise ScenarioError(f"inclination {angle:g} deg is outside -90..90")
-    return SCENARIOS[name](options)
+    return replace(SCENARIOS[name](options), options=options)

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import BinaryIO, Callable
 
@@ -186,6 +186,7 @@ def run(
     summary = {
         "scenario": scenario.name,
         "description": scenario.description,
+        "options": asdict(scenario.options) if scenario.options is not None else None,
         "seed": seed,
         "model": model.source,
         "terms": {name: model.enabled(name) for name in model.terms},

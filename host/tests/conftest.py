@@ -1,0 +1,32 @@
+"""Twin runs more than one test module reads, made once per session."""
+
+import subprocess
+import sys
+
+import pytest
+
+THERMOTILT = [sys.executable, "-m", "thermotilt"]
+# The scatter terms change each mounting's drift by design
+# (host/tests/test_scatter.py bounds them by the paper's RMS errors).
+SCATTER_OFF = ("--disable", "drift_repeatability", "--disable", "bias_instability")
+
+
+@pytest.fixture(scope="session")
+def cycle_runs(tmp_path_factory):
+    """`simulate cycle` at 0 deg and at 30 deg on X, run side by side (two
+    cores), with the scatter terms off: the drift bounds of test_simulate
+    do not cover them, and discovery's tests take only the chamber's side
+    and the angles of these runs."""
+    runs = {}
+    processes = []
+    for angle in (0, 30):
+        out = tmp_path_factory.mktemp(f"cycle{angle}")
+        runs[angle] = out
+        processes.append(subprocess.Popen(
+            [*THERMOTILT, "simulate", "cycle", "--out", str(out), "--incl-x", str(angle),
+             "--rest-seconds", "60", *SCATTER_OFF],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True))
+    for process in processes:
+        _, stderr = process.communicate(timeout=1800)
+        assert process.returncode == 0, stderr
+    return runs
