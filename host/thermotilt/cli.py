@@ -464,8 +464,17 @@ def _command_discover(args: argparse.Namespace) -> int:
     except NativeLibraryError as error:
         raise UsageError(str(error)) from None
     out_dir = Path(args.out)
+    twin = None
     try:
-        result = report.write(outcome, measured, model.source, out_dir)
+        if args.twin:
+            from .discovery.twin_gap import twin_gap
+
+            model_path = report.write_model_file(outcome, measured, model.source, out_dir)
+            twin = twin_gap(Path(args.measured), measured,
+                            {"before": model, "after": Model.load(model_path)}, out_dir, progress=print)
+        result = report.write(outcome, measured, model.source, out_dir, twin)
+    except DiscoveryDataError as error:
+        raise UsageError(str(error)) from None
     except OSError as error:
         raise UsageError(f"cannot write {out_dir}: {error.strerror or error}") from None
     print(f"verdict: {result['verdict']}")
@@ -481,7 +490,10 @@ def _command_discover(args: argparse.Namespace) -> int:
     if result["not_testable"]:
         print(f"  not testable here: {', '.join(result['not_testable'])}")
     for channel, gap in result["gap"].items():
-        print(f"  gap {channel}: {gap['replay']['before']:.3f} -> {gap['replay']['after']:.3f} {gap['unit']} RMS")
+        twin_text = (f"; twin {gap['twin']['before']:.3f} -> {gap['twin']['after']:.3f}"
+                     if "twin" in gap else "")
+        print(f"  gap {channel}: {gap['replay']['before']:.3f} -> {gap['replay']['after']:.3f} "
+              f"{gap['unit']} RMS{twin_text}")
     print(f"wrote {out_dir / 'discovery.json'}, model.toml, report.md, residuals.png")
     return 0
 
@@ -703,19 +715,22 @@ def build_parser() -> argparse.ArgumentParser:
     discover.add_argument("--out", required=True, help="folder for discovery.json, model.toml, report.md")
     discover.add_argument("--settle-seconds", type=_within(float, 0.0, 3600.0), default=120.0,
                           help="leave out rows this close to the start and to a table move (default 120)")
+    discover.add_argument("--twin", action="store_true",
+                          help="MEASURED is a twin run: run its scenario (summary.json) again with the "
+                               "model before and after discovery and report the gap to each")
     discover.set_defaults(run=_command_discover)
 
     hide = commands.add_parser(
         "hide-effect", help="a measured-looking run with one candidate effect hidden in it, for testing discover"
     )
     hide.add_argument("--inputs", required=True, metavar="RUN",
-                      help="a run (folder or run.csv) whose chamber temperature and table angles to reuse, "
+                      help="a run (folder or run.csv) whose chamber temperature, drive and table angles to reuse, "
                            "e.g. from thermotilt simulate")
     hide.add_argument("--effect", required=True, help="a candidate's name, none or random")
     hide.add_argument("--seed", type=_within(int, *SEED_RANGE), default=1, help="noise and draw seed")
     hide.add_argument("--snr", type=_within(float, 0.01, 1000.0),
                       help="effect RMS over noise RMS on its channel (default: drawn from 0.5..8)")
-    hide.add_argument("--channel", choices=("temperature", "X", "Y", "Z"),
+    hide.add_argument("--channel", choices=("temperature", "X", "Y", "Z", "inner", "outer"),
                       help="the channel the effect is sized on (default: drawn)")
     hide.add_argument("--noise", choices=("model", "white", "autocorrelated"), default="model",
                       help="the model's noise terms, white noise only, or 5x the model's flicker")

@@ -2,10 +2,12 @@
 with a known effect hidden in them (issue 9's figures), and how fast it is.
 
 Every candidate is hidden at SNR 0.5, 1, 2 and 4 with --seeds seeds (random
-sign and channel), on `staircase_inputs` (X +30, X -30, Y +30 deg, a
-0..40 degC staircase), with the model's own noise; null runs with white,
-model and 5x flicker noise; and the designed collinear pair (sensor_lag on
-one slow ramp over 20..30 degC, where rate_sensitivity looks the same).
+sign and channel), with the model's own noise: the sensor's on
+`staircase_inputs` (X +30, X -30, Y +30 deg, a 0..40 degC staircase), the
+chamber's on the twin's calibration cycle (`simulate cycle`, made once,
+about 3 minutes); null runs with white, model and 5x flicker noise on each;
+and the designed collinear pair (sensor_lag on one slow ramp over
+20..30 degC, where rate_sensitivity looks the same).
 Prints the false-discovery rate on null runs, the share named right per
 SNR, the ambiguous share on the collinear pair, the gap closed relative to
 the true model and the confusion matrix, then the time of one discovery on
@@ -19,6 +21,8 @@ from __future__ import annotations
 import argparse
 import json
 import multiprocessing
+import subprocess
+import sys
 import tempfile
 import time
 from collections import Counter, defaultdict
@@ -28,7 +32,7 @@ import numpy as np
 
 from thermotilt.discovery.candidates import BY_NAME, CANDIDATES
 from thermotilt.discovery.hide import hide_effect, staircase_inputs
-from thermotilt.discovery.replay import load_measured, replay
+from thermotilt.discovery.replay import CHAMBER_CHANNELS, load_measured, replay
 from thermotilt.discovery.search import Search, gap_rms
 from thermotilt.physics import Model
 
@@ -93,10 +97,19 @@ def main() -> None:
         staircase = str(staircase_inputs(base / "staircase" / "run.csv"))
         ramp = str(staircase_inputs(base / "ramp" / "run.csv", positions=((30.0, 0.0),), low_c=20.0,
                                     high_c=30.0, step_c=10.0, hold_s=0.0, ramp_c_per_s=0.01))
-        tasks = [("hidden", c.name, snr, "model", 100 + seed, staircase)
+        cycle = base / "cycle"
+        print("bench-discovery: the twin's calibration cycle for the chamber's candidates", flush=True)
+        subprocess.run([sys.executable, "-m", "thermotilt", "simulate", "cycle", "--rest-seconds", "60",
+                        "--disable", "drift_repeatability", "--disable", "bias_instability",
+                        "--out", str(cycle)], check=True, stdout=subprocess.DEVNULL)
+
+        def inputs_of(candidate) -> str:
+            return str(cycle) if set(candidate.channels) <= set(CHAMBER_CHANNELS) else staircase
+
+        tasks = [("hidden", c.name, snr, "model", 100 + seed, inputs_of(c))
                  for c in CANDIDATES for snr in SNRS for seed in range(args.seeds)]
-        tasks += [("null", "none", None, noise, 200 + seed, staircase)
-                  for noise in NOISES for seed in range(args.seeds)]
+        tasks += [("null", "none", None, noise, 200 + seed, inputs)
+                  for inputs in (staircase, str(cycle)) for noise in NOISES for seed in range(args.seeds)]
         tasks += [("collinear", "sensor_lag", 4.0, "model", 300 + seed, ramp) for seed in range(args.seeds)]
         print(f"bench-discovery: {len(tasks)} runs, {args.jobs} at a time", flush=True)
         start = time.perf_counter()

@@ -13,14 +13,15 @@ from typing import Any
 
 from ..physics import DECLARATIONS, Model, PerAxis
 from ..physics.document import with_values
-from .replay import ACCELERATION_CHANNELS
+from .replay import ACCELERATION_CHANNELS, CHAMBER_CHANNELS
 
 
 @dataclass(frozen=True)
 class Candidate:
     """A physics term as a candidate: `parameter` is what discovery fits.
 
-    per_axis: the parameter is an {x, y, z} table and each axis is its own
+    per_axis: the parameter is a table keyed by channel ({x, y, z} for the
+    axes, {inner, outer} for the thermistors) and each key is its own
     hypothesis on its own channel; otherwise one number acts on every
     channel. additive: the parameter adds to the model's value (a term the
     model has off starts from `null`); otherwise it is fitted as a value of
@@ -35,10 +36,18 @@ class Candidate:
     per_axis: bool
     probe: float
     additive: bool = True
+    # False: the effect is not proportional to the change (a dead zone), so
+    # an additive fit goes on from the linear one by Gauss-Newton steps.
+    linear: bool = True
     null: float = 0.0
     # Where a candidate that is not additive is searched (its declared
     # bounds may include values a log-scale search cannot start from).
     search: tuple[float, float] | None = None
+
+    @property
+    def kind(self) -> Any:
+        (kind,) = [p.kind for p in DECLARATIONS[self.name] if p.name == self.parameter]
+        return kind
 
     @property
     def bounds(self) -> tuple[float, float]:
@@ -46,8 +55,7 @@ class Candidate:
         bounds, or the search range."""
         if self.search is not None:
             return self.search
-        (kind,) = [p.kind for p in DECLARATIONS[self.name] if p.name == self.parameter]
-        declared = kind.bounds if isinstance(kind, PerAxis) else kind
+        declared = self.kind.bounds if isinstance(self.kind, PerAxis) else self.kind
         return declared.low, declared.high
 
     def value(self, model: Model, channel: str) -> float:
@@ -63,8 +71,8 @@ class Candidate:
         (per-axis candidates) or to the one value given."""
         current = model.terms[self.name][self.parameter]
         if self.per_axis:
-            table = {axis: (float(current[axis]) if model.enabled(self.name) else self.null)
-                     for axis in "xyz"}
+            table = {key: (float(current[key]) if model.enabled(self.name) else self.null)
+                     for key in self.kind.keys}
             for channel, value in values.items():
                 table[channel.lower()] = value
             parameter: Any = table
@@ -87,6 +95,15 @@ CANDIDATES: tuple[Candidate, ...] = (
     Candidate("cross_axis", "share", "", ACCELERATION_CHANNELS, per_axis=True, probe=0.001),
     Candidate("temperature_offset", "offset_c", "degC", ("temperature",), per_axis=False,
               probe=0.1),
+    Candidate("drive_dead_zone", "threshold_duty", "", CHAMBER_CHANNELS, per_axis=False,
+              probe=0.02, linear=False),
+    # From a small passive heatsink (5 K/W) to the declared cold plate.
+    Candidate("heatsink", "ambient_conductance_w_per_k", "W/K", CHAMBER_CHANNELS, per_axis=False,
+              probe=-0.5, additive=False, search=(0.2, 50.0)),
+    Candidate("thermistor_offset", "offset_c", "degC", CHAMBER_CHANNELS, per_axis=True,
+              probe=0.1),
+    Candidate("joule_heating", "exponent", "", CHAMBER_CHANNELS, per_axis=False, probe=-0.1,
+              additive=False, search=(1.0, 2.0)),
 )
 BY_NAME: Mapping[str, Candidate] = {candidate.name: candidate for candidate in CANDIDATES}
 
@@ -103,6 +120,19 @@ _EXPERIMENTS: Mapping[frozenset[str], str] = {
     ),
     frozenset({"scale_tempco", "sensitivity_loss"}): (
         "positions at several inclinations on the same axis through the same temperatures"
+    ),
+    frozenset({"heatsink", "joule_heating"}): (
+        "holds at several duties in both directions with the outer face logged: the heatsink "
+        "acts on the outer face through the room, Joule heat on both faces and the same way "
+        "heating and cooling"
+    ),
+    frozenset({"drive_dead_zone", "joule_heating"}): (
+        "holds near the room's temperature (small duties) and far from it (large duties): a "
+        "dead zone takes the same share off every duty, Joule heating matters at large ones"
+    ),
+    frozenset({"drive_dead_zone", "heatsink"}): (
+        "holds near the room's temperature (small duties) and far from it: a dead zone acts "
+        "at small duties, the heatsink where the outer face is far from the room"
     ),
 }
 

@@ -1,9 +1,11 @@
 """Measured-looking runs with an effect hidden in them, to test discovery on.
 
-The chamber side of a run (its chamber temperature, taken as the inner face
-the sensor sits on, table angles, program columns) is kept, its chamber_c
-written as the inner thermistor reads that face (the model's
-``thermistor_lag``); the sensor side is generated again: the physics
+The chamber side of a run (the inner face its thermistor's reading implies,
+as the replay takes it; table angles, program columns, the drive) is kept,
+its chamber_c written as the inner thermistor reads that face (the model's
+``thermistor_lag``), held from one chamber status frame to the next; a
+chamber effect changes the face and the readings by what the chamber's
+replay with and without it gives. The sensor side is generated again: the physics
 model's sensor, with one candidate term changed, stepped on the IMU's 100 Hz
 grid with all its noise terms, and the firmware's own processing
 (``thermotilt.native``) turning each sample into filtered, compensated and
@@ -23,7 +25,7 @@ import csv
 import json
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -35,13 +37,19 @@ from ..physics.terms.lag import first_order
 from ..runlog import COLUMNS, format_number, read_run_columns
 from .candidates import BY_NAME, CANDIDATES, Candidate
 from .replay import (
+    CHAMBER_CHANNELS,
     DEFAULT_SETTLE_S,
     FIRMWARE_OUTPUTS,
     SAMPLE_PERIOD_S,
     DiscoveryDataError,
     Measured,
+    Replay,
     SampleGrid,
+    chamber_replay,
+    chamber_rows,
+    inner_face_c,
     load_measured,
+    reading_offsets_c,
     replay,
     run_csv_of,
     settled_rows,
@@ -52,6 +60,8 @@ NOISES = ("model", "white", "autocorrelated")
 # "autocorrelated": the model's flicker floor this many times larger.
 AUTOCORRELATED_FLICKER_FACTOR = 5.0
 DEFAULT_SNR_RANGE = (0.5, 8.0)
+# The chamber reports its readings to 0.01 degC (CHS, firmware/thermal_chamber).
+CHS_DECIMALS = 2
 # The firmware's frame cadence (firmware/imu_reader DEFAULT_DECIMATION).
 DECIMATION = 10
 # The chamber's columns, copied from the input run's nearest row.
@@ -130,22 +140,64 @@ def thermistor_reading(time_s: np.ndarray, face_c: np.ndarray, model: Model) -> 
     return reading
 
 
-def _frames_measured(inputs: Measured, processed: Mapping[str, np.ndarray],
-                     frames: np.ndarray, model: Model) -> Measured:
-    """The generated frames as a Measured (the same inputs at the frame
-    times; the inner face as its thermistor reads it)."""
+def _frames_measured(inputs: Measured, processed: Mapping[str, np.ndarray], frames: np.ndarray,
+                     model: Model, change: ChamberChange | None = None) -> Measured:
+    """The generated frames as a Measured: the same inputs at the frame
+    times, the inner face as its thermistor reads it and each reading held
+    from one chamber status frame to the next, as a logger holds them; with
+    a chamber effect's change on the readings."""
     time_s = processed["grid_time_s"][frames]
     row = np.minimum(np.searchsorted(inputs.time_s, time_s, side="right") - 1, len(inputs.time_s) - 1)
+    status = inputs.status[row] & (np.diff(row, prepend=-1) != 0)
+    status[0] = True
+    held = np.cumsum(status) - 1
+    face_c = inputs.chamber_c if change is None else inputs.chamber_c + change.face_c
+    reading_c = thermistor_reading(time_s, np.interp(time_s, inputs.time_s, face_c), model)
+    outer_c = inputs.outer_c[row]
+    if change is not None:
+        reading_c = reading_c + change.inner_offset_c
+        outer_c = outer_c + change.outer_c[row]
+    reading_c = reading_c[np.flatnonzero(status)][held]
     values = _channel_values(processed, frames)
+    values.update(inner=reading_c, outer=outer_c)
     mounting = inputs.mounting[row]
     settled = settled_rows(time_s, mounting, DEFAULT_SETTLE_S)
+    used = {channel: settled.copy() for channel in values}
+    used.update(inner=chamber_rows(time_s, status), outer=chamber_rows(time_s, status))
+    for channel in inputs.skipped_channels:
+        if channel in CHAMBER_CHANNELS:
+            del values[channel], used[channel]
     return Measured(
-        source="generated", time_s=time_s,
-        chamber_c=thermistor_reading(time_s, np.interp(time_s, inputs.time_s, inputs.chamber_c), model),
+        source="generated", time_s=time_s, chamber_c=reading_c,
         incl_x_deg=inputs.incl_x_deg[row], incl_y_deg=inputs.incl_y_deg[row], mounting=mounting,
-        observed=values, used={channel: settled.copy() for channel in values}, skipped_rows=0,
-        skipped_channels={},
+        ambient_c=inputs.ambient_c[row], outer_c=outer_c, duty=inputs.duty[row],
+        direction=inputs.direction[row], status=status,
+        observed=values, used=used, skipped_rows=0,
+        skipped_channels={c: why for c, why in inputs.skipped_channels.items() if c in CHAMBER_CHANNELS},
     )
+
+
+@dataclass(frozen=True)
+class ChamberChange:
+    """What a chamber effect changes in a run, from the chamber's replay on
+    its inputs with and without it: the inner face and the outer reading
+    (at the input's rows), and the inner thermistor's reading offset."""
+
+    face_c: np.ndarray
+    outer_c: np.ndarray
+    inner_offset_c: float
+
+    @classmethod
+    def of(cls, inputs: Measured, model: Model, changed: Model) -> ChamberChange:
+        inner_before, outer_before = reading_offsets_c(model)
+        inner_after, outer_after = reading_offsets_c(changed)
+        # Both replays start from the same faces: the run with the effect
+        # begins with readings shifted by the offsets' change.
+        shifted = replace(inputs, chamber_c=inputs.chamber_c + (inner_after - inner_before),
+                          outer_c=inputs.outer_c + (outer_after - outer_before))
+        before, after = chamber_replay(inputs, model), chamber_replay(shifted, changed)
+        return cls(face_c=after["face"] - before["face"], outer_c=after["outer"] - before["outer"],
+                   inner_offset_c=inner_after - inner_before)
 
 
 class _NotExcited(Exception):
@@ -158,12 +210,13 @@ def _scaled(candidate: Candidate, model: Model, frames: Measured, channel: str,
     """The parameter value whose replayed effect on the channel has this RMS,
     and that RMS."""
     used = frames.used[channel]
-    base = replay(frames, model)[channel][used]
+    predict = Replay(frames)
+    base = predict(model)[channel][used]
     start = candidate.value(model, channel)
     low, high = candidate.bounds
 
     def effect_rms(value: float) -> float:
-        changed = replay(frames, candidate.changed(model, {channel: value}))[channel][used]
+        changed = predict(candidate.changed(model, {channel: value}))[channel][used]
         return gap_rms(channel, changed - base)
 
     if candidate.additive:
@@ -173,17 +226,23 @@ def _scaled(candidate: Candidate, model: Model, frames: Measured, channel: str,
             if low <= value <= high:
                 return value, effect_rms(value)
         raise _NotExcited
-    if effect_rms(high) < target_rms:
-        raise _NotExcited
-    log_low, log_high = math.log(low), math.log(high)
-    for _ in range(30):
-        middle = 0.5 * (log_low + log_high)
-        if effect_rms(math.exp(middle)) < target_rms:
-            log_low = middle
-        else:
-            log_high = middle
-    value = math.exp(0.5 * (log_low + log_high))
-    return value, effect_rms(value)
+    # A value of its own (a time constant, a conductance) is moved from the
+    # model's (or, for a term the model has off, from its least) towards
+    # one bound, the effect growing on the way.
+    start = start if model.enabled(candidate.name) else low
+    for end in ((high, low) if sign > 0 else (low, high)):
+        if end == start or effect_rms(end) < target_rms:
+            continue
+        near, far = math.log(start), math.log(end)
+        for _ in range(30):
+            middle = 0.5 * (near + far)
+            if effect_rms(math.exp(middle)) < target_rms:
+                near = middle
+            else:
+                far = middle
+        value = math.exp(0.5 * (near + far))
+        return value, effect_rms(value)
+    raise _NotExcited
 
 
 def _noise_rms(generated: Measured, model: Model, channel: str) -> float:
@@ -213,11 +272,12 @@ def hide_effect(
             f"unknown effect {effect!r}; choose none, random or one of {', '.join(BY_NAME)}"
         )
     inputs = load_measured(inputs_path, inputs_only=True)
+    faces = replace(inputs, chamber_c=inner_face_c(inputs.time_s, inputs.chamber_c, model, inputs.status))
     base_model = noisy(model, noise)
     say("generating the noise")
-    processed = _generate(inputs, base_model, seed)
+    processed = _generate(faces, base_model, seed)
     frames = np.flatnonzero(processed["frame_due"])
-    generated = _frames_measured(inputs, processed, frames, model)
+    generated = _frames_measured(faces, processed, frames, model)
 
     truth_model = base_model
     hidden: dict[str, object] = {"channel": None, "parameter": None, "value": None,
@@ -227,6 +287,9 @@ def hide_effect(
     else:
         candidate = BY_NAME[effect]
         choices = [c for c in candidate.channels if c in generated.channels]
+        if not choices:
+            why = "; ".join(dict.fromkeys(generated.skipped_channels.get(c, f"no {c}") for c in candidate.channels))
+            raise DiscoveryDataError(f"{effect} acts on {', '.join(candidate.channels)}: {why}")
         if channel is not None and channel not in choices:
             raise DiscoveryDataError(f"{effect} acts on {', '.join(choices)}, not {channel}")
         order = [channel] if channel else [choices[i] for i in rng.permutation(len(choices))]
@@ -249,12 +312,18 @@ def hide_effect(
             )
         truth_model = candidate.changed(base_model, {channel: value})
         say("generating the run with the effect")
-        processed = _generate(inputs, truth_model, seed)
+        if channel in CHAMBER_CHANNELS:
+            change = ChamberChange.of(inputs, model, candidate.changed(model, {channel: value}))
+            generated = _frames_measured(faces, processed, frames, model, change)
+            processed = _generate(replace(faces, chamber_c=faces.chamber_c + change.face_c),
+                                  truth_model, seed)
+        else:
+            processed = _generate(faces, truth_model, seed)
         hidden = {"channel": channel, "parameter": candidate.parameter, "value": value,
                   "model_value": candidate.value(model, channel), "snr": effect_rms / noise_rms,
                   "effect_rms": effect_rms}
     out_dir.mkdir(parents=True, exist_ok=True)
-    _write_run(out_dir / "run.csv", inputs_path, processed, frames, generated.chamber_c)
+    _write_run(out_dir / "run.csv", inputs_path, processed, frames, generated.chamber_c, generated.outer_c)
     truth = Truth(effect=effect, noise_rms=noise_rms, noise=noise, seed=seed,
                   inputs=str(inputs_path), **hidden)  # type: ignore[arg-type]
     (out_dir / "truth.json").write_text(json.dumps(vars(truth), indent=2) + "\n", encoding="utf-8")
@@ -262,7 +331,7 @@ def hide_effect(
 
 
 def _write_run(path: Path, inputs_path: Path, processed: Mapping[str, np.ndarray],
-               frames: np.ndarray, chamber_c: np.ndarray) -> None:
+               frames: np.ndarray, chamber_c: np.ndarray, outer_c: np.ndarray) -> None:
     columns = read_run_columns(str(run_csv_of(inputs_path)))
     input_time = columns.numbers["time_s"]
     known = np.isfinite(input_time)
@@ -278,9 +347,9 @@ def _write_run(path: Path, inputs_path: Path, processed: Mapping[str, np.ndarray
             last, start = (x, y), t
         since_move[index] = t - start
 
-    # chamber_c is the inner thermistor's reading of the face the sensor saw;
-    # the other chamber cells are the input's row at or before the frame, as
-    # a logger holds the last CHS frame.
+    # chamber_c and outer_c are the generated readings (the inner one of the
+    # face the sensor saw); the other chamber cells are the input's row at or
+    # before the frame, as a logger holds the last CHS frame.
 
     def cell(column: str, row: int) -> str:
         if column in columns.texts:
@@ -295,7 +364,8 @@ def _write_run(path: Path, inputs_path: Path, processed: Mapping[str, np.ndarray
             values = {column: cell(column, row) for column in _CHAMBER_COLUMNS}
             values.update(
                 time_s=format_number(float(time_s[index]), 3),
-                chamber_c=format_number(float(chamber_c[index]), 3),
+                chamber_c=format_number(float(chamber_c[index]), CHS_DECIMALS),
+                outer_c=format_number(float(outer_c[index]), CHS_DECIMALS),
                 imu_temp_c=format_number(float(processed["temp_c"][sample]), 3),
                 incl_x_deg=format_number(float(processed["incl_x"][sample]), 3),
                 incl_y_deg=format_number(float(processed["incl_y"][sample]), 3),

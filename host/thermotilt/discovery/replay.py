@@ -10,20 +10,30 @@ host) on the IMU's 100 Hz sample grid, and is read at the logged rows. The
 result predicts each channel the log measured: the IMU's filtered
 temperature and filtered acceleration per axis.
 
-The replay is open loop: nothing measured on the sensor side feeds it, so a
-model error shows where it acts instead of being absorbed by a controller.
+The chamber part (the same `Chamber` the twin steps) is driven by the
+logged ambient temperature and the bridge's drive (``pwm``, ``direction``)
+from one chamber status frame to the next, from faces at rest where the
+first readings put them, and predicts both thermistors' readings.
+
+The replay is open loop: nothing measured on the sensor side feeds it, and
+no reading feeds the chamber after its first, so a model error shows where
+it acts instead of being absorbed by a controller.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
+import json
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from .. import native
-from ..physics import Model, Sensor
+from ..physics import Chamber, Model, Sensor
+from ..physics.sensor import registered_temperature_c
+from ..physics.document import plain
+from ..physics.terms import REGISTRY, SensorTerm
 from ..runlog import RunLogError, read_run_columns
 
 # Channel -> the run.csv column it is measured in.
@@ -33,20 +43,31 @@ CHANNEL_COLUMNS: Mapping[str, str] = {
     "Y": "ay_filt",
     "Z": "az_filt",
 }
-CHANNELS = tuple(CHANNEL_COLUMNS)
+# The chamber's channels: each thermistor's reading, predicted from the drive.
+CHAMBER_CHANNEL_COLUMNS: Mapping[str, str] = {"inner": "chamber_c", "outer": "outer_c"}
+CHAMBER_CHANNELS = tuple(CHAMBER_CHANNEL_COLUMNS)
+CHANNELS = tuple(CHANNEL_COLUMNS) + CHAMBER_CHANNELS
 # Channel -> the firmware output (thermotilt.native) it is.
 FIRMWARE_OUTPUTS: Mapping[str, str] = {
     "temperature": "temp_c", "X": "ax_filt", "Y": "ay_filt", "Z": "az_filt",
 }
 ACCELERATION_CHANNELS = ("X", "Y", "Z")
 INPUT_COLUMNS = ("time_s", "chamber_c", "incl_x_deg", "incl_y_deg")
+CHAMBER_INPUT_COLUMNS = ("ambient_c", "pwm", "direction", "outer_c")
+CHAMBER_INPUTS = ("ambient_c", "duty", "direction", "outer_c")  # Measured's names of them
+# The CHS frame's direction letter -> the bridge's direction.
+DIRECTIONS: Mapping[str, int] = {"H": 1, "C": -1, "O": 0}
+# analogWrite's full scale: the bridge conducts pwm/255 of the time (the
+# Mega's pin 9 runs phase-correct PWM, which the twin's bridge measures too).
+PWM_FULL_SCALE = 255.0
 # The terms that draw random numbers: they are the noise a replay cannot
 # predict, so the replay runs without them (docs/discovery.md).
 STOCHASTIC_TERMS = ("noise", "bias_instability", "drift_repeatability")
+SENSOR_TERM_NAMES = frozenset(name for name, term in REGISTRY.items() if issubclass(term, SensorTerm))
 # The IMU samples at 100 Hz (firmware/imu_reader).
 SAMPLE_PERIOD_S = 0.01
 # The thermistor's rate for the face behind it (inner_face_c): long against
-# the reading's 0.01 degC steps and its frames, short against the 2.5 s lag.
+# the reading's 0.01 degC steps and its 1 s frames, short against the 2.5 s lag.
 FACE_RATE_HALF_WINDOW_S = 1.0
 # How often the replay steps the model's sensor (sensor_steps).
 SENSOR_STEP_S = 0.2
@@ -55,6 +76,8 @@ SENSOR_STEP_S = 0.2
 # table move, where the real filters may have run for long before, so rows
 # this close to either are left out (as `thermotilt fit` does).
 DEFAULT_SETTLE_S = 120.0
+# Four thermistor time constants (chamber_rows).
+CHAMBER_SETTLE_S = 10.0
 
 
 class DiscoveryDataError(ValueError):
@@ -73,6 +96,14 @@ class Measured:
     incl_y_deg: np.ndarray
     # The table position's index, one more at every move (a new mounting).
     mounting: np.ndarray
+    # The chamber's inputs (NaN where the log has none): the room, the
+    # outer reading, the bridge's duty 0..1 and direction +1/-1/0, and the
+    # rows that show a new chamber status frame.
+    ambient_c: np.ndarray
+    outer_c: np.ndarray
+    duty: np.ndarray
+    direction: np.ndarray
+    status: np.ndarray
     observed: Mapping[str, np.ndarray]  # channel -> measured values (NaN: empty)
     used: Mapping[str, np.ndarray]  # channel -> bool mask of the rows compared
     skipped_rows: int  # rows without one of the inputs
@@ -97,6 +128,14 @@ def settled_rows(time_s: np.ndarray, mounting: np.ndarray, settle_s: float) -> n
     mounting's first row (mounting never decreases)."""
     first_of_mounting = time_s[np.searchsorted(mounting, mounting)]
     return (time_s - first_of_mounting >= settle_s) & (time_s - time_s[0] >= settle_s)
+
+
+def chamber_rows(time_s: np.ndarray, status: np.ndarray) -> np.ndarray:
+    """The rows the chamber's channels are compared on: each new status
+    frame from CHAMBER_SETTLE_S on. There is no filter to settle; the
+    replay starts at rest where the first readings are, which holds once
+    the thermistors' lag has had a few time constants."""
+    return status & (time_s - time_s[0] >= CHAMBER_SETTLE_S)
 
 
 def load_measured(path: Path, settle_s: float = DEFAULT_SETTLE_S, inputs_only: bool = False) -> Measured:
@@ -133,12 +172,23 @@ def load_measured(path: Path, settle_s: float = DEFAULT_SETTLE_S, inputs_only: b
     mounting = np.cumsum(moved)
     settled = settled_rows(time_s, mounting, settle_s)
 
+    chamber = _chamber_inputs(columns, known)
     observed: dict[str, np.ndarray] = {}
     used: dict[str, np.ndarray] = {}
     skipped_channels: dict[str, str] = {}
-    for channel, column in CHANNEL_COLUMNS.items():
+    chamber_missing = [column for column, name in zip(CHAMBER_INPUT_COLUMNS, CHAMBER_INPUTS)
+                       if not np.isfinite(chamber[name]).all()]
+    for channel, column in {**CHANNEL_COLUMNS, **CHAMBER_CHANNEL_COLUMNS}.items():
         values = numbers[column][known]
         mask = settled & np.isfinite(values)
+        if channel in CHAMBER_CHANNELS:
+            mask = np.isfinite(values) & chamber_rows(time_s, chamber["status"])
+            if chamber_missing:
+                skipped_channels[channel] = (
+                    f"the chamber replay needs {', '.join(CHAMBER_INPUT_COLUMNS)} on every row "
+                    f"and the log lacks {', '.join(chamber_missing)} on some or all"
+                )
+                continue
         if not np.isfinite(values).any():
             skipped_channels[channel] = f"the log has no {column}"
         elif np.count_nonzero(mask) < 2:
@@ -160,11 +210,35 @@ def load_measured(path: Path, settle_s: float = DEFAULT_SETTLE_S, inputs_only: b
         incl_x_deg=incl_x,
         incl_y_deg=incl_y,
         mounting=mounting,
+        ambient_c=chamber["ambient_c"],
+        outer_c=chamber["outer_c"],
+        duty=chamber["duty"],
+        direction=chamber["direction"],
+        status=chamber["status"],
         observed=observed,
         used=used,
         skipped_rows=int(np.count_nonzero(~known)),
         skipped_channels=skipped_channels,
     )
+
+
+def _chamber_inputs(columns, known: np.ndarray) -> dict[str, np.ndarray]:
+    """The chamber's inputs at the known rows, and which rows show a new
+    status frame (a logger repeats the last one on every IMU row)."""
+    numbers = columns.numbers
+    letters = columns.texts.get("direction", [""] * columns.rows)
+    direction = np.array([DIRECTIONS.get(letter, np.nan) for letter in letters], dtype=float)[known]
+    inputs = {
+        "ambient_c": numbers["ambient_c"][known],
+        "outer_c": numbers["outer_c"][known],
+        "duty": numbers["pwm"][known] / PWM_FULL_SCALE,
+        "direction": direction,
+    }
+    status = np.ones(int(np.count_nonzero(known)), dtype=bool)
+    frame = [numbers["chamber_c"][known], inputs["outer_c"], inputs["duty"], direction]
+    status[1:] = np.any([np.diff(values) != 0 for values in frame], axis=0)
+    inputs["status"] = status
+    return inputs
 
 
 def deterministic(model: Model) -> Model:
@@ -234,30 +308,122 @@ def sensor_values(measured: Measured, model: Model, steps: np.ndarray, seed: int
     return values
 
 
-def inner_face_c(time_s: np.ndarray, chamber_c: np.ndarray, model: Model) -> np.ndarray:
-    """The inner face's temperature from its thermistor's reading, as the
-    model's `thermistor_lag` implies: a first-order lag reads r' = (face - r)
-    / tau, so face = r + tau r', the rate taken over +-FACE_RATE_HALF_WINDOW_S."""
-    if not model.enabled("thermistor_lag"):
-        return chamber_c
+def inner_face_c(time_s: np.ndarray, chamber_c: np.ndarray, model: Model,
+                 status: np.ndarray) -> np.ndarray:
+    """The inner face's temperature at every row from its thermistor's
+    reading, taken where it was new (the status rows: a logger holds it
+    between), as the model's `thermistor_lag` implies: a first-order lag
+    reads r' = (face - r) / tau, so face = r + tau r', the rate taken over
+    +-FACE_RATE_HALF_WINDOW_S."""
+    read_s, reading = time_s[status], chamber_c[status]
+    if not model.enabled("thermistor_lag") or len(read_s) < 2:
+        return np.interp(time_s, read_s, reading)
     tau = float(model.terms["thermistor_lag"]["time_constant_s"])
-    early = np.interp(time_s - FACE_RATE_HALF_WINDOW_S, time_s, chamber_c)
-    late = np.interp(time_s + FACE_RATE_HALF_WINDOW_S, time_s, chamber_c)
-    span = (np.minimum(time_s + FACE_RATE_HALF_WINDOW_S, time_s[-1])
-            - np.maximum(time_s - FACE_RATE_HALF_WINDOW_S, time_s[0]))
-    return chamber_c + tau * (late - early) / span
+    early = np.interp(time_s - FACE_RATE_HALF_WINDOW_S, read_s, reading)
+    late = np.interp(time_s + FACE_RATE_HALF_WINDOW_S, read_s, reading)
+    span = (np.minimum(time_s + FACE_RATE_HALF_WINDOW_S, read_s[-1])
+            - np.maximum(time_s - FACE_RATE_HALF_WINDOW_S, read_s[0]))
+    return np.interp(time_s, read_s, reading) + tau * (late - early) / np.maximum(span, 1e-9)
 
 
-def replay(measured: Measured, model: Model, grid: SampleGrid | None = None) -> dict[str, np.ndarray]:
-    """Each channel as the model predicts it at the measured rows: the
-    sensor, on the inner face the thermistor reading implies, at the rows
-    sensor_steps chooses, the firmware's processing on the 100 Hz grid
-    between them."""
-    grid = SampleGrid.of(measured.time_s, measured.mounting) if grid is None else grid
+def reading_offsets_c(model: Model) -> tuple[float, float]:
+    """What the model's thermistors read above their faces (inner, outer)."""
+    if not model.enabled("thermistor_offset"):
+        return 0.0, 0.0
+    offsets = model.terms["thermistor_offset"]["offset_c"]
+    return float(offsets["inner"]), float(offsets["outer"])
+
+
+def chamber_replay(measured: Measured, model: Model,
+                   start_shift_c: tuple[float, float] = (0.0, 0.0)) -> dict[str, np.ndarray]:
+    """The model's chamber driven open loop from one status frame to the
+    next, the drive of each held until the next: at every row (its latest
+    status) the inner and outer readings, and the inner face. It starts at
+    rest where the first readings put the faces, moved by start_shift_c."""
+    status = np.flatnonzero(measured.status)
+    first = int(status[0])
+    chamber = Chamber(model, float(measured.ambient_c[first]))
+    chamber.start_at_readings(float(measured.chamber_c[first]) + start_shift_c[0],
+                              float(measured.outer_c[first]) + start_shift_c[1])
+    values = np.empty((3, len(status)))
+    values[:, 0] = (*chamber.readings_c(), chamber.inner_c)
+    time_s = measured.time_s[status].tolist()
+    duty = measured.duty[status].tolist()
+    direction = measured.direction[status].astype(int).tolist()
+    ambient_c = measured.ambient_c[status].tolist()
+    for index in range(1, len(status)):
+        before = index - 1
+        chamber.step(time_s[index] - time_s[before], duty[before], direction[before], ambient_c[before])
+        values[:, index] = (*chamber.readings_c(), chamber.inner_c)
+    latest = np.cumsum(measured.status) - 1
+    inner, outer, face = values[:, latest]
+    return {"inner": inner, "outer": outer, "face": face}
+
+
+def _sensor_replay(measured: Measured, model: Model, grid: SampleGrid) -> dict[str, np.ndarray]:
+    """The sensor, on the inner face its thermistor's reading implies, at
+    the rows sensor_steps chooses, the firmware's processing on the 100 Hz
+    grid between them."""
     steps = sensor_steps(measured)
-    face = replace(measured, chamber_c=inner_face_c(measured.time_s, measured.chamber_c, model))
+    reading_c = measured.chamber_c - reading_offsets_c(model)[0]
+    face = replace(measured, chamber_c=inner_face_c(measured.time_s, reading_c, model, measured.status))
     values = sensor_values(face, deterministic(model), steps)
     samples = [grid.sample(measured.time_s[steps], row) for row in values]
-    filtered = native.imu_process_unrounded(samples[1], samples[2], samples[3], samples[0], grid.reset)
+    # The register's 1/8 degC steps are part of the model, not noise: at a
+    # hold they put the firmware's temperature on a step for good.
+    temperature_c = registered_temperature_c(model, samples[0])
+    filtered = native.imu_process_unrounded(samples[1], samples[2], samples[3], temperature_c, grid.reset)
     return {channel: filtered[output][grid.row_index].astype(float)
             for channel, output in FIRMWARE_OUTPUTS.items()}
+
+
+def _sensor_key(model: Model) -> str:
+    """What of the model the sensor replay depends on."""
+    parts = {name: values for name, values in model.terms.items() if name in SENSOR_TERM_NAMES}
+    parts.update(sensor=model.constants["sensor"], lag=model.terms["thermistor_lag"],
+                 offset=reading_offsets_c(model)[0])
+    return json.dumps(plain(parts), sort_keys=True)
+
+
+class Replay:
+    """The replay of one measured run under any model, each part computed
+    again only when the terms it depends on change (a chamber candidate
+    leaves the sensor's replay as it was)."""
+
+    CACHED = 8
+
+    def __init__(self, measured: Measured) -> None:
+        self.measured = measured
+        self.grid = SampleGrid.of(measured.time_s, measured.mounting)
+        self._sensor: dict[str, dict[str, np.ndarray]] = {}
+        self._chamber_wanted = any(channel in measured.used for channel in CHAMBER_CHANNELS)
+
+    def __call__(self, model: Model) -> dict[str, np.ndarray]:
+        """Each channel as the model predicts it at the measured rows, and
+        the inner face ("face") where the chamber is replayed."""
+        key = _sensor_key(model)
+        if key not in self._sensor:
+            if len(self._sensor) >= self.CACHED:
+                self._sensor.pop(next(iter(self._sensor)))
+            self._sensor[key] = _sensor_replay(self.measured, model, self.grid)
+        predicted = dict(self._sensor[key])
+        if self._chamber_wanted:
+            predicted.update(chamber_replay(self.measured, model))
+        return predicted
+
+
+    def chamber_start_response(self, model: Model) -> dict[str, np.ndarray]:
+        """Per chamber channel, how its replay moves for 1 degC more on each
+        face at the start (rows x 2: inner, outer): the start is not known
+        better than the readings' offsets, so discovery takes these as
+        nuisance columns."""
+        base = chamber_replay(self.measured, model)
+        moved = [chamber_replay(self.measured, model, shift) for shift in ((1.0, 0.0), (0.0, 1.0))]
+        return {channel: np.column_stack([m[channel] - base[channel] for m in moved])
+                for channel in CHAMBER_CHANNELS}
+
+
+def replay(measured: Measured, model: Model) -> dict[str, np.ndarray]:
+    """Each channel as the model predicts it at the measured rows (once;
+    Replay keeps the parts for more models)."""
+    return Replay(measured)(model)

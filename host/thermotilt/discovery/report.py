@@ -8,18 +8,22 @@ import math
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from ..physics.document import write_model
-from .replay import CHANNEL_COLUMNS, Measured
+from .replay import ACCELERATION_CHANNELS, CHAMBER_CHANNEL_COLUMNS, CHANNEL_COLUMNS, Measured
 from .search import ALPHA, MIN_GAP_REDUCTION, Outcome
 
-UNITS = {"temperature": "degC", "X": "LSB", "Y": "LSB", "Z": "LSB"}
+UNITS = {"temperature": "degC", "X": "LSB", "Y": "LSB", "Z": "LSB", "inner": "degC", "outer": "degC"}
+COLUMNS = {**CHANNEL_COLUMNS, **CHAMBER_CHANNEL_COLUMNS}
 
 
 def _number(value: float) -> float | None:
     return None if not math.isfinite(value) else value
 
 
-def document(outcome: Outcome, measured: Measured, model_in: str, model_out: Path) -> dict[str, Any]:
+def document(outcome: Outcome, measured: Measured, model_in: str, model_out: Path,
+             twin: dict[str, dict[str, float]] | None = None) -> dict[str, Any]:
     return {
         "measured": measured.source,
         "model_in": model_in,
@@ -42,9 +46,11 @@ def document(outcome: Outcome, measured: Measured, model_in: str, model_out: Pat
         ],
         "not_testable": outcome.not_testable,
         "gap": {
-            channel: {"unit": UNITS[channel], "replay": gap}
+            channel: {"unit": UNITS[channel], "replay": gap,
+                      **({"twin": twin[channel]} if twin and twin.get(channel) else {})}
             for channel, gap in outcome.gap.items()
         },
+        "regimes": regimes(outcome, measured),
         "skipped_channels": dict(measured.skipped_channels),
         "skipped_rows": measured.skipped_rows,
         "tests": [
@@ -68,6 +74,56 @@ def document(outcome: Outcome, measured: Measured, model_in: str, model_out: Pat
     }
 
 
+# Regimes of a run the residual is split by: the chamber reading's 10 degC
+# bands, its rate (above this, warming or cooling; else holding) over
+# RATE_WINDOW_S, the table's positions and the run's quarters.
+BAND_C = 10.0
+HOLDING_C_PER_S = 0.005
+RATE_WINDOW_S = 10.0
+
+
+def _regime_labels(measured: Measured) -> dict[str, np.ndarray]:
+    time_s, chamber_c = measured.time_s, measured.chamber_c
+    band = np.floor(chamber_c / BAND_C) * BAND_C
+    late = np.interp(time_s + RATE_WINDOW_S / 2, time_s, chamber_c)
+    early = np.interp(time_s - RATE_WINDOW_S / 2, time_s, chamber_c)
+    rate = (late - early) / RATE_WINDOW_S
+    quarter = np.minimum(((time_s - time_s[0]) / max(np.ptp(time_s), 1e-9) * 4).astype(int), 3)
+    return {
+        "temperature": np.array([f"{low:g}…{low + BAND_C:g} °C" for low in band]),
+        "rate": np.where(rate > HOLDING_C_PER_S, "warming",
+                         np.where(rate < -HOLDING_C_PER_S, "cooling", "holding")),
+        "position": np.array([f"X {x:+g}°, Y {y:+g}°" for x, y in
+                              zip(measured.incl_x_deg, measured.incl_y_deg)]),
+        "time": np.array([f"quarter {q + 1}" for q in quarter]),
+    }
+
+
+def regimes(outcome: Outcome, measured: Measured) -> dict[str, list[dict[str, Any]]]:
+    """Per channel and regime: rows, and the residual's mean and RMS before
+    and after (on the acceleration channels about the channel's mean, as
+    its constant offset is not known)."""
+    labels = _regime_labels(measured)
+    table: dict[str, list[dict[str, Any]]] = {}
+    for channel in measured.channels:
+        used = measured.used[channel]
+        centred = {}
+        for when, residual in (("before", outcome.residual_before[channel]),
+                               ("after", outcome.residual_after[channel])):
+            centred[when] = residual - (residual[used].mean() if channel in ACCELERATION_CHANNELS else 0.0)
+        rows = []
+        for kind, label in labels.items():
+            for name in sorted(set(label[used].tolist())):
+                inside = used & (label == name)
+                entry: dict[str, Any] = {"regime": kind, "name": name, "rows": int(np.count_nonzero(inside))}
+                for when, residual in centred.items():
+                    entry[when] = {"mean": float(residual[inside].mean()),
+                                   "rms": float(np.sqrt(np.mean(residual[inside] ** 2)))}
+                rows.append(entry)
+        table[channel] = rows
+    return table
+
+
 def _figure(outcome: Outcome, measured: Measured, path: Path) -> None:
     import matplotlib
 
@@ -81,7 +137,7 @@ def _figure(outcome: Outcome, measured: Measured, path: Path) -> None:
         used = measured.used[channel]
         for label, residual, colour in (("before", outcome.residual_before[channel], "tab:red"),
                                         ("after", outcome.residual_after[channel], "tab:blue")):
-            shown = residual[used] - (residual[used].mean() if channel != "temperature" else 0.0)
+            shown = residual[used] - (residual[used].mean() if channel in ACCELERATION_CHANNELS else 0.0)
             axes[row][0].plot(measured.time_s[used], shown, ".", ms=1, color=colour, label=label)
             if temperature is not None:
                 axes[row][1].plot(temperature[used], shown, ".", ms=1, color=colour, label=label)
@@ -95,13 +151,19 @@ def _figure(outcome: Outcome, measured: Measured, path: Path) -> None:
     plt.close(figure)
 
 
-def write(outcome: Outcome, measured: Measured, model_in: str, out_dir: Path) -> dict[str, Any]:
+def write_model_file(outcome: Outcome, measured: Measured, model_in: str, out_dir: Path) -> Path:
     out_dir.mkdir(parents=True, exist_ok=True)
     model_path = out_dir / "model.toml"
     names = ", ".join(effect.candidate for effect in outcome.effects) or "nothing"
     write_model(outcome.model, model_path,
                 f"thermotilt discover: {model_in} with what {measured.source} showed ({names})")
-    result = document(outcome, measured, model_in, model_path)
+    return model_path
+
+
+def write(outcome: Outcome, measured: Measured, model_in: str, out_dir: Path,
+          twin: dict[str, dict[str, float]] | None = None) -> dict[str, Any]:
+    model_path = write_model_file(outcome, measured, model_in, out_dir)
+    result = document(outcome, measured, model_in, model_path, twin)
     (out_dir / "discovery.json").write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
     _figure(outcome, measured, out_dir / "residuals.png")
     (out_dir / "report.md").write_text(_markdown(result), encoding="utf-8")
@@ -135,13 +197,26 @@ def _markdown(result: dict[str, Any]) -> str:
                   + ", ".join(result["not_testable"]) + ".", ""]
     for channel, why in result["skipped_channels"].items():
         lines += [f"Channel {channel} skipped: {why}.", ""]
-    lines += ["## Gap per channel (RMS of measured minus replay; acceleration about its mean)", "",
-              "| channel | column | before | after |", "|---|---|---|---|"]
+    lines += ["## Gap per channel (RMS of measured minus replay, and minus the twin run again when "
+              "it was; acceleration about its mean)", "",
+              "| channel | column | replay before | replay after | twin before | twin after |",
+              "|---|---|---|---|---|---|"]
     for channel, gap in result["gap"].items():
         unit = gap["unit"]
-        lines.append(f"| {channel} | {CHANNEL_COLUMNS[channel]} | {gap['replay']['before']:.3f} {unit} | "
-                     f"{gap['replay']['after']:.3f} {unit} |")
-    lines += ["", "![residuals before and after](residuals.png)", "",
+        twin = gap.get("twin", {})
+        cells = [f"{twin[when]:.3f} {unit}" if when in twin else "" for when in ("before", "after")]
+        lines.append(f"| {channel} | {COLUMNS[channel]} | {gap['replay']['before']:.3f} {unit} | "
+                     f"{gap['replay']['after']:.3f} {unit} | {cells[0]} | {cells[1]} |")
+    lines += ["", "## Where the gap is: residual by regime (mean / RMS, before → after)", ""]
+    for channel, rows in result["regimes"].items():
+        unit = result["gap"][channel]["unit"]
+        lines += [f"### {channel} ({unit})", "", "| regime | | rows | before | after |", "|---|---|---|---|---|"]
+        for row in rows:
+            before, after = row["before"], row["after"]
+            lines.append(f"| {row['regime']} | {row['name']} | {row['rows']} | "
+                         f"{before['mean']:+.3g} / {before['rms']:.3g} | {after['mean']:+.3g} / {after['rms']:.3g} |")
+        lines.append("")
+    lines += ["![residuals before and after](residuals.png)", "",
               f"Found means: Benjamini–Hochberg adjusted p below {result['rules']['fdr']} across every "
               f"candidate and channel of a round, and at least "
               f"{100 * result['rules']['min_gap_reduction']:.0f} % off the channel's RMS residual "

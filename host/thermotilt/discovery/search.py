@@ -33,8 +33,8 @@ from ..physics.terms.sensor import (
     FLICKER_VARIANCE_PER_FLOOR,
     REFERENCE_C,
 )
-from .candidates import CANDIDATES, Candidate, experiment
-from .replay import ACCELERATION_CHANNELS, Measured, SampleGrid, replay
+from .candidates import BY_NAME, CANDIDATES, Candidate, experiment
+from .replay import ACCELERATION_CHANNELS, CHAMBER_CHANNELS, Measured, Replay
 
 ALPHA = 0.05
 # Long against the Kalman filters' ~10 s and short against a 60 s
@@ -50,6 +50,10 @@ NOT_TESTABLE_R2 = 0.999
 # cannot be told apart by it, whatever their fits say.
 COLLINEAR = 0.99
 MAX_ROUNDS = 4
+# Gauss-Newton on a candidate not linear in its parameter: at most this
+# many steps, stopping when a step is below this share of its probe.
+GAUSS_NEWTON_STEPS = 6
+GAUSS_NEWTON_TOLERANCE = 0.01
 # Longer runs get longer blocks, so the block covariance stays this small.
 MAX_BLOCKS = 2000
 # The least share of the residual blocks' variance left to the AR(1) part,
@@ -186,7 +190,8 @@ class Channel:
     real rig's)."""
 
     def __init__(self, measured: Measured, channel: str, residual: np.ndarray,
-                 temperature_c: np.ndarray, noise: DeclaredNoise) -> None:
+                 temperature_c: np.ndarray, noise: DeclaredNoise,
+                 start_response: np.ndarray | None = None) -> None:
         self.name = channel
         used = measured.used[channel]
         self.rows = used
@@ -203,7 +208,12 @@ class Channel:
         block_time = self.blocks(time_s)
         excursion = self.blocks(temperature_c[used]) - REFERENCE_C
         self.y = self.blocks(self.residual_rows)
-        self.nuisance = np.ones((len(self.y), 1)) if _nuisance(channel) else np.empty((len(self.y), 0))
+        if _nuisance(channel):
+            self.nuisance = np.ones((len(self.y), 1))
+        elif start_response is not None:
+            self.nuisance = np.column_stack([self.blocks(column[used]) for column in start_response.T])
+        else:
+            self.nuisance = np.empty((len(self.y), 0))
         self.whiten = self._whitening(block_time, excursion, block_s, noise)
         self.y_w = self.whiten(self.y)
         self.nuisance_w = self.whiten(self.nuisance)
@@ -248,11 +258,12 @@ class Channel:
 
         return whiten
 
-    def fit(self, regressors: np.ndarray) -> Fit:
-        """GLS of the residual blocks on the nuisance and these regressors
-        (block means, one column each)."""
+    def fit(self, regressors: np.ndarray, left: np.ndarray | None = None) -> Fit:
+        """GLS of the residual blocks (or of `left`, blocks of what an
+        effect leaves of them) on the nuisance and these regressors (block
+        means, one column each)."""
         design = np.hstack([self.nuisance_w, self.whiten(regressors)])
-        return Fit.of(self.y_w, design, regressors.shape[1])
+        return Fit.of(self.y_w if left is None else self.whiten(left), design, regressors.shape[1])
 
     def beyond_nuisance(self, whitened: np.ndarray) -> np.ndarray:
         """What of whitened blocks the nuisance columns do not explain."""
@@ -281,12 +292,12 @@ class Search:
     def __init__(self, measured: Measured, model: Model,
                  progress: Callable[[str], None] | None = None) -> None:
         self.measured = measured
-        self.grid = SampleGrid.of(measured.time_s, measured.mounting)
+        self.replay = Replay(measured)
         self.model = model
         self._progress = progress or (lambda message: None)
 
     def predict(self, model: Model) -> dict[str, np.ndarray]:
-        return replay(self.measured, model, self.grid)
+        return self.replay(model)
 
     def residuals(self, predicted: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
         return {channel: self.measured.observed[channel] - predicted[channel]
@@ -301,9 +312,11 @@ class Search:
         for round_index in range(MAX_ROUNDS):
             self._progress(f"round {round_index + 1}: testing {len(CANDIDATES)} candidates")
             residual = self.residuals(base)
+            starts = (self.replay.chamber_start_response(model)
+                      if any(c in CHAMBER_CHANNELS for c in self.measured.channels) else {})
             channels = {
                 channel: Channel(self.measured, channel, residual[channel], base["temperature"],
-                                 DeclaredNoise.of(model, channel))
+                                 DeclaredNoise.of(model, channel), starts.get(channel))
                 for channel in self.measured.channels
             }
             regressors = {candidate.name: self._regressors(candidate, model, base)
@@ -315,10 +328,14 @@ class Search:
                     {t.candidate for t in tests}
                     - {t.candidate for t in tests if t.testable}
                 )
+            # The chamber's reading drives the sensor's replay: an effect
+            # found there changes every channel, so it goes in first.
             accepted = sorted(
-                (t for t in tests if t.adjusted_p < ALPHA and t.gap_reduction >= MIN_GAP_REDUCTION),
-                key=lambda t: -t.gap_reduction,
+                (t for t in tests if t.adjusted_p < ALPHA and t.gap_reduction >= MIN_GAP_REDUCTION
+                 and self._within_bounds(t)),
+                key=lambda t: (t.channel not in CHAMBER_CHANNELS, -t.gap_reduction),
             )
+            accepted = [t for t in accepted if not self._spoils_another_channel(t, model, residual)]
             if not accepted:
                 break
             best = accepted[0]
@@ -335,7 +352,10 @@ class Search:
             candidate = next(c for c in CANDIDATES if c.name == best.candidate)
             effect, model = self._add(candidate, best, model)
             outcome.effects.append(effect)
-            done.add(best.key)
+            # One value acting on every channel is set once, where it
+            # explained most.
+            done.update([best.key] if candidate.per_axis
+                        else [(candidate.name, channel) for channel in candidate.channels])
             base = self.predict(model)
         outcome.model = model
         outcome.residual_after = self.residuals(base)
@@ -356,10 +376,13 @@ class Search:
         channels = [c for c in candidate.channels if c in self.measured.channels]
         if not channels:
             return {}
+        low, high = candidate.bounds
+        steps = {c: candidate.probe if low <= candidate.value(model, c) + candidate.probe <= high
+                 else -candidate.probe for c in channels}
         moved = self.predict(candidate.changed(
-            model, {c: candidate.value(model, c) + candidate.probe for c in channels}
+            model, {c: candidate.value(model, c) + steps[c] for c in channels}
         ))
-        return {c: (moved[c] - base[c]) / candidate.probe for c in channels}
+        return {c: (moved[c] - base[c]) / steps[c] for c in channels}
 
     def _tests(self, model: Model, base: Mapping[str, np.ndarray], channels: Mapping[str, Channel],
                regressors: dict[str, dict[str, np.ndarray]], done: set[tuple[str, str]]) -> list[Test]:
@@ -376,17 +399,24 @@ class Search:
                 if not np.all(np.isfinite(g)) or not channel.testable(g):
                     tests.append(Test(candidate.name, channel_name, testable=False))
                     continue
-                if candidate.additive:
+                if candidate.additive and candidate.linear:
                     result = channel.fit(g[:, None])
                     change, half_width = float(result.params[0]), 1.96 * float(result.bse[0])
                     value = candidate.value(model, channel_name) + change
                     interval = (value - half_width, value + half_width)
                     p_value, explained = float(result.pvalues[0]), change * regressor_rows
                 else:
-                    value, interval, effect_rows = self._fit_nonlinear(candidate, channel_name, model,
-                                                                       base, channel)
-                    result = channel.fit(channel.blocks(effect_rows[channel.rows])[:, None])
-                    p_value, explained = float(result.pvalues[0]), effect_rows
+                    if candidate.additive:
+                        start = candidate.value(model, channel_name) + float(channel.fit(g[:, None]).params[0])
+                        value, interval, effect_rows = self._gauss_newton(candidate, channel_name, model,
+                                                                          base, channel, start)
+                    else:
+                        value, interval, effect_rows = self._fit_nonlinear(candidate, channel_name, model,
+                                                                           base, channel)
+                    effect_blocks = channel.blocks(effect_rows[channel.rows])
+                    p_value = (float(channel.fit(effect_blocks[:, None]).pvalues[0])
+                               if np.any(effect_blocks) else 1.0)
+                    explained = effect_rows
                     regressors[candidate.name][channel_name] = effect_rows
                 tests.append(Test(
                     candidate.name, channel_name, testable=True, value=value, interval=interval,
@@ -424,13 +454,66 @@ class Search:
                 rivals.append(other.candidate)
         return rivals
 
+    def _spoils_another_channel(self, test: Test, model: Model,
+                                residual: Mapping[str, np.ndarray]) -> bool:
+        """An effect that explains its channel by making another one's gap
+        worse by more than a found effect must take off (a thermistor offset
+        that the sensor's own temperature contradicts) is not the missing
+        effect."""
+        candidate = BY_NAME[test.candidate]
+        predicted = self.predict(candidate.changed(model, {test.channel: test.value}))
+        for channel in self.measured.channels:
+            if channel == test.channel:
+                continue
+            used = self.measured.used[channel]
+            before = gap_rms(channel, residual[channel][used])
+            after = gap_rms(channel, (self.measured.observed[channel] - predicted[channel])[used])
+            if after > before / (1.0 - MIN_GAP_REDUCTION):
+                return True
+        return False
+
+    @staticmethod
+    def _within_bounds(test: Test) -> bool:
+        """A value the parameter cannot take (a negative dead zone) is not
+        that effect, however well it fits."""
+        low, high = BY_NAME[test.candidate].bounds
+        return low <= test.value <= high
+
     def _add(self, candidate: Candidate, test: Test, model: Model) -> tuple[Effect, Model]:
         """The found value into the model."""
-        value = float(np.clip(test.value, *candidate.bounds))
+        value = test.value
         self._progress(f"found {candidate.name} on {test.channel}: {candidate.parameter} = {value:.4g}")
         effect = Effect(candidate.name, test.channel, candidate.parameter, candidate.unit, value,
                         test.interval, test.adjusted_p, test.gap_reduction)
         return effect, candidate.changed(model, {test.channel: value})
+
+    def _gauss_newton(self, candidate: Candidate, channel_name: str, model: Model,
+                      base: Mapping[str, np.ndarray], channel: Channel, value: float
+                      ) -> tuple[float, tuple[float, float], np.ndarray]:
+        """Least squares of the whitened blocks over an additive parameter
+        whose effect is not linear in it (a dead zone), by Gauss-Newton
+        steps from the linear fit's value, each slope from replays: the
+        value (within its bounds), its interval from the slope there, and
+        the effect at that value (rows)."""
+        low, high = candidate.bounds
+
+        def effect(at: float) -> np.ndarray:
+            return self.predict(candidate.changed(model, {channel_name: at}))[channel_name] - base[channel_name]
+
+        for _ in range(GAUSS_NEWTON_STEPS):
+            value = float(np.clip(value, low, high))
+            current = effect(value)
+            step = candidate.probe if value + candidate.probe <= high else -candidate.probe
+            slope = (effect(value + step) - current) / step
+            result = channel.fit(channel.blocks(slope[channel.rows])[:, None],
+                                 left=channel.y - channel.blocks(current[channel.rows]))
+            change = float(result.params[0])
+            value += change
+            if abs(change) < GAUSS_NEWTON_TOLERANCE * abs(candidate.probe):
+                break
+        value = float(np.clip(value, low, high))
+        half_width = 1.96 * float(result.bse[0])
+        return value, (value - half_width, value + half_width), effect(value)
 
     def _fit_nonlinear(self, candidate: Candidate, channel_name: str, model: Model,
                        base: Mapping[str, np.ndarray], channel: Channel

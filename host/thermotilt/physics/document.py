@@ -12,18 +12,19 @@ import tomli_w
 from .model import Model
 
 
-def _plain(value: Any) -> Any:
+def plain(value: Any) -> Any:
+    """A value of a model as plain TOML data: tables as dicts, lists for tuples."""
     if isinstance(value, Mapping):
-        return {key: _plain(item) for key, item in value.items()}
+        return {key: plain(item) for key, item in value.items()}
     if isinstance(value, tuple):
-        return [_plain(item) for item in value]
+        return [plain(item) for item in value]
     return value
 
 
 def model_document(model: Model) -> dict[str, Any]:
     """Every hardware section and term with all its values, and the faults."""
-    document: dict[str, Any] = {name: _plain(values) for name, values in model.constants.items()}
-    document.update({name: _plain(values) for name, values in model.terms.items()})
+    document: dict[str, Any] = {name: plain(values) for name, values in model.constants.items()}
+    document.update({name: plain(values) for name, values in model.terms.items()})
     faults = []
     for fault in model.faults:
         table: dict[str, Any] = {"name": fault.name, "start_s": fault.start_s}
@@ -43,7 +44,7 @@ def with_values(model: Model, term: str, values: Mapping[str, Any]) -> Model:
     document = model_document(model)
     if term not in document:
         raise KeyError(term)
-    document[term] = {**document[term], **_plain(values)}
+    document[term] = {**document[term], **plain(values)}
     return Model.from_document(document, model.source)
 
 

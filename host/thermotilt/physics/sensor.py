@@ -56,6 +56,19 @@ def _clip_round(value: float, low: int, high: int) -> int:
     return low if rounded < low else high if rounded > high else rounded
 
 
+def registered_temperature_c(model: Model, reported_c: np.ndarray) -> np.ndarray:
+    """What the temperature register holds for these reported temperatures,
+    in degC as the firmware decodes it: rounded to its 1/8 degC steps as
+    Sensor.step rounds it, where the model's `temperature_quantisation` is
+    on; as given where it is off (the register's dither averages away)."""
+    if not model.enabled("temperature_quantisation"):
+        return reported_c
+    constants = model.constants["sensor"]
+    lsb_per_c, zero_c = constants["temperature_lsb_per_c"], constants["temperature_zero_c"]
+    raw = np.clip(np.floor((reported_c - zero_c) * lsb_per_c + 0.5), _TEMPERATURE_RAW_MIN, _TEMPERATURE_RAW_MAX)
+    return raw / lsb_per_c + zero_c
+
+
 class _BlockDraws:
     """Seeded draws handed out one at a time from pre-drawn numpy blocks."""
 
