@@ -11,8 +11,10 @@ each candidate's effect (its replayed regressor) is tested on the whitened
 blocks with Newey-West (HAC) standard errors, a guard against correlation the
 AR(1) misses. The p-values of all candidates and channels of a round are
 adjusted for the false-discovery rate (Benjamini-Hochberg); a candidate is
-found only when it is significant after that and shrinks the channel's RMS
-residual by at least MIN_GAP_REDUCTION. docs/discovery.md states the rules.
+found only when it is significant after that, shrinks the channel's RMS
+residual by at least MIN_GAP_REDUCTION, has a value its parameter can take
+and makes no other channel worse. The chamber's channels carry the unknown
+start of the chamber as nuisance columns. docs/discovery.md states the rules.
 """
 
 from __future__ import annotations
