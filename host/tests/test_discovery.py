@@ -74,11 +74,7 @@ CHAMBER_CASES = (
     ("thermistor_offset", "outer"),
     ("drive_dead_zone", "inner"),
     ("heatsink", "inner"),
-    pytest.param("heatsink", "outer", marks=pytest.mark.xfail(strict=True, reason=(
-        "named, but the interval misses: 5.29 (5.22..5.36) W/K for 5.38. The open-loop replay holds "
-        "each status frame's drive for its second; on this cycle that alone pulls the heatsink's "
-        "conductance ~0.08 W/K low (hidden on inner: 5.98 for 6.06), an error the chamber's noise "
-        "model does not carry"))),
+    ("heatsink", "outer"),
     ("joule_heating", "inner"),
 )
 

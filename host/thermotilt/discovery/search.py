@@ -193,7 +193,11 @@ class Channel:
 
     def __init__(self, measured: Measured, channel: str, residual: np.ndarray,
                  temperature_c: np.ndarray, noise: DeclaredNoise,
-                 start_response: np.ndarray | None = None) -> None:
+                 start_response: np.ndarray | None = None,
+                 noise_residual: np.ndarray | None = None) -> None:
+        """noise_residual: what the AR(1) is fitted to, if not the residual
+        itself (the residual less an effect found in it: the noise is then
+        not taken to hold that effect)."""
         self.name = channel
         used = measured.used[channel]
         self.rows = used
@@ -216,7 +220,8 @@ class Channel:
             self.nuisance = np.column_stack([self.blocks(column[used]) for column in start_response.T])
         else:
             self.nuisance = np.empty((len(self.y), 0))
-        self.whiten = self._whitening(block_time, excursion, block_s, noise)
+        noise_blocks = self.y if noise_residual is None else self.blocks(noise_residual[used])
+        self.whiten = self._whitening(block_time, excursion, block_s, noise, noise_blocks)
         self.y_w = self.whiten(self.y)
         self.nuisance_w = self.whiten(self.nuisance)
 
@@ -224,7 +229,7 @@ class Channel:
         return np.bincount(self._block, weights=values) / self._counts
 
     def _whitening(self, block_time: np.ndarray, excursion: np.ndarray, block_s: float,
-                   noise: DeclaredNoise) -> Callable[[np.ndarray], np.ndarray]:
+                   noise: DeclaredNoise, noise_blocks: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
         count = len(self.y)
         lag_s = np.abs(np.subtract.outer(block_time, block_time))
         same = np.equal.outer(self._mounting, self._mounting)
@@ -245,7 +250,7 @@ class Channel:
             inside = (self._mounting == m).astype(float)
             columns += [inside[:, None], (inside * excursion)[:, None]]
         design = np.hstack(columns)
-        left = self.y - design @ np.linalg.lstsq(design, self.y, rcond=None)[0]
+        left = noise_blocks - design @ np.linalg.lstsq(design, noise_blocks, rcond=None)[0]
         total = max(float(np.mean(left**2)), 1e-12)
         excess = max(total - flicker_variance, NUGGET_SHARE * total)
         neighbours = self._mounting[1:] == self._mounting[:-1]
@@ -352,6 +357,9 @@ class Search:
                 done.update((candidate.name, best.channel) for candidate in CANDIDATES)
                 continue
             candidate = next(c for c in CANDIDATES if c.name == best.candidate)
+            best = self._refined(best, channels[best.channel], regressors[best.candidate][best.channel],
+                                 model, base, residual[best.channel], base["temperature"],
+                                 starts.get(best.channel))
             effect, model = self._add(candidate, best, model)
             outcome.effects.append(effect)
             # One value acting on every channel is set once, where it
@@ -396,40 +404,63 @@ class Search:
             for channel_name, regressor_rows in regressors[candidate.name].items():
                 if (candidate.name, channel_name) in done:
                     continue
-                channel = channels[channel_name]
-                g = channel.blocks(regressor_rows[channel.rows])
-                if not np.all(np.isfinite(g)) or not channel.testable(g):
-                    tests.append(Test(candidate.name, channel_name, testable=False))
-                    continue
-                if candidate.additive and candidate.linear:
-                    result = channel.fit(g[:, None])
-                    change, half_width = float(result.params[0]), 1.96 * float(result.bse[0])
-                    value = candidate.value(model, channel_name) + change
-                    interval = (value - half_width, value + half_width)
-                    p_value, explained = float(result.pvalues[0]), change * regressor_rows
-                else:
-                    if candidate.additive:
-                        start = candidate.value(model, channel_name) + float(channel.fit(g[:, None]).params[0])
-                        value, interval, effect_rows = self._gauss_newton(candidate, channel_name, model,
-                                                                          base, channel, start)
-                    else:
-                        value, interval, effect_rows = self._fit_nonlinear(candidate, channel_name, model,
-                                                                           base, channel)
-                    effect_blocks = channel.blocks(effect_rows[channel.rows])
-                    p_value = (float(channel.fit(effect_blocks[:, None]).pvalues[0])
-                               if np.any(effect_blocks) else 1.0)
-                    explained = effect_rows
+                test, effect_rows = self._test(candidate, channels[channel_name], regressor_rows, model, base)
+                if effect_rows is not None and not (candidate.additive and candidate.linear):
                     regressors[candidate.name][channel_name] = effect_rows
-                tests.append(Test(
-                    candidate.name, channel_name, testable=True, value=value, interval=interval,
-                    p_value=p_value, gap_reduction=channel.reduction(explained[channel.rows]),
-                ))
+                tests.append(test)
         testable = [t for t in tests if t.testable]
         if testable:
             adjusted = multipletests([t.p_value for t in testable], alpha=ALPHA, method="fdr_bh")[1]
             by_key = {t.key: float(p) for t, p in zip(testable, adjusted)}
             tests = [replace(t, adjusted_p=by_key.get(t.key, float("nan"))) for t in tests]
         return tests
+
+    def _test(self, candidate: Candidate, channel: Channel, regressor_rows: np.ndarray, model: Model,
+              base: Mapping[str, np.ndarray]) -> tuple[Test, np.ndarray | None]:
+        """One candidate on one channel: the test, and the effect at the
+        fitted value (rows; None when not testable)."""
+        channel_name = channel.name
+        g = channel.blocks(regressor_rows[channel.rows])
+        if not np.all(np.isfinite(g)) or not channel.testable(g):
+            return Test(candidate.name, channel_name, testable=False), None
+        if candidate.additive and candidate.linear:
+            result = channel.fit(g[:, None])
+            change, half_width = float(result.params[0]), 1.96 * float(result.bse[0])
+            value = candidate.value(model, channel_name) + change
+            interval = (value - half_width, value + half_width)
+            p_value, effect_rows = float(result.pvalues[0]), change * regressor_rows
+        else:
+            if candidate.additive:
+                start = candidate.value(model, channel_name) + float(channel.fit(g[:, None]).params[0])
+                value, interval, effect_rows = self._gauss_newton(candidate, channel_name, model,
+                                                                  base, channel, start)
+            else:
+                value, interval, effect_rows = self._fit_nonlinear(candidate, channel_name, model,
+                                                                   base, channel)
+            effect_blocks = channel.blocks(effect_rows[channel.rows])
+            p_value = (float(channel.fit(effect_blocks[:, None]).pvalues[0])
+                       if np.any(effect_blocks) else 1.0)
+        test = Test(candidate.name, channel_name, testable=True, value=value, interval=interval,
+                    p_value=p_value, gap_reduction=channel.reduction(effect_rows[channel.rows]))
+        return test, effect_rows
+
+    def _refined(self, best: Test, channel: Channel, regressor_rows: np.ndarray, model: Model,
+                 base: Mapping[str, np.ndarray], residual: np.ndarray, temperature_c: np.ndarray,
+                 start_response: np.ndarray | None) -> Test:
+        """The found effect fitted again with the noise's AR(1) taken from
+        the residual without it (one step of iterated feasible GLS): fitted
+        to a residual that still held the effect, the AR(1) read the effect
+        as correlated noise, which both widens and tilts the first fit."""
+        candidate = BY_NAME[best.candidate]
+        effect_rows = self.predict(candidate.changed(model, {best.channel: best.value}))[best.channel] \
+            - base[best.channel]
+        cleaner = Channel(self.measured, best.channel, residual, temperature_c,
+                          DeclaredNoise.of(model, best.channel), start_response,
+                          noise_residual=residual - effect_rows)
+        refined, _ = self._test(candidate, cleaner, regressor_rows, model, base)
+        if not refined.testable or not self._within_bounds(refined):
+            return best
+        return replace(refined, adjusted_p=best.adjusted_p)
 
     def _rivals(self, best: Test, others: list[Test], channel: Channel,
                 regressors: Mapping[str, Mapping[str, np.ndarray]]) -> list[str]:
