@@ -28,9 +28,10 @@ SENSOR = (-1700, -400, 16000, 32)
 
 
 def measured_celsius(millivolts: float) -> float:
-    """What the firmware can know: the ATmega's ADC code (datasheet: Vin * 1024
-    / Vref, truncated), then the divider and the beta equation backwards."""
-    code = math.floor(millivolts * 1024 / 5000)
+    """What the firmware can know: the ATmega's ADC code (the datasheet's
+    ideal ADC: Vin * 1024 / Vref, rounded: its first transition is at half
+    an LSB), then the divider and the beta equation backwards."""
+    code = math.floor(millivolts * 1024 / 5000 + 0.5)
     ntc = 100e3 * code / (1024 - code)
     return 1.0 / (math.log(ntc / 100e3) / 3950.0 + 1.0 / 298.15) - 273.15
 
