@@ -464,7 +464,7 @@ def _command_discover(args: argparse.Namespace) -> int:
     except NativeLibraryError as error:
         raise UsageError(str(error)) from None
     out_dir = Path(args.out)
-    twin = None
+    twin = model_path = None
     try:
         if args.twin:
             from .discovery.twin_gap import twin_gap
@@ -472,7 +472,7 @@ def _command_discover(args: argparse.Namespace) -> int:
             model_path = report.write_model_file(outcome, measured, model.source, out_dir)
             twin = twin_gap(Path(args.measured), measured,
                             {"before": model, "after": Model.load(model_path)}, out_dir, progress=print)
-        result = report.write(outcome, measured, model.source, out_dir, twin)
+        result = report.write(outcome, measured, model.source, out_dir, twin, model_path)
     except DiscoveryDataError as error:
         raise UsageError(str(error)) from None
     except OSError as error:

@@ -22,8 +22,8 @@ it acts instead of being absorbed by a controller.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 import json
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -180,9 +180,9 @@ def load_measured(path: Path, settle_s: float = DEFAULT_SETTLE_S, inputs_only: b
                        if not np.isfinite(chamber[name]).all()]
     for channel, column in {**CHANNEL_COLUMNS, **CHAMBER_CHANNEL_COLUMNS}.items():
         values = numbers[column][known]
-        mask = settled & np.isfinite(values)
+        compared = chamber_rows(time_s, chamber["status"]) if channel in CHAMBER_CHANNELS else settled
+        mask = compared & np.isfinite(values)
         if channel in CHAMBER_CHANNELS:
-            mask = np.isfinite(values) & chamber_rows(time_s, chamber["status"])
             if chamber_missing:
                 skipped_channels[channel] = (
                     f"the chamber replay needs {', '.join(CHAMBER_INPUT_COLUMNS)} on every row "
@@ -410,7 +410,6 @@ class Replay:
         if self._chamber_wanted:
             predicted.update(chamber_replay(self.measured, model))
         return predicted
-
 
     def chamber_start_response(self, model: Model) -> dict[str, np.ndarray]:
         """Per chamber channel, how its replay moves for 1 degC more on each

@@ -161,8 +161,10 @@ def write_model_file(outcome: Outcome, measured: Measured, model_in: str, out_di
 
 
 def write(outcome: Outcome, measured: Measured, model_in: str, out_dir: Path,
-          twin: dict[str, dict[str, float]] | None = None) -> dict[str, Any]:
-    model_path = write_model_file(outcome, measured, model_in, out_dir)
+          twin: dict[str, dict[str, float]] | None = None, model_path: Path | None = None) -> dict[str, Any]:
+    """Everything; model_path: model.toml as write_model_file already wrote it."""
+    if model_path is None:
+        model_path = write_model_file(outcome, measured, model_in, out_dir)
     result = document(outcome, measured, model_in, model_path, twin)
     (out_dir / "discovery.json").write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
     _figure(outcome, measured, out_dir / "residuals.png")

@@ -452,8 +452,10 @@ class Search:
         to a residual that still held the effect, the AR(1) read the effect
         as correlated noise, which both widens and tilts the first fit."""
         candidate = BY_NAME[best.candidate]
-        effect_rows = self.predict(candidate.changed(model, {best.channel: best.value}))[best.channel] \
-            - base[best.channel]
+        # The regressor of a linear candidate is per unit; the others' is
+        # already their effect at the fitted value (_tests).
+        effect_rows = ((best.value - candidate.value(model, best.channel)) * regressor_rows
+                       if candidate.additive and candidate.linear else regressor_rows)
         cleaner = Channel(self.measured, best.channel, residual, temperature_c,
                           DeclaredNoise.of(model, best.channel), start_response,
                           noise_residual=residual - effect_rows)

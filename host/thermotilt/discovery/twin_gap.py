@@ -28,19 +28,21 @@ def scenario_of(measured_dir: Path):
         raise DiscoveryDataError(f"{measured_dir}: no summary.json, so no scenario to run the twin again")
     try:
         summary = json.loads(path.read_text(encoding="utf-8"))
-        options = summary["options"]
-        if options is None:
-            raise KeyError("options")
-        if summary.get("imu_eeprom_preloaded_bytes"):
-            raise DiscoveryDataError(f"{path}: the run started from a preloaded EEPROM, which is not kept")
+    except ValueError as error:
+        raise DiscoveryDataError(f"{path}: not JSON ({error})") from None
+    options = summary.get("options") if isinstance(summary, dict) else None
+    if not isinstance(options, dict):
+        raise DiscoveryDataError(f"{path}: no scenario options (older runs did not record them), "
+                                 "so no scenario to run again")
+    if summary.get("imu_eeprom_preloaded_bytes"):
+        raise DiscoveryDataError(f"{path}: the run started from a preloaded EEPROM, which is not kept")
+    try:
         if options.get("positions") is not None:
             options["positions"] = tuple(options["positions"])
         scenario = build(summary["scenario"], ScenarioOptions(**options))
         faults = [Fault(**fault) for fault in summary["faults"]]
         return scenario, int(summary["seed"]), faults
     except (KeyError, TypeError, ValueError, ScenarioError) as error:
-        if isinstance(error, DiscoveryDataError):
-            raise
         raise DiscoveryDataError(f"{path}: no scenario to run again ({error})") from None
 
 
