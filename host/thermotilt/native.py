@@ -34,6 +34,11 @@ names follow run.csv (docs/run-log.md), which has them for the frame rows:
 
 A frame prints the filtered and compensated values to 0.1 LSB and the
 temperature to 0.001 degC; these are the float32 values before that rounding.
+
+The library also holds single firmware algorithms the host keeps Python
+copies of (``host/native/firmware_algorithms.h``: lib/Program's staircase,
+lib/Compensation's trend detector and surface); ``library()`` declares them,
+and ``host/tests/test_firmware_differential.py`` checks each copy against them.
 """
 
 from __future__ import annotations
@@ -61,7 +66,7 @@ COEFFICIENT_COUNT = 36
 DECIMATION_RANGE = range(1, 256)  # SETDEC's
 OUTPUTS = ("ax_filt", "ay_filt", "az_filt", "temp_c", "set", "ax_comp", "ay_comp", "az_comp", "frame_due")
 
-_ABI_VERSION = 1  # THERMOTILT_HOST_ABI_VERSION
+_ABI_VERSION = 2  # THERMOTILT_HOST_ABI_VERSION
 _OK = 0
 
 
@@ -80,13 +85,16 @@ def _load_library(path: Path) -> ctypes.CDLL:
         library = ctypes.CDLL(str(path))
     except OSError as error:
         raise NativeLibraryError(f"cannot load {path}: {error}") from None
-    pointer = ctypes.c_void_p
-    arguments = [ctypes.c_size_t, pointer, pointer, pointer, ctypes.c_uint, ctypes.c_float, pointer,
+    pointer, size, single = ctypes.c_void_p, ctypes.c_size_t, ctypes.c_float
+    arguments = [size, pointer, pointer, pointer, ctypes.c_uint, single, pointer,
                  pointer, pointer, pointer, pointer, pointer]
     prototypes: dict[str, tuple[type, list[type]]] = {
         "thermotilt_host_abi_version": (ctypes.c_int, []),
         "thermotilt_imu_process": (ctypes.c_int, arguments),
         "thermotilt_imu_process_unrounded": (ctypes.c_int, arguments),
+        "thermotilt_program_steps": (ctypes.c_int, [size, pointer, pointer, pointer, pointer, pointer]),
+        "thermotilt_trend_sets": (ctypes.c_int, [size, pointer, single, pointer]),
+        "thermotilt_surface_corrections": (ctypes.c_int, [size, pointer, pointer, pointer, pointer]),
     }
     for name, (result, argument_types) in prototypes.items():
         try:
@@ -102,7 +110,10 @@ def _load_library(path: Path) -> ctypes.CDLL:
     return library
 
 
-def _library() -> ctypes.CDLL:
+def library() -> ctypes.CDLL:
+    """The loaded library, its version checked and every entry point of
+    host/native/*.h declared; the firmware_algorithms.h ones serve the
+    differential tests of the host's Python copies."""
     path = library_path()
     if not path.exists():
         raise NativeLibraryError(f"{path} is missing: run `make build` first (or set THERMOTILT_BUILD_DIR)")
@@ -189,7 +200,7 @@ def _run(function_name: str, axes: tuple[np.ndarray, ...], temperature: np.ndarr
     factor, hysteresis = _settings(decimation, hysteresis_c)
     flags = _flags(reset, count)
     table = _coefficients(coefficients)
-    library = _library()
+    loaded = library()
     accel = np.ascontiguousarray(np.stack(axes, axis=1))
     filtered = np.zeros((count, 3), np.float32)
     compensated = np.zeros((count, 3), np.float32)
@@ -200,7 +211,7 @@ def _run(function_name: str, axes: tuple[np.ndarray, ...], temperature: np.ndarr
     def address(array: np.ndarray | None) -> int | None:
         return None if array is None else array.ctypes.data
 
-    status = getattr(library, function_name)(
+    status = getattr(loaded, function_name)(
         count, address(accel), address(temperature), address(flags), factor, hysteresis, address(table),
         address(filtered), address(temperature_c), address(sets), address(compensated), address(due))
     if status != _OK:

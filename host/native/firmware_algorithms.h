@@ -1,0 +1,42 @@
+/* libthermotilt_host.so: single algorithms of the firmware's libraries, each
+ * over arrays of count inputs, compiled for the host from the same sources.
+ * The host keeps Python copies of these (a scenario's staircase, the physics
+ * model's trend and drift surfaces); host/tests/test_firmware_differential.py
+ * checks each copy against them. Each returns 0, or
+ * THERMOTILT_HOST_BAD_ARGUMENT (a NULL array with count > 0) and writes
+ * nothing then. */
+#ifndef THERMOTILT_HOST_FIRMWARE_ALGORITHMS_H
+#define THERMOTILT_HOST_FIRMWARE_ALGORITHMS_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "imu_processing.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* lib/Program: TemperatureProgram::configure of the staircase start_c[i],
+ * max_c[i], step_c[i] with a 1 s hold, no rest, endless cycles and timed
+ * holds (settings that pass every check but the staircase's own). error[i]:
+ * its ProgramError (0 accepted); steps_per_cycle[i]: stepsPerCycle() if
+ * accepted, else 0. */
+int thermotilt_program_steps(size_t count, const float *start_c, const float *max_c, const float *step_c,
+                             uint8_t *error, uint16_t *steps_per_cycle);
+
+/* lib/Compensation: one TrendDetector(hysteresis_c), starting warming, fed
+ * temperature_c in order; set[i] is what update(temperature_c[i]) returned,
+ * 0 warming, 1 cooling. */
+int thermotilt_trend_sets(size_t count, const float *temperature_c, float hysteresis_c, uint8_t *set);
+
+/* lib/Compensation: surfaceCorrection f(T, a) of the surface p (p00, p10,
+ * p01, p20, p11, p02) at T = temperature_c[i], a = accel_lsb[i]. */
+int thermotilt_surface_corrections(size_t count, const float *p, const float *temperature_c,
+                                   const float *accel_lsb, float *correction);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif
