@@ -12,6 +12,8 @@ import math
 from dataclasses import dataclass, field, replace
 from typing import Callable
 
+import numpy as np
+
 # The firmware prints its version and reads its thermistors first; commands
 # are sent once it runs, as a host would after opening the port.
 PROGRAM_SENT_S = 1.0
@@ -114,12 +116,20 @@ class ScenarioOptions:
     controller: str = "float"
 
 
-def program_steps(start_c: float, max_c: float, step_c: float) -> int:
+def program_steps(start_c: float | np.ndarray, max_c: float | np.ndarray,
+                  step_c: float | np.ndarray) -> int | np.ndarray:
     """Steps in one cycle of the chamber's staircase (lib/Program): warming
     from start to max (max included even off the step grid), then cooling
-    back through the same setpoints."""
-    warming = math.ceil((max_c - start_c) / step_c - 1e-6) + 1
-    return 2 * warming - 1
+    back through the same setpoints. For settings SETPRG accepts, computed as
+    the firmware's warmingStepCount computes it, in float32 (the AVR's float,
+    which SETPRG's fields are parsed into). Numbers give an int; numpy arrays,
+    elementwise."""
+    span = np.float32(max_c) - np.float32(start_c)
+    # A span within 1e-4 of a step above a multiple gets no near-duplicate top step.
+    intervals = np.ceil(span / np.float32(step_c) - np.float32(1e-4))
+    warming = intervals.astype(np.int64) + 1
+    steps = 2 * warming - 1
+    return int(steps) if np.ndim(steps) == 0 else steps
 
 
 def _constant(value: float) -> Callable[[float], float]:
