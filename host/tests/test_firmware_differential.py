@@ -1,0 +1,273 @@
+"""The host's Python copies of firmware algorithms against the firmware's
+C++ compiled for the host (host/native/firmware_algorithms.h in
+build/native/libthermotilt_host.so), input for input:
+
+- scenarios.program_steps, lib/Program's staircase;
+- the physics model's trend (Sensor._update_trend), lib/Compensation's
+  TrendDetector;
+- Surface.evaluate and the drift term's _surface, lib/Compensation's
+  surfaceCorrection.
+
+The firmware computes in float32 (the AVR's float and double; the host
+library's SSE float, without fused multiply-adds). Both sides start from the
+same float32 inputs: program_steps rounds to float32 as SETPRG's parser
+does, and the trend and surface copies are given float32 values.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import assume, example, given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
+from thermotilt import native
+from thermotilt.coefficients import AXES, PAPER_DEFAULTS, SETS, Surface
+from thermotilt.physics import Model
+from thermotilt.physics.sensor import Sensor
+from thermotilt.physics.terms.sensor import INT16_MAX, INT16_MIN, OPERATING_C, SURFACE_TERM_BOUNDS, _surface
+from thermotilt.scenarios import CALIBRATION_MAX_C, CALIBRATION_MIN_C, program_steps
+
+pytestmark = pytest.mark.twin
+
+PROPERTY = settings(max_examples=200, deadline=None)
+PROGRAM_ACCEPTED = 0  # ProgramError::None
+
+
+def _call(function_name: str, *arguments) -> None:
+    status = getattr(native.library(), function_name)(*arguments)
+    assert status == 0, f"{function_name} refused its arguments"
+
+
+def _singles(*values) -> list[np.ndarray]:
+    return [np.ascontiguousarray(value, np.float32) for value in np.broadcast_arrays(*values)]
+
+
+def firmware_program_steps(start_c, max_c, step_c) -> tuple[np.ndarray, np.ndarray]:
+    """(ProgramError, stepsPerCycle) of each staircase, as lib/Program configures it."""
+    start, top, step = _singles(start_c, max_c, step_c)
+    error = np.zeros(start.size, np.uint8)
+    steps = np.zeros(start.size, np.uint16)
+    _call("thermotilt_program_steps", start.size, start.ctypes.data, top.ctypes.data, step.ctypes.data,
+          error.ctypes.data, steps.ctypes.data)
+    return error, steps
+
+
+def firmware_trend(temperatures_c: np.ndarray, band_c: float) -> list[str]:
+    """The set letter after each update of one lib/Compensation TrendDetector."""
+    (temperatures,) = _singles(temperatures_c)
+    sets = np.zeros(temperatures.size, np.uint8)
+    _call("thermotilt_trend_sets", temperatures.size, temperatures.ctypes.data, band_c, sets.ctypes.data)
+    return [native.SET_LETTERS[value] for value in sets]
+
+
+def firmware_surface(p: np.ndarray, temperature_c: np.ndarray, accel_lsb: np.ndarray) -> np.ndarray:
+    (coefficients,) = _singles(p)
+    temperature, accel = _singles(temperature_c, accel_lsb)
+    correction = np.zeros(temperature.size, np.float32)
+    _call("thermotilt_surface_corrections", temperature.size, coefficients.ctypes.data, temperature.ctypes.data,
+          accel.ctypes.data, correction.ctypes.data)
+    return correction
+
+
+@pytest.fixture(scope="module")
+def model():
+    return Model.load()
+
+
+# --- Staircase --------------------------------------------------------------
+
+
+def test_program_steps_on_every_staircase_typed_in_tenths_of_a_degree():
+    """Every start < max on the 0.1 degC grid of -10..45 with every step on
+    that grid the firmware accepts: 27.8 million staircases."""
+    tenths = np.arange(round(CALIBRATION_MIN_C * 10), round(CALIBRATION_MAX_C * 10) + 1)
+    start, top = (grid.ravel() for grid in np.meshgrid(tenths, tenths, indexing="ij"))
+    below = start < top
+    start, top = start[below], top[below]
+    compared = 0
+    for step in range(1, tenths.size):
+        fits = top - start >= step
+        start_c, max_c, step_c = start[fits] / 10, top[fits] / 10, step / 10
+        error, firmware = firmware_program_steps(start_c, max_c, step_c)
+        accepted = error == PROGRAM_ACCEPTED
+        np.testing.assert_array_equal(program_steps(start_c[accepted], max_c[accepted], step_c),
+                                      firmware[accepted], err_msg=f"step {step_c} degC")
+        compared += int(accepted.sum())
+    assert compared > 27_000_000
+
+
+@st.composite
+def staircases(draw) -> tuple[float, float, float]:
+    """start < max in the firmware's -10..45 degC and a step: any share of
+    the span, or the span over a whole number of steps to within +-3e-4 (the
+    firmware lets a top step up to 1e-4 of a step past a multiple merge)."""
+    start, top = sorted(draw(st.lists(st.floats(CALIBRATION_MIN_C, CALIBRATION_MAX_C), min_size=2, max_size=2,
+                                      unique=True)))
+    span = top - start
+    if draw(st.booleans()):
+        return start, top, span * draw(st.floats(1e-3, 1.0))
+    intervals = draw(st.integers(1, 999))
+    return start, top, span / intervals * (1.0 + draw(st.floats(-3e-4, 3e-4)))
+
+
+@PROPERTY
+@given(staircases())
+@example((-10.0, 45.0, 18.3333))  # 3.0000055 steps: the old float64, 1e-6 copy gave 9, the firmware 7
+@example((-10.0, 45.0, 54.999))  # 1.0000182 steps: the old copy gave 5, the firmware 3
+def test_program_steps_agree_with_the_firmware_wherever_it_accepts_the_staircase(staircase):
+    error, firmware = firmware_program_steps(*staircase)
+    assume(error[0] == PROGRAM_ACCEPTED)
+    assert program_steps(*staircase) == firmware[0]
+
+
+# --- Trend ------------------------------------------------------------------
+# The firmware's temperature comes from whole 1/8 degC register steps through
+# a Kalman filter, the model's die temperature from its ODE: neither is ever
+# NaN, so no series here holds one.
+
+
+def python_trend(model: Model, temperatures_c: np.ndarray) -> tuple[list[str], list[float]]:
+    """The physics model's set after each of temperatures_c[1:], its sensor
+    started at temperatures_c[0] (the firmware's first sample seeds its
+    extreme the same way), and the extreme each update started from."""
+    sensor = Sensor(model, seed=0, environment_c=float(temperatures_c[0]))
+    sets, extremes = [], []
+    for temperature in temperatures_c[1:]:
+        extremes.append(sensor._trend_extreme)
+        sets.append(sensor._update_trend(float(temperature)))
+    return sets, extremes
+
+
+GRID_C = 2.0**-10
+GRID_RANGE = (round(OPERATING_C.low / GRID_C), round(OPERATING_C.high / GRID_C))
+
+
+@st.composite
+def grid_series(draw, band_c: float) -> np.ndarray:
+    """A walk over -40..85 degC in steps of 2^-10 degC: plateaus, register
+    steps of 1/8 degC, and moves of exactly the band and one grid step either
+    side of it, so excursions land on the band. Every value and difference
+    is exact in float32 and float64 alike."""
+    band = round(band_c / GRID_C)
+    eighth = round(0.125 / GRID_C)
+    move = st.sampled_from([0, 1, eighth, band - 1, band, band + 1]) | st.integers(0, 3 * band)
+    moves = draw(st.lists(st.tuples(move, st.sampled_from([-1, 1])), min_size=1, max_size=200))
+    start = draw(st.integers(*GRID_RANGE))
+    walk = start + np.cumsum([0, *(size * sign for size, sign in moves)])
+    return np.clip(walk, *GRID_RANGE) * GRID_C
+
+
+@PROPERTY
+@given(data=st.data())
+def test_trend_agrees_with_the_firmware_where_float32_is_exact(model, data):
+    band = model.terms["drift"]["schmitt_band_c"]
+    series = data.draw(grid_series(band))
+    python, _ = python_trend(model, series)
+    assert python == firmware_trend(series, band)[1:]
+
+
+def test_trend_treats_an_excursion_of_exactly_the_band_as_no_turn(model):
+    band = model.terms["drift"]["schmitt_band_c"]
+    series = np.array([20.0, 21.0, 21.0 - band, 21.0 - band - GRID_C, 20.0, 20.0 + band, 20.0 + band + GRID_C])
+    python, _ = python_trend(model, series)
+    assert python == firmware_trend(series, band)[1:] == ["W", "W", "C", "C", "C", "W"]
+
+
+@PROPERTY
+@given(arrays(np.float32, st.integers(2, 200), elements=st.floats(OPERATING_C.low, OPERATING_C.high, width=32)))
+# float32(0.3), then the value 0.5 + 2^-26 degC below it: float32 rounds that excursion to the band.
+@example(np.array([0.3, -(0.5 + 2.0**-26 - float(np.float32(0.3)))], np.float32))
+def test_trend_differs_from_the_firmware_only_where_float32_rounds_the_excursion(model, series):
+    """The model compares its excursions in float64, the firmware in float32.
+    Where the exact excursion lies within float32's rounding of the band
+    (values of both signs, or of very different size), the two may choose
+    differently, as the example does; anywhere else they must agree."""
+    band = model.terms["drift"]["schmitt_band_c"]
+    python, extremes = python_trend(model, series)
+    firmware = firmware_trend(series, band)[1:]
+    differing = [index for index, (ours, theirs) in enumerate(zip(python, firmware)) if ours != theirs]
+    if not differing:
+        return
+    first = differing[0]
+    state = python[first - 1] if first else "W"
+    extreme, temperature = extremes[first], float(series[first + 1])
+    exact = extreme - temperature if state == "W" else temperature - extreme
+    single = np.float32(extreme) - series[first + 1] if state == "W" else series[first + 1] - np.float32(extreme)
+    assert (exact > band) != (single > np.float32(band))
+
+
+# --- Surface ----------------------------------------------------------------
+# The firmware's f(T, a) = p00 + T (p10 + p20 T + p11 a) + a (p01 + p02 a) in
+# float32: each of the six terms passes at most six rounded operations (p20 T
+# T: p20*T, +p10, +p11*a, T*, +p00, +a-part), so with u = 2^-24 the result is
+# within gamma_6 = 6u / (1 - 6u) of the sum of the terms' magnitudes M
+# (Higham, Accuracy and Stability of Numerical Algorithms, lemma 3.1 and
+# section 3.1). Surface.evaluate's and _surface's float64 sums have at most
+# six too (u = 2^-53). A float32 product that underflows is off by up to
+# 2^-150 more, which T or a multiply at most once: 2^-149 (2|T| + |a| + 2).
+# For the paper's surfaces over -10..45 degC and +-16384 LSB that is ~6e-4 LSB.
+
+
+def gamma_6(unit_roundoff: float) -> float:
+    return 6 * unit_roundoff / (1 - 6 * unit_roundoff)
+
+
+def rounding_bound(p: np.ndarray, temperature_c: np.ndarray, accel_lsb: np.ndarray) -> np.ndarray:
+    p00, p10, p01, p20, p11, p02 = p.astype(np.float64)
+    t, a = temperature_c.astype(np.float64), accel_lsb.astype(np.float64)
+    magnitudes = (abs(p00) + abs(p10 * t) + abs(p01 * a) + abs(p20 * t * t) + abs(p11 * t * a)
+                  + abs(p02 * a * a))
+    underflow = 2.0**-149 * (2 * abs(t) + abs(a) + 2)
+    return (gamma_6(2.0**-24) + gamma_6(2.0**-53)) * magnitudes + underflow
+
+
+# Where the paper calibrated (temperature, a tilt's +-1 g at 16384 LSB/g) and
+# where the firmware meets a surface (COMP_TEMPERATURE_*, COMP_ACCEL_*).
+DOMAINS = {
+    "calibrated": ((CALIBRATION_MIN_C, CALIBRATION_MAX_C), (-16384.0, 16384.0)),
+    "operating": ((OPERATING_C.low, OPERATING_C.high), (float(INT16_MIN), float(INT16_MAX))),
+}
+PAPER_SURFACES = [PAPER_DEFAULTS.to_float32().surface(set_, axis) for set_ in SETS for axis in AXES]
+
+
+def float32_surfaces() -> st.SearchStrategy[np.ndarray]:
+    """Coefficients the model admits (each term alone within the int16 span
+    over the operating domain), as the firmware holds them."""
+    terms = [st.floats(bounds.low, bounds.high).map(np.float32) for bounds in SURFACE_TERM_BOUNDS]
+    return st.tuples(*terms).map(lambda values: np.array(values, np.float32)) | st.sampled_from(
+        [np.array(surface, np.float32) for surface in PAPER_SURFACES])
+
+
+def assert_within_rounding(p: np.ndarray, temperature_c: np.ndarray, accel_lsb: np.ndarray) -> None:
+    firmware = firmware_surface(p, temperature_c, accel_lsb).astype(np.float64)
+    bound = rounding_bound(p, temperature_c, accel_lsb)
+    t, a = temperature_c.astype(np.float64), accel_lsb.astype(np.float64)
+    for name, python in (("Surface.evaluate", Surface(*p.astype(np.float64)).evaluate(t, a)),
+                         ("_surface", _surface(tuple(p.astype(np.float64)), t, a))):
+        excess = np.abs(python - firmware) - bound
+        worst = int(np.argmax(excess))
+        assert excess[worst] <= 0, (f"{name} at T={t[worst]!r}, a={a[worst]!r}: {python[worst]!r}, "
+                                    f"firmware {firmware[worst]!r}, bound {bound[worst]!r}")
+
+
+@pytest.mark.parametrize("domain", DOMAINS)
+@PROPERTY
+@given(data=st.data())
+def test_surface_agrees_with_the_firmware_within_float32_rounding(domain, data):
+    (t_low, t_high), (a_low, a_high) = DOMAINS[domain]
+    p = data.draw(float32_surfaces())
+    count = data.draw(st.integers(1, 64))
+    temperature = data.draw(arrays(np.float32, count, elements=st.floats(t_low, t_high, width=32)))
+    accel = data.draw(arrays(np.float32, count, elements=st.floats(a_low, a_high, width=32)))
+    assert_within_rounding(p, temperature, accel)
+
+
+@pytest.mark.parametrize("surface", PAPER_SURFACES)
+def test_paper_surfaces_agree_with_the_firmware_over_the_calibrated_grid(surface):
+    """0.1 degC by 1 LSB steps would be 90 million points; 0.25 degC by 64 LSB covers the corners and edges."""
+    (t_low, t_high), (a_low, a_high) = DOMAINS["calibrated"]
+    temperature, accel = np.meshgrid(np.arange(t_low, t_high + 0.125, 0.25, dtype=np.float32),
+                                     np.arange(a_low, a_high + 1, 64, dtype=np.float32))
+    assert_within_rounding(np.array(surface, np.float32), temperature.ravel(), accel.ravel())
