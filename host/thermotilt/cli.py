@@ -195,12 +195,14 @@ def _command_simulate(args: argparse.Namespace) -> int:
     def announce_pty(board: str, path: str) -> None:
         print(f"{board}: {path}", flush=True)
 
-    print(f"{scenario.description}: {scenario.duration_s:.0f} s simulated -> {out_dir}", flush=True)
+    realtime = args.pty if args.realtime is None else args.realtime == "on"
+    in_real_time = " in real time" if realtime else ""
+    print(f"{scenario.description}: {scenario.duration_s:.0f} s simulated{in_real_time} -> {out_dir}", flush=True)
     with tqdm(total=round(scenario.duration_s), unit="sim s", disable=None, file=sys.stderr) as bar:
         try:
             result = simulate.run(
                 scenario, model, out_dir, seed=args.seed, pty=args.pty, on_pty=announce_pty,
-                progress=lambda t: bar.update(round(t) - bar.n), eeprom=eeprom,
+                progress=lambda t: bar.update(round(t) - bar.n), eeprom=eeprom, realtime=realtime,
             )
         except (TwinError, simulate.SimulationError) as error:
             raise UsageError(str(error)) from None
@@ -636,7 +638,11 @@ def build_parser() -> argparse.ArgumentParser:
     simulate.add_argument("--fault", action="append", default=[], metavar="NAME[=RATE][@START[-END]]",
                           help="inject a fault, e.g. inner_open@120-180 or imu_uart_corrupt=0.001")
     simulate.add_argument("--pty", action="store_true",
-                          help="also expose each board's serial port as a pseudo-terminal")
+                          help="also expose each board's serial port as a pseudo-terminal "
+                               "(paced to the wall clock unless --realtime off)")
+    simulate.add_argument("--realtime", choices=("on", "off"),
+                          help="on: a simulated second takes a wall second, as on a board; "
+                               "off: as fast as the host can (default on with --pty, off without)")
     simulate.add_argument("--eeprom", metavar="FILE",
                           help="start the IMU with this 148-byte coefficient block in its EEPROM "
                                "(coefficients.bin from thermotilt fit)")

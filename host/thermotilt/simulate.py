@@ -7,6 +7,9 @@ set from the new physical state, both boards run to the end of the step, and
 every byte they sent is saved, parsed and logged. The host side is the same
 code path as with real boards: commands go out as frames, run.csv rows come
 from IMU frames and the chamber's latest CHS frame.
+
+A run races (as fast as the host can step it) unless it is paced to the wall
+clock (``realtime``), as a client of the ``pty`` ports expects of a board.
 """
 
 from __future__ import annotations
@@ -94,6 +97,25 @@ class RunResult:
     summary: dict
 
 
+class WallClockPacer:
+    """Holds simulated time back to the wall clock. Its clock starts when it
+    is made, right before the first step, and every wait is measured from
+    there, so a late wake-up is not added to the next. A twin that falls
+    behind runs flat out until it is level again; it never skips steps."""
+
+    def __init__(self, clock: Callable[[], float] = time.monotonic,
+                 sleep: Callable[[float], None] = time.sleep) -> None:
+        self._clock = clock
+        self._sleep = sleep
+        self._start = clock()
+
+    def wait_until(self, simulated_s: float) -> None:
+        """Returns once simulated_s wall seconds have passed since the start."""
+        ahead = simulated_s - (self._clock() - self._start)
+        if ahead > 0:
+            self._sleep(ahead)
+
+
 class _FaultSchedule:
     """Switches each fault on and off at its times."""
 
@@ -138,10 +160,13 @@ def run(
     on_pty: Callable[[str, str], None] | None = None,
     progress: Callable[[float], None] | None = None,
     eeprom: bytes | None = None,
+    realtime: bool = False,
 ) -> RunResult:
     """Plays a scenario; writes run.csv, serial/ and summary.json in out_dir.
     eeprom: bytes the IMU's EEPROM holds from address 0 when it starts, e.g.
-    the 148-byte coefficient block of `thermotilt fit` (coefficients.bin)."""
+    the 148-byte coefficient block of `thermotilt fit` (coefficients.bin).
+    realtime: no step ends before its simulated time has passed on the wall
+    clock, as on a board."""
     for fault in model.faults:
         if fault.name in CHAMBER_FAULTS and not scenario.uses_chamber:
             raise SimulationError(
@@ -168,7 +193,7 @@ def run(
                 )
             writer = RunLogWriter(csv_stream, with_truth=True, flush_each_row=False)
             try:
-                _play(scenario, model, seed, links, writer, pty, on_pty, progress)
+                _play(scenario, model, seed, links, writer, pty, on_pty, progress, realtime)
                 interrupted = False
             except KeyboardInterrupt:
                 # Ctrl-C keeps what was simulated so far, summary included.
@@ -193,6 +218,7 @@ def run(
         "faults": [vars(fault) for fault in model.faults],
         "imu_eeprom_preloaded_bytes": len(eeprom) if eeprom is not None else 0,
         "interrupted": interrupted,
+        "realtime": realtime,
         "sim_seconds": round(simulated, 3),
         "wall_seconds": round(wall, 3),
         "speed_x_real_time": round(simulated / wall, 2) if wall > 0 else None,
@@ -214,6 +240,7 @@ def _play(
     pty: bool,
     on_pty: Callable[[str, str], None] | None,
     progress: Callable[[float], None] | None,
+    realtime: bool,
 ) -> None:
     imu = links[IMU]
     chamber_link = links.get(CHAMBER)
@@ -264,6 +291,7 @@ def _play(
     program_ran = program_over = False
     drive = None
     steps = round(scenario.duration_s / STEP_S)
+    pacer = WallClockPacer() if realtime else None
     for step in range(steps):
         t = step * STEP_S
         faults.update(t)
@@ -288,6 +316,8 @@ def _play(
         end = (step + 1) * STEP_S
         for link in links.values():
             link.board.run_until(end)
+        if pacer is not None:
+            pacer.wait_until(end)
         if chamber_link is not None:
             for frame in chamber_link.receive():
                 if frame.type == "CHS":
