@@ -1,7 +1,9 @@
 // libthermotilt_host.so (firmware_algorithms.h): lib/Program's staircase and
-// lib/Compensation's trend detector and surface, over arrays for the host.
+// lib/Compensation's trend detector and surface, lib/ChamberControl's drive
+// law, over arrays for the host.
 #include "firmware_algorithms.h"
 
+#include <ChamberControl.h>
 #include <Compensation.h>
 #include <Program.h>
 
@@ -52,6 +54,23 @@ extern "C" int thermotilt_surface_corrections(size_t count, const float* p, cons
     }
     for (size_t i = 0; i < count; ++i) {
         correction[i] = surfaceCorrection(surface, temperatureC[i], accelLsb[i]);
+    }
+    return 0;
+}
+
+extern "C" int thermotilt_chamber_drive(size_t count, const float* setpointC, const float* measuredC, float dtS,
+                                        float proportionalGain, float integralGain, uint8_t roundedError,
+                                        uint8_t* pwm, uint8_t* direction)
+{
+    if (count > 0 && !(setpointC && measuredC && pwm && direction)) {
+        return THERMOTILT_HOST_BAD_ARGUMENT;
+    }
+    ChamberController controller(proportionalGain, integralGain);
+    controller.setRoundedError(roundedError != 0);
+    for (size_t i = 0; i < count; ++i) {
+        DriveCommand command = controller.update(setpointC[i], measuredC[i], dtS);
+        pwm[i] = command.pwm;
+        direction[i] = (uint8_t)command.direction;
     }
     return 0;
 }

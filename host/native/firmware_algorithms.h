@@ -1,8 +1,9 @@
 /* libthermotilt_host.so: single algorithms of the firmware's libraries, each
  * over arrays of count inputs, compiled for the host from the same sources.
- * The host keeps Python copies of these (a scenario's staircase, the physics
+ * The host keeps Python copies of some (a scenario's staircase, the physics
  * model's trend and drift surfaces); host/tests/test_firmware_differential.py
- * checks each copy against them. Each returns 0, or
+ * checks each copy against them. The chamber's drive law has no copy: the
+ * physics tests that close the loop around the chamber model call it. Each returns 0, or
  * THERMOTILT_HOST_BAD_ARGUMENT (a NULL array with count > 0) and writes
  * nothing then. */
 #ifndef THERMOTILT_HOST_FIRMWARE_ALGORITHMS_H
@@ -34,6 +35,14 @@ int thermotilt_trend_sets(size_t count, const float *temperature_c, float hyster
  * p01, p20, p11, p02) at T = temperature_c[i], a = accel_lsb[i]. */
 int thermotilt_surface_corrections(size_t count, const float *p, const float *temperature_c,
                                    const float *accel_lsb, float *correction);
+
+/* lib/ChamberControl: one ChamberController(proportional_gain,
+ * integral_gain), rounded error on or off, updated with setpoint_c[i] and
+ * measured_c[i] every dt_s in order; pwm[i] and direction[i] (0 off, 1 heat,
+ * 2 cool) are what update returned. */
+int thermotilt_chamber_drive(size_t count, const float *setpoint_c, const float *measured_c, float dt_s,
+                             float proportional_gain, float integral_gain, uint8_t rounded_error,
+                             uint8_t *pwm, uint8_t *direction);
 
 #ifdef __cplusplus
 }

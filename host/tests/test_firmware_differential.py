@@ -271,3 +271,18 @@ def test_paper_surfaces_agree_with_the_firmware_over_the_calibrated_grid(surface
     temperature, accel = np.meshgrid(np.arange(t_low, t_high + 0.125, 0.25, dtype=np.float32),
                                      np.arange(a_low, a_high + 1, 64, dtype=np.float32))
     assert_within_rounding(np.array(surface, np.float32), temperature.ravel(), accel.ravel())
+
+
+def test_chamber_drive_is_the_firmwares_p_law():
+    # 350 * e to the nearest PWM step, saturating at 255 beyond 255/350 degC;
+    # with the rounded error, e to whole degrees first (lib/ChamberControl).
+    setpoint = [20.0, 20.0, 20.0, 20.0, 20.0]
+    measured = [19.5, 20.0, 21.0, 19.999, 20.4]
+    pwm, direction = native.chamber_drive(setpoint, measured, 0.25)
+    assert pwm.tolist() == [175, 0, 255, 0, 140]
+    assert direction.tolist() == [native.DRIVE_HEAT, native.DRIVE_OFF, native.DRIVE_COOL,
+                                  native.DRIVE_OFF, native.DRIVE_COOL]
+    pwm, direction = native.chamber_drive(setpoint, measured, 0.25, rounded_error=True)
+    assert pwm.tolist() == [255, 0, 255, 0, 0]
+    assert direction.tolist() == [native.DRIVE_HEAT, native.DRIVE_OFF, native.DRIVE_COOL,
+                                  native.DRIVE_OFF, native.DRIVE_OFF]

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from thermotilt import native
 from thermotilt.coefficients import PAPER_DEFAULTS
 from thermotilt.physics import docs
 from thermotilt.physics.terms import REGISTRY
@@ -27,7 +28,6 @@ from thermotilt.physics import (
 DEFAULT_TOML = Path(__file__).resolve().parents[1] / "thermotilt" / "models" / "default.toml"
 LSB_PER_G = 1 / 0.061e-3  # LSM9DS0 at +-2 g
 CONTROL_PERIOD_S = 0.25  # firmware/thermal_chamber: CONTROL_PERIOD_MS
-KP = 350.0  # paper section 3.1
 
 SENSOR_EFFECTS_OFF = {
     "die_lag": False,
@@ -52,9 +52,10 @@ def model():
 
 
 def run_p_control(model, ambient_c, setpoints, hold_s, dt_s=0.01):
-    """The firmware's P law emulated: every 250 ms pwm = min(255, round(350 |e|))
-    on the inner thermistor, direction = sign(e), held until the next tick.
-    Returns (time_s, setpoint, inner thermistor, pwm * direction) per step."""
+    """The chamber's model in a loop with the firmware's own drive law
+    (lib/ChamberControl through thermotilt.native): every 250 ms on the inner
+    thermistor, the drive held until the next tick. Returns (time_s,
+    setpoint, inner thermistor, signed pwm: + heats) per step."""
     chamber = Chamber(model, ambient_c)
     steps_per_tick = round(CONTROL_PERIOD_S / dt_s)
     steps_per_hold = round(hold_s / dt_s)
@@ -64,10 +65,9 @@ def run_p_control(model, ambient_c, setpoints, hold_s, dt_s=0.01):
     for setpoint in setpoints:
         for _ in range(steps_per_hold):
             if step % steps_per_tick == 0:
-                error = setpoint - chamber.inner_thermistor_c
-                pwm = min(255, math.floor(KP * abs(error) + 0.5))
-                direction = (1 if error > 0 else -1) if pwm else 0
-                duty, signed_pwm = pwm / 255.0, pwm * direction
+                pwm, drive = native.chamber_drive([setpoint], [chamber.inner_thermistor_c], CONTROL_PERIOD_S)
+                direction = {native.DRIVE_OFF: 0, native.DRIVE_HEAT: 1, native.DRIVE_COOL: -1}[int(drive[0])]
+                duty, signed_pwm = int(pwm[0]) / 255.0, int(pwm[0]) * direction
             chamber.step(dt_s, duty, direction, ambient_c)
             step += 1
             trace.append((step * dt_s, setpoint, chamber.inner_thermistor_c, signed_pwm))
@@ -393,6 +393,7 @@ def figure8(model):
     return setpoints, trace, settled
 
 
+@pytest.mark.twin
 def test_figure8_two_degree_steps_take_about_13_s(figure8):
     # Paper section 3.1: "completed in approximately 13 s". Time from the
     # setpoint change to 90 % of the way between the two settled means.
@@ -404,6 +405,7 @@ def test_figure8_two_degree_steps_take_about_13_s(figure8):
         assert 10.0 <= reached - start <= 16.0
 
 
+@pytest.mark.twin
 def test_figure8_settled_offset_lies_on_the_ambient_side(figure8):
     # Paper section 3.1: measured above programmed below the external
     # temperature (19 degC here), below it above.
@@ -411,9 +413,14 @@ def test_figure8_settled_offset_lies_on_the_ambient_side(figure8):
     for setpoint, mean in zip(setpoints, settled):
         offset = mean - setpoint
         assert offset * (19.0 - setpoint) > 0
-        assert abs(offset) < 0.8
+        # A P law settles at e = 255/350 * d_hold, and a chamber that holds
+        # -10 degC at 22 degC ambient needs d_hold <= 0.1 within 3 K of
+        # ambient (docs/physics-model.md, test_figure8's float bound before
+        # its allowance for the thermistor's noise).
+        assert abs(offset) < 255 / 350 * 0.1
 
 
+@pytest.mark.twin
 @pytest.mark.parametrize(
     ("ambient", "setpoint"), [(22.0, -10.0), (20.0, -10.0), (20.0, 45.0), (22.0, 45.0)]
 )

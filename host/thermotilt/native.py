@@ -39,6 +39,8 @@ The library also holds single firmware algorithms the host keeps Python
 copies of (``host/native/firmware_algorithms.h``: lib/Program's staircase,
 lib/Compensation's trend detector and surface); ``library()`` declares them,
 and ``host/tests/test_firmware_differential.py`` checks each copy against them.
+``chamber_drive`` is lib/ChamberControl's drive law, for whatever closes a
+loop around the chamber's model without the firmware in simavr.
 """
 
 from __future__ import annotations
@@ -66,7 +68,7 @@ COEFFICIENT_COUNT = 36
 DECIMATION_RANGE = range(1, 256)  # SETDEC's
 OUTPUTS = ("ax_filt", "ay_filt", "az_filt", "temp_c", "set", "ax_comp", "ay_comp", "az_comp", "frame_due")
 
-_ABI_VERSION = 2  # THERMOTILT_HOST_ABI_VERSION
+_ABI_VERSION = 3  # THERMOTILT_HOST_ABI_VERSION
 _OK = 0
 
 
@@ -95,6 +97,8 @@ def _load_library(path: Path) -> ctypes.CDLL:
         "thermotilt_program_steps": (ctypes.c_int, [size, pointer, pointer, pointer, pointer, pointer]),
         "thermotilt_trend_sets": (ctypes.c_int, [size, pointer, single, pointer]),
         "thermotilt_surface_corrections": (ctypes.c_int, [size, pointer, pointer, pointer, pointer]),
+        "thermotilt_chamber_drive": (ctypes.c_int, [size, pointer, pointer, single, single, single,
+                                                    ctypes.c_uint8, pointer, pointer]),
     }
     for name, (result, argument_types) in prototypes.items():
         try:
@@ -277,3 +281,26 @@ def imu_process_unrounded(
     axes = tuple(_floats(values, name) for name, values in (("ax", ax), ("ay", ay), ("az", az)))
     return _run("thermotilt_imu_process_unrounded", axes, temperature, reset, decimation, hysteresis_c,
                 coefficients)
+
+
+DRIVE_OFF, DRIVE_HEAT, DRIVE_COOL = 0, 1, 2  # lib/ChamberControl's Direction
+PAPER_PROPORTIONAL_GAIN = 350.0  # ChamberController::kPaperProportionalGain
+
+
+def chamber_drive(setpoint_c: Any, measured_c: Any, dt_s: float, proportional_gain: float = PAPER_PROPORTIONAL_GAIN,
+                  integral_gain: float = 0.0, rounded_error: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """(pwm 0..255, direction DRIVE_*) per sample: one lib/ChamberControl
+    controller updated with each setpoint and measured temperature in order,
+    dt_s apart (float32, as on the Mega)."""
+    setpoint = _floats(setpoint_c, "setpoint_c")
+    measured = _floats(measured_c, "measured_c")
+    if setpoint.size != measured.size:
+        raise ValueError(f"setpoint_c has {setpoint.size} values and measured_c {measured.size}")
+    pwm = np.zeros(setpoint.size, np.uint8)
+    direction = np.zeros(setpoint.size, np.uint8)
+    status = library().thermotilt_chamber_drive(setpoint.size, setpoint.ctypes.data, measured.ctypes.data, dt_s,
+                                                proportional_gain, integral_gain, rounded_error,
+                                                pwm.ctypes.data, direction.ctypes.data)
+    if status != _OK:
+        raise NativeLibraryError("thermotilt_chamber_drive refused its arguments")
+    return pwm, direction
