@@ -368,6 +368,7 @@ def test_ctrl_c_in_log_keeps_the_rows(tmp_path):
     assert len(read_run_log(str(out))) == 3
 
 
+@pytest.mark.twin
 def test_ctrl_c_in_simulate_keeps_the_run(tmp_path):
     out = tmp_path / "run"
     process = subprocess.Popen([*THERMOTILT, "simulate", "fig8", "--out", out],

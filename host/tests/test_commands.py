@@ -52,6 +52,7 @@ def surfaces():
     return itertools.cycle([(s, a) for s in SETS for a in AXES])
 
 
+@pytest.mark.twin
 def test_fifty_getcoe_through_the_client_are_all_answered(imu):
     streamed = []
     client = CommandClient(imu, on_frame=streamed.append)
@@ -69,6 +70,7 @@ def test_fifty_getcoe_through_the_client_are_all_answered(imu):
     assert not of_type(streamed, "ERR")
 
 
+@pytest.mark.twin
 def test_fifty_getcoe_sent_back_to_back_overrun_the_board(imu):
     # Why the client waits: the twin's line never drops a byte (it holds them
     # while simavr's receiver says XOFF), so every loss is in the firmware's
@@ -80,6 +82,7 @@ def test_fifty_getcoe_sent_back_to_back_overrun_the_board(imu):
     assert {e["code"] for e in of_type(frames, "ERR")} == {"BAD_FRAME"}
 
 
+@pytest.mark.twin
 def test_a_refused_command_raises_with_the_boards_code_and_is_not_retried(imu):
     client = CommandClient(imu)
     with pytest.raises(CommandRefused) as refused:
@@ -92,6 +95,7 @@ def test_a_refused_command_raises_with_the_boards_code_and_is_not_retried(imu):
     assert client.command("SETDEC", [20]).ack["cmd_type"] == "SETDEC"
 
 
+@pytest.mark.twin
 def test_a_command_without_an_answer_times_out_after_its_retries(imu):
     # Every byte both ways gets a bit flipped: nothing valid arrives.
     imu.set_uart_corruption(1.0, 7)
@@ -105,6 +109,7 @@ def test_a_command_without_an_answer_times_out_after_its_retries(imu):
     assert [parse_line(line).seq for line in imu.written] == [0, 1, 2]
 
 
+@pytest.mark.twin
 def test_start_is_sent_once(imu):
     imu.set_uart_corruption(1.0, 7)
     client = CommandClient(imu, timeout_s=0.2, retries=2)
@@ -179,6 +184,7 @@ def test_frames_after_a_refusal_are_passed_on():
     assert [f.type for f in streamed] == ["IMU"]
 
 
+@pytest.mark.twin
 def test_the_client_drives_the_twin_through_its_pty_with_pyserial(imu):
     path = imu.open_pty()
     stop = threading.Event()
@@ -203,6 +209,7 @@ def test_the_client_drives_the_twin_through_its_pty_with_pyserial(imu):
     assert imu.pty_dropped_bytes == 0
 
 
+@pytest.mark.twin
 def test_wait_for_reads_what_the_board_sends_on_its_own(imu):
     passed_on = []
     client = CommandClient(imu, on_frame=passed_on.append)

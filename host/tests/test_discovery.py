@@ -45,6 +45,7 @@ def _discover(run: Path):
     return Search(load_measured(run), Model.load()).run()
 
 
+@pytest.mark.twin
 @pytest.mark.parametrize("effect, channel", CASES)
 def test_an_effect_hidden_at_snr_4_is_named_with_its_value_inside_the_interval(
     inputs: Path, tmp_path: Path, effect: str, channel: str
@@ -83,6 +84,7 @@ CHAMBER_CASES = (
 )
 
 
+@pytest.mark.twin
 @pytest.mark.parametrize("effect, channel", CHAMBER_CASES)
 def test_a_chamber_effect_hidden_at_snr_4_in_a_twin_cycle_is_named(
     cycle_runs, tmp_path: Path, effect: str, channel: str
@@ -90,6 +92,7 @@ def test_a_chamber_effect_hidden_at_snr_4_in_a_twin_cycle_is_named(
     _assert_named_at_snr_4(cycle_runs[0], tmp_path, effect, channel)
 
 
+@pytest.mark.twin
 def test_a_null_twin_cycle_gives_none(cycle_runs, tmp_path: Path) -> None:
     hide_effect(cycle_runs[30], tmp_path, "none", seed=6)
     outcome = _discover(tmp_path / "run.csv")
@@ -102,12 +105,14 @@ def test_a_log_without_the_drive_skips_the_chamber_channels_and_says_why(inputs:
     assert "pwm" in measured.skipped_channels["inner"]
 
 
+@pytest.mark.twin
 def test_a_chamber_effect_needs_inputs_with_the_drive(inputs: Path, tmp_path: Path) -> None:
     result = _cli("hide-effect", "--inputs", str(inputs), "--effect", "heatsink", "--out", str(tmp_path / "out"))
     assert result.returncode == 1
     assert "pwm" in result.stderr and len(result.stderr.strip().splitlines()) == 1
 
 
+@pytest.mark.twin
 @pytest.mark.parametrize("noise", ["white", "model", "autocorrelated"])
 def test_null_runs_give_none(inputs: Path, tmp_path: Path, noise: str) -> None:
     hide_effect(inputs, tmp_path, "none", seed=5, noise=noise)
@@ -115,6 +120,7 @@ def test_null_runs_give_none(inputs: Path, tmp_path: Path, noise: str) -> None:
     assert outcome.verdict == "none", [(e.candidate, e.channel, e.adjusted_p) for e in outcome.effects]
 
 
+@pytest.mark.twin
 def test_sensor_lag_and_rate_sensitivity_on_one_ramp_rate_are_ambiguous(tmp_path: Path) -> None:
     # No holds: one slow ramp up and down over 20..30 degC, where the drift's
     # slope hardly changes, so a lag of the structure and a rate term look
@@ -128,6 +134,7 @@ def test_sensor_lag_and_rate_sensitivity_on_one_ramp_rate_are_ambiguous(tmp_path
     assert "ramp" in outcome.ambiguous[0].experiment or "hold" in outcome.ambiguous[0].experiment
 
 
+@pytest.mark.twin
 def test_sensitivity_loss_at_one_inclination_is_not_testable(tmp_path: Path) -> None:
     single = staircase_inputs(tmp_path / "inputs" / "run.csv", positions=((30.0, 0.0),))
     hide_effect(single, tmp_path / "null", "none", seed=2)
@@ -135,6 +142,7 @@ def test_sensitivity_loss_at_one_inclination_is_not_testable(tmp_path: Path) -> 
     assert "sensitivity_loss" in outcome.not_testable
 
 
+@pytest.mark.twin
 def test_discover_writes_a_model_that_loads_and_closes_the_gap(inputs: Path, tmp_path: Path) -> None:
     hide_effect(inputs, tmp_path / "hidden", "hysteresis", seed=11, snr=4.0, channel="Y")
     result = _cli("discover", str(tmp_path / "hidden"), "--out", str(tmp_path / "found"))
@@ -154,6 +162,7 @@ def test_discover_writes_a_model_that_loads_and_closes_the_gap(inputs: Path, tmp
     assert (tmp_path / "found" / "residuals.png").stat().st_size > 0
 
 
+@pytest.mark.twin
 def test_discover_twin_runs_the_scenario_again_and_the_found_model_closes_its_gap(tmp_path: Path) -> None:
     hidden = tmp_path / "hidden.toml"
     write_model(with_values(Model.load(), "drive_dead_zone", {"enabled": True, "threshold_duty": 0.1}), hidden)
@@ -170,6 +179,7 @@ def test_discover_twin_runs_the_scenario_again_and_the_found_model_closes_its_ga
         assert twin["after"] < twin["before"], channel
 
 
+@pytest.mark.twin
 def test_discover_twin_needs_a_twin_run(tmp_path: Path, inputs: Path) -> None:
     hide_effect(inputs, tmp_path / "run", "none", seed=4, noise="white")
     result = _cli("discover", str(tmp_path / "run"), "--twin", "--out", str(tmp_path / "out"))
@@ -177,6 +187,7 @@ def test_discover_twin_needs_a_twin_run(tmp_path: Path, inputs: Path) -> None:
     assert "summary.json" in result.stderr and len(result.stderr.strip().splitlines()) == 1
 
 
+@pytest.mark.twin
 def test_truth_stays_out_of_the_run(inputs: Path, tmp_path: Path) -> None:
     hide_effect(inputs, tmp_path, "cross_axis", seed=1, snr=2.0, channel="Y")
     header = (tmp_path / "run.csv").read_text().splitlines()[0]
@@ -213,6 +224,7 @@ def test_a_run_without_the_chamber_temperature_is_one_line(tmp_path: Path, input
     assert "chamber_c" in result.stderr and len(result.stderr.strip().splitlines()) == 1
 
 
+@pytest.mark.twin
 def test_a_channel_without_its_column_is_skipped_and_said(tmp_path: Path, inputs: Path) -> None:
     hide_effect(inputs, tmp_path / "run", "none", seed=4, noise="white")
     lines = (tmp_path / "run" / "run.csv").read_text().splitlines()
@@ -231,6 +243,7 @@ def test_every_candidate_is_a_registered_term() -> None:
         assert candidate.parameter in model.terms[name]
 
 
+@pytest.mark.twin
 def test_an_effect_the_inputs_do_not_excite_cannot_be_hidden(inputs: Path, tmp_path: Path) -> None:
     # Every position holds Z at g cos 30 deg: a gain loss there is one constant offset.
     result = _cli("hide-effect", "--inputs", str(inputs), "--effect", "sensitivity_loss",

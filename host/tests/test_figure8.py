@@ -66,6 +66,7 @@ def fig8_runs(tmp_path_factory):
     return runs
 
 
+@pytest.mark.twin
 @pytest.mark.parametrize("controller", CONTROLLERS)
 def test_the_command_prints_the_four_features_beside_the_paper(fig8_runs, controller):
     stdout = fig8_runs[controller]["stdout"]
@@ -76,6 +77,7 @@ def test_the_command_prints_the_four_features_beside_the_paper(fig8_runs, contro
     assert "thermal_chamber reported" not in stdout and "refused" not in stdout
 
 
+@pytest.mark.twin
 @pytest.mark.parametrize("controller", CONTROLLERS)
 def test_a_step_completes_in_about_13_seconds(fig8_runs, controller):
     steps = fig8_runs[controller]["figures"]["steps"]
@@ -89,6 +91,7 @@ def side_of_outside(hold):
     return -1 if hold["setpoint_c"] < FIG8_AMBIENT_C else 1
 
 
+@pytest.mark.twin
 def test_float_offset_has_the_papers_sign_but_not_its_size(fig8_runs):
     holds = fig8_runs["float"]["figures"]["holds"]
     assert [hold["setpoint_c"] for hold in holds] == [16, 18, 20, 22]
@@ -103,6 +106,7 @@ def rounded_holds(fig8_runs, far_from_outside):
             if (abs(hold["setpoint_c"] - FIG8_AMBIENT_C) > FAR_FROM_OUTSIDE_C) == far_from_outside]
 
 
+@pytest.mark.twin
 def test_rounded_error_offset_is_about_half_a_degree_far_from_the_outside(fig8_runs):
     low, high = ROUNDED_OFFSET_FAR_C
     for hold in rounded_holds(fig8_runs, far_from_outside=True):
@@ -111,6 +115,7 @@ def test_rounded_error_offset_is_about_half_a_degree_far_from_the_outside(fig8_r
         assert abs(hold["offset_c"]) < ROUNDED_MAX_OFFSET_C, hold
 
 
+@pytest.mark.twin
 @pytest.mark.xfail(strict=True, reason="1 K from the outside the face drifts too slowly to reach the dead "
                    "band's edge within a minute; at 18 degC it settles at the setpoint "
                    "(docs/physics-model.md)")
@@ -120,6 +125,7 @@ def test_rounded_error_offset_has_the_papers_sign_near_the_outside(fig8_runs):
 
 
 @pytest.mark.parametrize("controller", CONTROLLERS)
+@pytest.mark.twin
 @pytest.mark.xfail(strict=True, reason="neither controller overshoots more at the crossing than at the "
                    "other steps: nothing in the twin's chamber is crossing-specific (docs/physics-model.md)")
 def test_the_crossing_step_overshoots_most(fig8_runs, controller):
@@ -127,6 +133,7 @@ def test_the_crossing_step_overshoots_most(fig8_runs, controller):
     assert result["crossing_overshoot_c"] > result["other_overshoot_c"]
 
 
+@pytest.mark.twin
 @pytest.mark.parametrize("controller", CONTROLLERS)
 def test_the_crossing_step_is_the_one_across_the_outside_temperature(fig8_runs, controller):
     result = fig8_runs[controller]["figures"]
@@ -137,12 +144,14 @@ def test_the_crossing_step_is_the_one_across_the_outside_temperature(fig8_runs, 
     assert result["crossing_overshoot_c"] == pytest.approx(crossing.overshoot_c, abs=1e-3)
 
 
+@pytest.mark.twin
 @pytest.mark.parametrize("controller", CONTROLLERS)
 def test_the_imu_reads_below_the_chamber(fig8_runs, controller):
     low, high = IMU_OFFSET_RANGE_C
     assert low < fig8_runs[controller]["figures"]["imu_temperature_offset_c"] < high
 
 
+@pytest.mark.twin
 @pytest.mark.parametrize("controller", CONTROLLERS)
 def test_each_hold_lasts_a_minute_from_reaching_its_setpoint(fig8_runs, controller):
     capture = (fig8_runs[controller]["out"] / "serial" / "thermal_chamber.txt").read_bytes()

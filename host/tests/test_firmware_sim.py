@@ -21,6 +21,8 @@ from thermotilt.protocol import PROTOCOL_VERSION, FrameReader, build_frame
 
 from firmware_helpers import divider_millivolts, of_type
 
+pytestmark = pytest.mark.twin
+
 REPO = Path(__file__).resolve().parents[2]
 BUILD = Path(os.environ.get("THERMOTILT_BUILD_DIR", REPO / "build"))
 AVR_RUN = BUILD / "native" / "avr_run"

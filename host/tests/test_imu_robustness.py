@@ -31,6 +31,8 @@ from thermotilt.twin import Board, firmware_elf
 
 from firmware_helpers import of_type
 
+pytestmark = pytest.mark.twin
+
 NANO = "atmega328p"
 # -1700 / -400 / 16000 LSB, raw temperature 32 -> 32 / 8 + 21 = 25.000 degC.
 SENSOR = (-1700, -400, 16000, 32)

@@ -129,6 +129,7 @@ def assert_frames_match(frames: list, steps: list[int], first: int, result: dict
     assert not mismatches, f"{len(mismatches)} differences, first: {mismatches[:5]}"
 
 
+@pytest.mark.twin
 def test_native_series_gives_every_frame_the_firmware_sent():
     duration_s = 120.0
     steps_total = round(duration_s / STEP_S)
@@ -164,6 +165,7 @@ def test_native_series_gives_every_frame_the_firmware_sent():
     assert_frames_match(imu, steps, first, result)
 
 
+@pytest.mark.twin
 def test_native_series_replays_a_twin_run_of_the_model(tmp_path, monkeypatch):
     """The twin's own loop (simulate.run) with the physics model: what it
     served the IMU, recorded at Board.set_lsm9ds0, replayed natively."""
@@ -203,6 +205,7 @@ def decimated(reset: np.ndarray, decimation: int) -> list[bool]:
     return due
 
 
+@pytest.mark.twin
 def test_unrounded_equals_the_firmware_path_on_integer_inputs():
     samples = synthetic_samples(3000, seed=9)
     reset = np.zeros(3000, bool)
@@ -220,6 +223,7 @@ def test_unrounded_equals_the_firmware_path_on_integer_inputs():
         assert rounded["frame_due"].tolist() == decimated(reset, decimation)
 
 
+@pytest.mark.twin
 def test_outputs_are_the_firmware_arithmetic():
     """The first sample seeds the filters (output = input), the temperature is
     raw / 8 + 21, and the compensated values are filtered - f(T, filtered)."""
@@ -235,6 +239,7 @@ def test_outputs_are_the_firmware_arithmetic():
     assert result["az_comp"][0] == 16000.0  # Z uncorrected
 
 
+@pytest.mark.twin
 def test_default_coefficients_are_the_paper_table_in_float32():
     samples = synthetic_samples(6000, seed=2)
     columns = samples[:, 0], samples[:, 1], samples[:, 2], samples[:, 3]
@@ -247,6 +252,7 @@ def test_default_coefficients_are_the_paper_table_in_float32():
         np.testing.assert_array_equal(defaults[name], listed[name], err_msg=name)
 
 
+@pytest.mark.twin
 def test_unrounded_takes_fractions():
     result = native.imu_process_unrounded([-1700.25, -1699.75], [0.5, 0.5], [1e-3, 1e-3], [24.3, 24.3])
     assert result["ax_filt"][0] == np.float32(-1700.25)
@@ -255,6 +261,7 @@ def test_unrounded_takes_fractions():
     assert result["az_filt"][1] == np.float32(1e-3)
 
 
+@pytest.mark.twin
 def test_empty_series():
     result = native.imu_process([], [], [], [])
     assert all(result[name].size == 0 for name in native.OUTPUTS)

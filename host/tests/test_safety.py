@@ -19,6 +19,8 @@ from thermotilt.twin import Board, Drive
 
 from firmware_helpers import chamber, of_type, start_program
 
+pytestmark = pytest.mark.twin
+
 AMBIENT_C = 22.0
 PROGRAM_STARTED_S = 1.5
 # lib/ThermalGuard defaults, as the firmware reports them in GRD.

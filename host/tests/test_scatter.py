@@ -318,6 +318,7 @@ def test_field_rms_after_compensation_is_of_the_papers_order(field_runs, model):
         assert clean < after / PAPER_FACTOR, (name, axis, clean)
 
 
+@pytest.mark.twin
 def test_in_the_twin_the_imu_reads_the_field_warming_range(tmp_path, model):
     # Compressed to 300 s the ramp runs at 0.13 degC/s, and once the lags'
     # transients are over (a minute) the reading trails the air by that rate

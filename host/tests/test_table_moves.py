@@ -7,12 +7,16 @@ from __future__ import annotations
 import subprocess
 import sys
 
+import pytest
+
 from thermotilt.physics import Model
 from thermotilt.protocol import FrameReader, build_frame
 from thermotilt.runlog import read_run_log
 from thermotilt.twin import Board
 
 from firmware_helpers import of_type
+
+pytestmark = pytest.mark.twin
 
 LSB_PER_G = 16393.44
 TEMPERATURE_RAW_25C = 32  # (25 - 21) * 8

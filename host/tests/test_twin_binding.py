@@ -21,6 +21,8 @@ from thermotilt.twin import Board, Drive, TwinError, build_dir, firmware_elf
 
 from firmware_helpers import chamber, divider_millivolts, of_type, start_program
 
+pytestmark = pytest.mark.twin
+
 KP = 350.0
 BYTE_SECONDS = 10 / 115200
 # -1700 / -400 / 16000 LSB, raw temperature 32 -> 32 / 8 + 21 = 25.000 degC.

@@ -9,6 +9,8 @@ import pytest
 from thermotilt import cli
 from thermotilt.calibration.compare import compare, read_fit
 
+pytestmark = pytest.mark.twin
+
 # Three levels of each axis (-45, 0, +45 deg) share the 0 deg position.
 POSITIONS = "0,X+45,X-45,Y+45,Y-45"
 # Timed 8 s holds: the staircase then covers about 14..36 degC around the

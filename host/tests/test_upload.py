@@ -97,6 +97,7 @@ def idle_twin(out: Path, *options):
     return pty_twin(out, "idle", *options)
 
 
+@pytest.mark.twin
 def test_upload_round_trip_through_the_twins_ports(fit_dir, tmp_path):
     table = read_table(fit_dir)
     absurd = write_fit(tmp_path / "absurd", {**FITTED, ("W", "X"): Surface(2e7, 0, 0, 0, 0, 0)})
@@ -131,6 +132,7 @@ def test_upload_round_trip_through_the_twins_ports(fit_dir, tmp_path):
     assert captured.count(",COMMANDED*") == 1 and ",RESET,WATCHDOG" not in captured
 
 
+@pytest.mark.twin
 def test_simulate_eeprom_starts_the_imu_with_the_fitted_block(fit_dir, tmp_path):
     with idle_twin(tmp_path / "twin", "--eeprom", fit_dir / "coefficients.bin") as ports:
         with serial.Serial(ports["imu_reader"], 115200, timeout=0) as port:
@@ -155,6 +157,7 @@ def ulps_apart(a: float, b: float) -> int:
     return abs(bits_a - bits_b)
 
 
+@pytest.mark.twin
 def test_the_saved_block_holds_the_uploaded_float32_to_one_unit_in_the_last_place(fit_dir):
     table = read_table(fit_dir)
     with imu_board() as board:
@@ -169,6 +172,7 @@ def test_the_saved_block_holds_the_uploaded_float32_to_one_unit_in_the_last_plac
     assert result.read_back.surfaces.keys() == result.after_reset.surfaces.keys() == table.surfaces.keys()
 
 
+@pytest.mark.twin
 def test_no_save_leaves_the_eeprom_as_it_was(fit_dir):
     with imu_board() as board:
         result = upload_table(board, read_table(fit_dir), save=False)
@@ -279,6 +283,7 @@ FAILURES = {
 }
 
 
+@pytest.mark.twin
 @pytest.mark.parametrize("failure", FAILURES)
 def test_each_failure_stops_with_one_line_and_saves_only_after_every_check(fit_dir, failure):
     on_command, rewrite, message, saved = FAILURES[failure]
@@ -295,6 +300,7 @@ def test_each_failure_stops_with_one_line_and_saves_only_after_every_check(fit_d
         assert stored == BLANK
 
 
+@pytest.mark.twin
 def test_a_surface_the_board_refuses_stops_before_anything_is_saved(fit_dir):
     table = read_table(write_fit(fit_dir.parent / "refused-cz", {**FITTED, ("C", "Z"): Surface(2e7, 0, 0, 0, 0, 0)}))
     with imu_board() as board:
@@ -306,6 +312,7 @@ def test_a_surface_the_board_refuses_stops_before_anything_is_saved(fit_dir):
     assert line.commands.count("SETCOE") == 6 and "SAVECOE" not in line.commands
 
 
+@pytest.mark.twin
 def test_the_chamber_is_not_uploaded_to(fit_dir):
     with Board.thermal_chamber() as board:
         with pytest.raises(UploadError, match="the board is the thermal_chamber, not the imu_reader"):
@@ -415,6 +422,7 @@ def test_simulate_eeprom_of_the_wrong_size_is_one_line(tmp_path, capsys, content
     assert not (tmp_path / "run").exists()
 
 
+@pytest.mark.twin
 def test_a_block_the_firmware_refuses_runs_on_the_defaults(tmp_path):
     damaged = bytearray(encode_block(read_table(write_fit(tmp_path / "fit"))))
     damaged[77] ^= 0x04
@@ -425,6 +433,7 @@ def test_a_block_the_firmware_refuses_runs_on_the_defaults(tmp_path):
     assert {row["coef_source"] for row in read_run_log(str(tmp_path / "run" / "run.csv"))} == {"D"}
 
 
+@pytest.mark.twin
 def test_run_refuses_an_eeprom_image_larger_than_the_imus(tmp_path):
     scenario = build("idle", ScenarioOptions(duration_s=0.1))
     with pytest.raises(SimulationError, match="2000 bytes do not fit the IMU's EEPROM of 1024 bytes"):
@@ -439,6 +448,7 @@ def test_the_idle_scenario_powers_both_boards_and_sends_nothing():
     assert build("idle", ScenarioOptions(duration_s=60.0)).duration_s == 60.0
 
 
+@pytest.mark.twin
 def test_a_runs_saved_eeprom_starts_the_next_run(fit_dir, tmp_path):
     """What the IMU saved in one run (imu_reader_eeprom.bin) is what it
     starts with in the next, as a real board keeps its EEPROM."""

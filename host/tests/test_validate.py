@@ -111,6 +111,7 @@ def test_bad_validate_input_is_one_line(tmp_path, make, arguments, message):
     assert message in result.stderr
 
 
+@pytest.mark.twin
 def test_host_compensation_equals_the_firmwares(tmp_path):
     """One surface evaluation, two implementations: the twin's firmware
     (lib/Compensation, float32, with the paper's defaults) and the host's

@@ -16,8 +16,11 @@ THERMOTILT = [sys.executable, "-m", "thermotilt"]
 
 @contextmanager
 def pty_twin(out: Path, scenario: str = "idle", *options):
-    """Yields {"imu_reader": path, "thermal_chamber": path}."""
-    process = subprocess.Popen([*THERMOTILT, "simulate", scenario, "--pty", "--out", str(out), *map(str, options)],
+    """Yields {"imu_reader": path, "thermal_chamber": path}. The twin races
+    (`--realtime off`): the clients under test take simulated time as it
+    comes, and test_realtime.py covers the pacing a user gets by default."""
+    process = subprocess.Popen([*THERMOTILT, "simulate", scenario, "--pty", "--realtime", "off",
+                                "--out", str(out), *map(str, options)],
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         try:
