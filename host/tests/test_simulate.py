@@ -137,12 +137,31 @@ def test_cycle_raw_drift_follows_the_models_surfaces(cycle_runs, angle):
         assert abs(errors[len(errors) // 2]) < 10 and errors[-1] - errors[0] < 60, axis
 
 
+# The filtered noise is 17.4 LSB * sqrt(0.01 s / (2 * 10 s)) = 0.4 LSB
+# (datasheet noise through the Kalman filter's 10 s time constant); the
+# extremes of ~20 000 settled samples lie within 4.5 sigma of their means,
+# so a span moves by at most 2 * 1.8 LSB.
+DRIFT_SPAN_TOLERANCE_LSB = 5.0
+
+
 @pytest.mark.twin
 def test_cycle_at_0_deg_drifts_like_section_4_1(cycle_runs):
-    span = figures.drift_figures(read_run_log(str(cycle_runs[0] / "run.csv")))
-    # Section 4.1: around 1300 LSB on X and 850 on Y over -10..45 degC.
-    assert span["x"]["raw_span_lsb"] == pytest.approx(1300, rel=0.25)
-    assert span["y"]["raw_span_lsb"] == pytest.approx(850, rel=0.25)
+    # Section 4.1: "around 1300 LSB" on X and "about 850" on Y over
+    # -10..45 degC; its own Tables 2-3 give 1314 and 773 there
+    # (test_physics.test_paper_drift_over_the_calibration_range). The twin
+    # must show what those surfaces give over the temperatures its IMU read.
+    rows = read_run_log(str(cycle_runs[0] / "run.csv"))
+    span = figures.drift_figures(rows)
+    low, high = span["imu_temp_range_c"]
+    assert low < -10 and high > 43
+    settled = [row for row, keep in zip(rows, figures.settled_mask(rows)) if keep]
+    for axis in ("x", "y"):
+        expected = [number(row[f"true_a{axis}"]) + measuring_offset(row, axis)
+                    + PAPER_DEFAULTS.surface(row["true_drift_set"], axis.upper()).evaluate(
+                        number(row["true_reported_c"]), number(row[f"true_a{axis}"]))
+                    for row in settled]
+        assert span[axis]["raw_span_lsb"] == pytest.approx(max(expected) - min(expected),
+                                                           abs=DRIFT_SPAN_TOLERANCE_LSB), axis
 
 
 @pytest.mark.twin

@@ -164,14 +164,20 @@ def fig8_table(figures: dict) -> list[str]:
     return lines
 
 
-def drift_figures(rows: list[dict[str, str]], settled_fraction: float = 0.5) -> dict:
-    """Per axis, over the settled part of every hold: how far the filtered
-    raw output and the compensated output move (max - min, LSB)."""
+def settled_mask(rows: list[dict[str, str]], settled_fraction: float = 0.5) -> np.ndarray:
+    """The rows in the last settled_fraction of every hold."""
     time_s = _column(rows, "time_s")
     settled = np.zeros(len(rows), dtype=bool)
     for hold in holds(rows):
         begin = hold.end_s - (hold.end_s - hold.start_s) * settled_fraction
         settled |= (time_s >= begin) & (time_s <= hold.end_s)
+    return settled
+
+
+def drift_figures(rows: list[dict[str, str]], settled_fraction: float = 0.5) -> dict:
+    """Per axis, over the settled part of every hold: how far the filtered
+    raw output and the compensated output move (max - min, LSB)."""
+    settled = settled_mask(rows, settled_fraction)
     temperature = _column(rows, "imu_temp_c")[settled]
     figures = {"samples": int(settled.sum()),
                "imu_temp_range_c": [round(float(np.nanmin(temperature)), 2),
