@@ -2,11 +2,7 @@
 
 #include <math.h>
 
-#ifdef __AVR__
-#include <avr/pgmspace.h>
-#else
-#define PROGMEM
-#endif
+#include <ProgramMemory.h>
 
 namespace {
 
@@ -26,15 +22,6 @@ const float DEFAULT_TERMS[DEFAULT_TERM_COUNT] PROGMEM = {
     0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f,
 };
 
-float defaultTerm(uint8_t index)
-{
-#ifdef __AVR__
-    return pgm_read_float(&DEFAULT_TERMS[index]);
-#else
-    return DEFAULT_TERMS[index];
-#endif
-}
-
 }  // namespace
 
 void loadDefaultCoefficients(Coefficients& out)
@@ -43,7 +30,7 @@ void loadDefaultCoefficients(Coefficients& out)
     for (uint8_t s = 0; s < COMP_SET_COUNT; ++s) {
         for (uint8_t a = 0; a < COMP_AXIS_COUNT; ++a) {
             for (uint8_t k = 0; k < COMP_COEFFICIENT_COUNT; ++k) {
-                out.set[s].axis[a].p[k] = defaultTerm(index++);
+                out.set[s].axis[a].p[k] = pgm_read_float(&DEFAULT_TERMS[index++]);
             }
         }
     }
