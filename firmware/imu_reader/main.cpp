@@ -128,7 +128,10 @@ bool blockErrorCode(BlockStatus status, Protocol::ErrorCode& code)
     }
 }
 
-void loadCoefficients()
+// LTO inlines setup(), loop() and what they call into main(), whose one frame
+// then holds all their locals for good. Not inlined, these two keep the
+// 148-byte block on the stack only while they run.
+__attribute__((noinline)) void loadCoefficients()
 {
     uint8_t block[COEFFICIENT_BLOCK_SIZE];
     EEPROM.get(COEFFICIENTS_EEPROM_ADDRESS, block);
@@ -146,7 +149,7 @@ void loadCoefficients()
     }
 }
 
-void saveCoefficients()
+__attribute__((noinline)) void saveCoefficients()
 {
     uint8_t block[COEFFICIENT_BLOCK_SIZE];
     encodeCoefficients(coefficients, block);
@@ -323,7 +326,9 @@ void setup()
     connectSensor();
 }
 
-void loop()
+// Not inlined either: its locals would sit under loadCoefficients() at start-up,
+// the deepest the stack goes.
+__attribute__((noinline)) void loop()
 {
     if (resetting) {
         return;
