@@ -1,13 +1,19 @@
 """`make bench`: how fast the twin runs, in simulated seconds per wall second,
-and how many corrupted frames the line check lets through.
+how much RAM each board has left, and how many corrupted frames the line
+check lets through.
 
 Runs the Figure 8 scenario (both boards: the IMU reading its LSM9DS0 over
 I2C at 100 Hz, the chamber controlling every 250 ms, both sending frames)
 and a field scenario (the IMU alone), times the physics model's steps on
-their own, and runs build/native/integrity_bench (the twin's wire fault into
-the firmware's frame parser). Prints figures; asserts nothing (the targets,
-20x real time on one core and at most one corrupted frame accepted per
-million at a 0.1 % byte error rate, are for a person to compare).
+their own, measures each board's static RAM and stack high-water mark, and
+runs build/native/integrity_bench (the twin's wire fault into the firmware's
+frame parser). Prints figures; asserts nothing (the targets, 20x real time
+on one core, at least 300 B of SRAM the stack never reaches, and at most one
+corrupted frame accepted per million at a 0.1 % byte error rate, are for a
+person to compare).
+
+`bench.py --memory` prints only each board's RAM: its static data and the
+stack's high-water mark (a few seconds).
 
 `bench.py --scatter [--seed N] [--disable TERM ...]` instead runs issue 7's
 long check of the sensor's scatter (about 40 minutes on one core): a
@@ -33,10 +39,9 @@ from thermotilt.calibration.fit import fit_surface
 from thermotilt.calibration.paper import FIELD_RMS_LSB, TABLES
 from thermotilt.calibration.validate import validate
 from thermotilt.protocol import build_frame
-from thermotilt.twin import Board
+from thermotilt.twin import Board, build_dir, firmware_elf
 from thermotilt.physics import Chamber, Model, Sensor
 from thermotilt.scenarios import ScenarioOptions, build
-from thermotilt.twin import build_dir
 
 TARGET_X_REAL_TIME = 20.0
 
@@ -55,27 +60,50 @@ def physics_step_us(model: Model, steps: int = 20000) -> tuple[float, float]:
 
 
 STACK_HEADROOM_TARGET_B = 300
+STATIC_SECTIONS = (".data", ".bss", ".noinit")
+
+
+def static_ram(name: str) -> int:
+    """Bytes of SRAM the image takes before the stack: .data, .bss and .noinit (avr-size)."""
+    sizes = subprocess.run(["avr-size", "-A", str(firmware_elf(name))], check=True, capture_output=True,
+                           text=True).stdout
+    return sum(int(fields[1]) for fields in map(str.split, sizes.splitlines())
+               if fields and fields[0] in STATIC_SECTIONS)
+
+
+# One command at a time, as a host waits for each answer: sent back to back,
+# they overrun the board's 64-byte receive buffer while it answers the first.
+# SAVECOE's EEPROM writes take the longest, about 0.5 s.
+COMMAND_GAP_S = 0.6
+IMU_COMMANDS = [("GETCOE", ["W", "X"]), ("STATUS", []),
+                ("SETCOE", ["W", "X", 571.5, -20.23, 1.569e-3, -0.1044, -6.936e-5, 6.327e-9]),
+                ("RESEED", []), ("SAVECOE", []), ("RESET", [])]
+CHAMBER_COMMANDS = [("SETPRG", [20, 30, 2, 60, 1200, 1, "A"]), ("START", []), ("STATUS", [])]
+
+
+def send_commands(board: Board, commands: list[tuple[str, list]]) -> None:
+    for seq, (command, fields) in enumerate(commands, start=1):
+        board.write_uart(build_frame(command, seq, fields).encode())
+        board.run_until(board.seconds + COMMAND_GAP_S)
 
 
 def stack_use() -> list[tuple[str, int, int]]:
     """Each board's stack high-water mark (painted SRAM, sim/board.c) after
-    10 s of streaming and controlling, with the commands a host sends."""
+    10 s of streaming and controlling, with the commands a host sends; the
+    IMU's end with an upload's SAVECOE and RESET, so that it also boots from
+    a stored block (decoding and checking it is its deepest path)."""
     imu = Board.imu_reader()
     imu.attach_lsm9ds0()
     imu.set_lsm9ds0(-1700, -400, 16000, 32)
     imu.run_until(1.0)
-    imu.write_uart("".join([build_frame("GETCOE", 1, ["W", "X"]), build_frame("STATUS", 2),
-                            build_frame("SETCOE", 3, ["W", "X", 571.5, -20.23, 1.569e-3, -0.1044,
-                                                      -6.936e-5, 6.327e-9]),
-                            build_frame("RESEED", 4)]).encode())
+    send_commands(imu, IMU_COMMANDS)
     imu.run_until(10.0)
     chamber = Board.thermal_chamber()
     chamber.attach_l298n()
     for channel in (0, 1):
         chamber.set_adc_millivolts(channel, 2500.0)
     chamber.run_until(1.0)
-    chamber.write_uart("".join([build_frame("SETPRG", 1, [20, 30, 2, 60, 1200, 1, "A"]),
-                                build_frame("START", 2), build_frame("STATUS", 3)]).encode())
+    send_commands(chamber, CHAMBER_COMMANDS)
     chamber.run_until(10.0)
     use = [(name, *board.stack_headroom()) for name, board in (("imu_reader", imu), ("thermal_chamber", chamber))]
     for board in (imu, chamber):
@@ -162,14 +190,24 @@ def scatter(model: Model, seed: int) -> None:
                       f"after {result.rms_after_lsb:5.2f} (paper {after:2.0f}) LSB")
 
 
+def memory() -> None:
+    for name, untouched, capacity in stack_use():
+        print(f"{name}: static RAM {static_ram(name)} B, stack peak {capacity - untouched} B, "
+              f"untouched {untouched} B (target >= {STACK_HEADROOM_TARGET_B} B)")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scatter", action="store_true", help="issue 7's long check instead")
+    parser.add_argument("--memory", action="store_true", help="only each board's static RAM and stack peak")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--disable", action="append", default=[], metavar="TERM")
     args = parser.parse_args()
     if args.scatter:
         scatter(Model.load().with_terms({name: False for name in args.disable}), args.seed)
+        return
+    if args.memory:
+        memory()
         return
     model = Model.load()
     chamber_us, sensor_us = physics_step_us(model)
@@ -188,11 +226,7 @@ def main() -> None:
             print(f"{label}: {summary['sim_seconds']:.0f} s simulated in "
                   f"{summary['wall_seconds']:.1f} s wall = {speed:.1f}x real time "
                   f"({verdict} the {TARGET_X_REAL_TIME:.0f}x target)")
-
-
-    for name, untouched, capacity in stack_use():
-        print(f"{name}: the stack reached {capacity - untouched} of the {capacity} B above the static "
-              f"data; {untouched} B never touched (target >= {STACK_HEADROOM_TARGET_B} B)")
+    memory()
     print(f"fit: {fit_seconds():.2f} s for one surface with statistics over {FIT_POINTS} points "
           f"(target <= 1 s)")
     seconds, points = families_seconds()
