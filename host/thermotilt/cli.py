@@ -311,6 +311,8 @@ def _command_log(args: argparse.Namespace) -> int:
 
 
 def _command_campaign(args: argparse.Namespace) -> int:
+    from contextlib import ExitStack
+
     from .calibration.campaign import (
         BoardsCampaign,
         BoardsSetup,
@@ -318,6 +320,7 @@ def _command_campaign(args: argparse.Namespace) -> int:
         Position,
         TwinCampaign,
         TwinSetup,
+        connect_cluster,
         select_positions,
     )
     from .scenarios import ScenarioOptions
@@ -325,6 +328,8 @@ def _command_campaign(args: argparse.Namespace) -> int:
     boards = args.imu_port is not None or args.chamber_port is not None
     if args.twin == boards or (boards and not (args.imu_port and args.chamber_port)):
         raise UsageError("campaign needs --twin, or --imu-port and --chamber-port for real boards")
+    if boards and args.scheduler:
+        raise UsageError("--scheduler runs twin positions on a Dask cluster; it needs --twin")
     program = ScenarioOptions(hold_s=args.hold_seconds, rest_s=args.rest_seconds, ambient_c=args.ambient,
                               hold_start=args.hold_start, controller=args.controller)
 
@@ -338,31 +343,39 @@ def _command_campaign(args: argparse.Namespace) -> int:
             return False
 
     out_dir = Path(args.out)
-    try:
-        positions = select_positions(args.positions)
+    with ExitStack() as resources:
+        try:
+            positions = select_positions(args.positions)
+            # Connected before campaign.json is written, so a wrong address leaves nothing to --resume.
+            cluster = resources.enter_context(connect_cluster(args.scheduler)) if args.scheduler else None
+            if boards:
+                campaign = BoardsCampaign(out_dir, positions, BoardsSetup(
+                    args.imu_port, args.chamber_port, program, confirm, baud=args.baud,
+                    heartbeat_s=args.heartbeat_seconds), resume=args.resume, force=args.force)
+            else:
+                campaign = TwinCampaign(out_dir, positions, TwinSetup(
+                    program, seed=args.seed, model_path=args.model, enable=tuple(args.enable),
+                    disable=tuple(args.disable)), resume=args.resume, force=args.force)
+        except CampaignError as error:
+            raise UsageError(str(error)) from None
+        done = len(campaign.positions) - len(campaign.todo)
+        where = f" on {args.imu_port} and {args.chamber_port}" if boards else ""
+        print(f"campaign of {len(campaign.positions)} positions{where} -> {out_dir}"
+              + (f" ({done} already done)" if done else "") + f": {len(campaign.todo)} to run", end="")
         if boards:
-            campaign = BoardsCampaign(out_dir, positions, BoardsSetup(
-                args.imu_port, args.chamber_port, program, confirm, baud=args.baud,
-                heartbeat_s=args.heartbeat_seconds), resume=args.resume, force=args.force)
+            print(flush=True)
+            return _finish_campaign(campaign.run(on_position=_report_position), out_dir)
+        jobs = min(args.jobs, max(1, len(campaign.todo)))
+        if cluster is None:
+            running_on = f"{jobs} at a time"
         else:
-            campaign = TwinCampaign(out_dir, positions, TwinSetup(
-                program, seed=args.seed, model_path=args.model, enable=tuple(args.enable),
-                disable=tuple(args.disable)), resume=args.resume, force=args.force)
-    except CampaignError as error:
-        raise UsageError(str(error)) from None
-    done = len(campaign.positions) - len(campaign.todo)
-    where = f" on {args.imu_port} and {args.chamber_port}" if boards else ""
-    print(f"campaign of {len(campaign.positions)} positions{where} -> {out_dir}"
-          + (f" ({done} already done)" if done else "") + f": {len(campaign.todo)} to run", end="")
-    if boards:
-        print(flush=True)
-        return _finish_campaign(campaign.run(on_position=_report_position), out_dir)
-    jobs = min(args.jobs, max(1, len(campaign.todo)))
-    print(f", {campaign.position_seconds:.0f} s simulated each at most, {jobs} at a time", flush=True)
-    total = round(len(campaign.todo) * campaign.position_seconds)
-    with tqdm(total=total, unit="sim s", disable=None, file=sys.stderr) as bar:
-        outcome = campaign.run(jobs, progress=bar.update, on_position=_report_position)
-    return _finish_campaign(outcome, out_dir)
+            threads = sum(cluster.nthreads().values())
+            running_on = f"on the Dask cluster at {args.scheduler} ({threads} worker threads)"
+        print(f", {campaign.position_seconds:.0f} s simulated each at most, {running_on}", flush=True)
+        total = round(len(campaign.todo) * campaign.position_seconds)
+        with tqdm(total=total, unit="sim s", disable=None, file=sys.stderr) as bar:
+            outcome = campaign.run(jobs, progress=bar.update, on_position=_report_position, cluster=cluster)
+        return _finish_campaign(outcome, out_dir)
 
 
 def _report_position(record: PositionRecord) -> None:
@@ -658,6 +671,9 @@ def build_parser() -> argparse.ArgumentParser:
                           help="all (default, the paper's 37) or labels, e.g. 0,X+15,X-15,Y+30")
     campaign.add_argument("--jobs", type=_within(int, 1, 256), default=os.cpu_count() or 1,
                           help="twin positions run at once (default: the CPU count)")
+    campaign.add_argument("--scheduler", metavar="ADDRESS",
+                          help="run the twin positions on the Dask cluster of this scheduler, "
+                               "e.g. tcp://HOST:8786, instead of --jobs local processes")
     campaign.add_argument("--imu-port", help="real boards: the IMU reader's serial port")
     campaign.add_argument("--chamber-port", help="real boards: the thermal chamber's serial port")
     campaign.add_argument("--baud", type=int, default=115200, help="real boards' line speed (default 115200)")

@@ -11,9 +11,10 @@ it is rewritten after every position, so an interrupted campaign keeps every
 finished position and ``--resume`` redoes only the others.
 
 In the twin positions are independent runs, so they run in parallel worker
-processes. Each position's noise seed is the campaign's seed plus the
-position's index among the paper's 37, so a subset reproduces the same
-positions of the full campaign.
+processes, or on the workers of a Dask cluster (``--scheduler``), which send
+each position's files back to be written here the same way. Each position's
+noise seed is the campaign's seed plus the position's index among the
+paper's 37, so a subset reproduces the same positions of the full campaign.
 """
 
 from __future__ import annotations
@@ -24,12 +25,15 @@ import os
 import queue
 import shutil
 import signal
+import tempfile
 import time
-from collections.abc import Callable, Iterable
+import uuid
+from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..protocol import FrameReader
 from ..scenarios import (
@@ -42,11 +46,18 @@ from ..scenarios import (
     cycle,
 )
 
+if TYPE_CHECKING:
+    from distributed import Client
+
 CAMPAIGN_FILE = "campaign.json"
 PARTIAL_DIR = ".partial"
 FORMAT = 1
 SEED_MODULUS = 2**64
 DONE, PENDING, INTERRUPTED, FAILED = "done", "pending", "interrupted", "failed"
+# Long enough for a scheduler across a network, short enough for a typo.
+CONNECT_TIMEOUT_S = 5
+# A running position on a Dask worker asks the scheduler this often whether to stop.
+STOP_POLL_S = 1.0
 
 
 class CampaignError(RuntimeError):
@@ -206,6 +217,20 @@ def position_scenario(options: ScenarioOptions, position: Position) -> Any:
     return cycle(replace(options, incl_x_deg=position.incl_x_deg, incl_y_deg=position.incl_y_deg))
 
 
+def _fresh_partial(out_dir: Path, label: str) -> Path:
+    partial = out_dir / PARTIAL_DIR / label
+    shutil.rmtree(partial, ignore_errors=True)
+    partial.mkdir(parents=True)
+    return partial
+
+
+def _move_into_place(out_dir: Path, label: str) -> None:
+    """The complete position from .partial/ into its own folder."""
+    final = out_dir / label
+    shutil.rmtree(final, ignore_errors=True)
+    os.replace(out_dir / PARTIAL_DIR / label, final)
+
+
 # Set in each worker process by _start_worker.
 _progress_queue: Any = None
 _stop_event: Any = None
@@ -219,25 +244,29 @@ def _start_worker(progress_queue: Any, stop_event: Any) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
-def run_twin_position(setup: TwinSetup, position: Position, out_dir: Path) -> PositionRecord:
-    """One position in the twin, in this process; reports progress through
-    the worker's queue and stops when the stop event is set."""
+def _run_in_worker(setup: TwinSetup, position: Position, out_dir: Path) -> PositionRecord:
+    return run_twin_position(setup, position, out_dir, _progress_queue, _stop_event)
+
+
+def run_twin_position(setup: TwinSetup, position: Position, out_dir: Path,
+                      progress_queue: Any = None, stop_event: Any = None) -> PositionRecord:
+    """One position in the twin, in this process; puts the simulated seconds
+    into ``progress_queue`` as they pass (a whole position's by its end) and
+    stops when ``stop_event`` is set."""
     from .. import simulate
     from ..twin import TwinError
 
     record = PositionRecord(position.label, position.incl_x_deg, position.incl_y_deg,
                             seed=setup.position_seed(position), started_utc=_utc_now())
-    partial = out_dir / PARTIAL_DIR / position.label
-    shutil.rmtree(partial, ignore_errors=True)
-    partial.mkdir(parents=True)
+    partial = _fresh_partial(out_dir, position.label)
     reported = 0.0
 
     def progress(sim_seconds: float) -> None:
         nonlocal reported
-        if _progress_queue is not None:
-            _progress_queue.put(sim_seconds - reported)
+        if progress_queue is not None:
+            progress_queue.put(sim_seconds - reported)
             reported = sim_seconds
-        if _stop_event is not None and _stop_event.is_set():
+        if stop_event is not None and stop_event.is_set():
             raise KeyboardInterrupt
 
     scenario = position_scenario(setup.options, position)
@@ -246,9 +275,9 @@ def run_twin_position(setup: TwinSetup, position: Position, out_dir: Path) -> Po
     except (TwinError, simulate.SimulationError, OSError) as error:
         record.status, record.error = FAILED, str(error)
         return record
-    if _progress_queue is not None and not result.summary["interrupted"]:
+    if progress_queue is not None and not result.summary["interrupted"]:
         # The run ends with the chamber's program, before the scenario's bound.
-        _progress_queue.put(scenario.duration_s - reported)
+        progress_queue.put(scenario.duration_s - reported)
     summary = result.summary
     record.sim_seconds = summary["sim_seconds"]
     record.wall_seconds = summary["wall_seconds"]
@@ -258,9 +287,7 @@ def run_twin_position(setup: TwinSetup, position: Position, out_dir: Path) -> Po
     if summary["interrupted"]:
         record.status = INTERRUPTED
         return record
-    final = out_dir / position.label
-    shutil.rmtree(final, ignore_errors=True)
-    os.replace(partial, final)
+    _move_into_place(out_dir, position.label)
     record.status = DONE
     return record
 
@@ -312,8 +339,11 @@ class TwinCampaign(_Campaign):
         self._start(out_dir, positions, header, resume, force)
 
     def run(self, jobs: int, progress: Callable[[float], None] | None = None,
-            on_position: Callable[[PositionRecord], None] | None = None) -> CampaignOutcome:
-        """``progress`` gets simulated seconds as they pass, all positions together."""
+            on_position: Callable[[PositionRecord], None] | None = None,
+            cluster: Client | None = None) -> CampaignOutcome:
+        """``progress`` gets simulated seconds as they pass, all positions
+        together; from a Dask ``cluster`` (``connect_cluster``) each
+        position's once it is back."""
 
         def finished(record: PositionRecord) -> None:
             self.file.records[record.label] = record
@@ -321,7 +351,9 @@ class TwinCampaign(_Campaign):
             if on_position is not None:
                 on_position(record)
 
-        if jobs <= 1 or len(self.todo) <= 1:
+        if cluster is not None:
+            interrupted = _run_on_cluster(self.todo, self.setup, self.out_dir, cluster, progress, finished)
+        elif jobs <= 1 or len(self.todo) <= 1:
             interrupted = _run_here(self.todo, self.setup, self.out_dir, progress, finished)
         else:
             interrupted = _run_in_workers(self.todo, self.setup, self.out_dir,
@@ -346,16 +378,11 @@ class _ProgressNow:
 def _run_here(todo: list[Position], setup: TwinSetup, out_dir: Path,
               progress: Callable[[float], None] | None,
               finished: Callable[[PositionRecord], None]) -> bool:
-    global _progress_queue
-    _progress_queue = _ProgressNow(progress)
-    try:
-        for position in todo:
-            record = run_twin_position(setup, position, out_dir)
-            finished(record)
-            if record.status == INTERRUPTED:
-                return True
-    finally:
-        _progress_queue = None
+    for position in todo:
+        record = run_twin_position(setup, position, out_dir, _ProgressNow(progress))
+        finished(record)
+        if record.status == INTERRUPTED:
+            return True
     return False
 
 
@@ -369,7 +396,7 @@ def _run_in_workers(todo: list[Position], setup: TwinSetup, out_dir: Path, jobs:
     with ProcessPoolExecutor(jobs, mp_context=context, initializer=_start_worker,
                              initargs=(progress_queue, stop)) as pool:
         running: dict[Future[PositionRecord], Position] = {
-            pool.submit(run_twin_position, setup, position, out_dir): position for position in todo
+            pool.submit(_run_in_worker, setup, position, out_dir): position for position in todo
         }
         while running:
             try:
@@ -387,9 +414,8 @@ def _run_in_workers(todo: list[Position], setup: TwinSetup, out_dir: Path, jobs:
                     continue
                 try:
                     record = future.result()
-                except Exception as error:  # a worker that died: the position failed, not the campaign
-                    record = PositionRecord(position.label, position.incl_x_deg, position.incl_y_deg,
-                                            status=FAILED, error=f"worker failed: {error}")
+                except Exception as error:
+                    record = _worker_failed(position, error)
                 interrupted |= record.status == INTERRUPTED
                 finished(record)
         _drain(progress_queue, progress)
@@ -404,6 +430,156 @@ def _drain(progress_queue: Any, progress: Callable[[float], None] | None) -> Non
             return
         if progress is not None:
             progress(seconds)
+
+
+def _worker_failed(position: Position, error: Exception) -> PositionRecord:
+    """A worker that died or raised: the position failed, not the campaign."""
+    return PositionRecord(position.label, position.incl_x_deg, position.incl_y_deg,
+                          status=FAILED, error=f"worker failed: {error}")
+
+
+def twin_build_problem() -> str | None:
+    """Why this machine cannot run the twin (the build missing or older than
+    the host), or None; each Dask worker is asked before a campaign."""
+    from ..twin import Board, TwinError
+
+    try:
+        for board in (Board.imu_reader, Board.thermal_chamber):
+            board().close()
+    except TwinError as error:
+        return str(error)
+    return None
+
+
+@contextmanager
+def connect_cluster(address: str) -> Iterator[Client]:
+    """A client of the Dask scheduler at ``address`` with at least one
+    worker, each able to run the twin; CampaignError otherwise."""
+    try:
+        from distributed import Client
+        from distributed.comm import get_address_host_port
+    except ImportError:
+        raise CampaignError("--scheduler needs Dask's distributed package: "
+                            "pip install -r host/requirements.txt (or the thermotilt[dask] extra)") from None
+    try:
+        get_address_host_port(address)
+    except ValueError as error:
+        raise CampaignError(f"--scheduler {address}: {error}; give one like tcp://HOST:8786") from None
+    try:
+        client = Client(address, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
+    except (OSError, TimeoutError) as error:
+        raise CampaignError(f"cannot reach the Dask scheduler at {address}: {error}") from None
+    with client:
+        try:
+            client.wait_for_workers(1, timeout=CONNECT_TIMEOUT_S)
+        except TimeoutError:
+            raise CampaignError(f"the Dask scheduler at {address} has no workers after {CONNECT_TIMEOUT_S} s; "
+                                f"start `dask worker {address}` on each machine") from None
+        for worker, problem in client.run(twin_build_problem, on_error="return").items():
+            if problem is not None:
+                raise CampaignError(f"Dask worker {worker} cannot run the twin: {problem}")
+        yield client
+
+
+@dataclass(frozen=True)
+class ShippedPosition:
+    """A position run on a Dask worker, whose disk this machine may not see:
+    its record, the simulated seconds its progress counted, and its folder's
+    files by their path inside it."""
+
+    record: PositionRecord
+    sim_seconds: float
+    files: dict[str, bytes]
+
+
+class _SecondsCounted:
+    """A progress queue that only adds up what is put into it."""
+
+    def __init__(self) -> None:
+        self.total = 0.0
+
+    def put(self, seconds: float) -> None:
+        self.total += seconds
+
+
+class _ClusterStop:
+    """The campaign's stop event on the Dask scheduler, asked at most once per
+    STOP_POLL_S: every ask is a round trip."""
+
+    def __init__(self, name: str) -> None:
+        from distributed import Event
+
+        self._event = Event(name)
+        self._asked_at = -STOP_POLL_S
+        self._set = False
+
+    def is_set(self) -> bool:
+        now = time.monotonic()
+        if not self._set and now - self._asked_at >= STOP_POLL_S:
+            self._asked_at = now
+            self._set = self._event.is_set()
+        return self._set
+
+
+def run_twin_position_shipped(setup: TwinSetup, position: Position, stop_name: str) -> ShippedPosition:
+    """One position on a Dask worker, in a temporary folder there."""
+    from distributed import get_worker
+
+    counted = _SecondsCounted()
+    with tempfile.TemporaryDirectory(prefix="thermotilt-position-") as scratch:
+        record = run_twin_position(setup, position, Path(scratch), counted, _ClusterStop(stop_name))
+        written = Path(scratch) if record.status == DONE else Path(scratch) / PARTIAL_DIR
+        folder = written / position.label
+        files = {path.relative_to(folder).as_posix(): path.read_bytes()
+                 for path in sorted(folder.rglob("*")) if path.is_file()}
+    if record.error is not None:
+        record.error = f"on Dask worker {get_worker().address}: {record.error}"
+    return ShippedPosition(record, counted.total, files)
+
+
+def _run_on_cluster(todo: list[Position], setup: TwinSetup, out_dir: Path, client: Client,
+                    progress: Callable[[float], None] | None,
+                    finished: Callable[[PositionRecord], None]) -> bool:
+    from distributed import Event, as_completed
+
+    campaign_id = uuid.uuid4().hex
+    stop = Event(f"thermotilt-stop-{campaign_id}", client=client)
+    running = {client.submit(run_twin_position_shipped, setup, position, stop.name,
+                             key=f"thermotilt-{position.label}-{campaign_id}"): position
+               for position in todo}
+    try:
+        for future in as_completed(running, loop=client.loop):
+            finished(_write_shipped(out_dir, running[future], future, progress))
+    except KeyboardInterrupt:
+        # The running positions stop at their next look at the event; what
+        # they simulated is not waited for, and they stay pending.
+        stop.set()
+        client.cancel(list(running))
+        return True
+    return False
+
+
+def _write_shipped(out_dir: Path, position: Position, future: Any,
+                   progress: Callable[[float], None] | None) -> PositionRecord:
+    """A position back from a Dask worker, written as run_twin_position
+    writes one here."""
+    try:
+        shipped: ShippedPosition = future.result()
+    except Exception as error:
+        return _worker_failed(position, error)
+    if progress is not None:
+        progress(shipped.sim_seconds)
+    record = shipped.record
+    try:
+        partial = _fresh_partial(out_dir, position.label)
+        for name, data in shipped.files.items():
+            (partial / name).parent.mkdir(parents=True, exist_ok=True)
+            (partial / name).write_bytes(data)
+        if record.status == DONE:
+            _move_into_place(out_dir, position.label)
+    except OSError as error:
+        return replace(record, status=FAILED, error=f"cannot write {position.label}: {error.strerror or error}")
+    return record
 
 
 # A Nano resets when its port opens and its bootloader waits ~1-2 s; a Mega the same.
@@ -487,9 +663,7 @@ def run_boards_position(setup: BoardsSetup, position: Position, out_dir: Path) -
     from ..scenarios import chamber_program
 
     record = PositionRecord(position.label, position.incl_x_deg, position.incl_y_deg, started_utc=_utc_now())
-    partial = out_dir / PARTIAL_DIR / position.label
-    shutil.rmtree(partial, ignore_errors=True)
-    partial.mkdir(parents=True)
+    partial = _fresh_partial(out_dir, position.label)
     begin = time.monotonic()
     chamber = None
     try:
@@ -532,9 +706,7 @@ def run_boards_position(setup: BoardsSetup, position: Position, out_dir: Path) -
     elif result.end_reason != "program done":
         record.status, record.error = FAILED, f"the log ended early: {result.end_reason}"
     else:
-        final = out_dir / position.label
-        shutil.rmtree(final, ignore_errors=True)
-        os.replace(partial, final)
+        _move_into_place(out_dir, position.label)
         record.status = DONE
     return record
 
