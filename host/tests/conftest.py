@@ -30,3 +30,15 @@ def cycle_runs(tmp_path_factory):
         _, stderr = process.communicate(timeout=1800)
         assert process.returncode == 0, stderr
     return runs
+
+
+# Fixtures that take 2 s or more (twin runs, emulated campaigns): every
+# test that takes one is slow, even after another test has paid for it, so
+# that -m "not slow" never starts them.
+SLOW_FIXTURES = {"cycle_runs", "fig8_runs", "fig8_run", "campaign_rmse", "field_runs", "cluster"}
+
+
+def pytest_collection_modifyitems(items):
+    for item in items:
+        if SLOW_FIXTURES & set(item.fixturenames):
+            item.add_marker(pytest.mark.slow)

@@ -520,6 +520,7 @@ def test_any_model_text_is_a_model_or_a_model_error(tmp_path_factory, text):
     load_or_model_error(tmp_path_factory.mktemp("model") / "model.toml", text)
 
 
+@pytest.mark.slow
 @PROPERTY
 @given(st.data())
 def test_any_model_document_is_a_usable_model_or_a_model_error(tmp_path_factory, data):

@@ -155,6 +155,7 @@ def test_residuals_are_taken_against_each_positions_25c_reading(tmp_path):
         assert np.max(np.abs(warming.residual[axis] - expected)) < 0.3, axis
 
 
+@pytest.mark.slow
 def test_the_fit_command_writes_coefficients_block_and_header(tmp_path):
     temperatures, sets = cycle()
     campaign = tmp_path / "campaign"
@@ -186,6 +187,7 @@ def test_the_fit_command_writes_coefficients_block_and_header(tmp_path):
         assert (out / figure).read_bytes().startswith(b"\x89PNG")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "make, message",
     [
@@ -242,6 +244,7 @@ def model_with_drift(path, surface: Surface) -> None:
     path.write_text(text.replace('coefficients = "paper"', f"coefficients = {table}", 1))
 
 
+@pytest.mark.slow
 def test_compare_against_the_model_that_made_the_data_finds_no_gap(tmp_path):
     temperatures, sets = cycle()
     campaign = tmp_path / "campaign"

@@ -30,6 +30,7 @@ def statuses(out):
     return {entry["label"]: entry["status"] for entry in campaign_file(out)["positions"]}
 
 
+@pytest.mark.slow
 @pytest.mark.twin
 def test_positions_run_in_workers_each_into_its_own_folder(tmp_path, capsys):
     out = tmp_path / "campaign"
@@ -57,6 +58,7 @@ def test_positions_run_in_workers_each_into_its_own_folder(tmp_path, capsys):
     assert not (out / ".partial").exists()
 
 
+@pytest.mark.slow
 @pytest.mark.twin
 def test_a_position_is_the_same_run_in_a_subset_and_in_another_campaign(tmp_path):
     runs = []
@@ -68,6 +70,7 @@ def test_a_position_is_the_same_run_in_a_subset_and_in_another_campaign(tmp_path
     assert runs[0] == runs[1]
 
 
+@pytest.mark.slow
 @pytest.mark.twin
 def test_ctrl_c_keeps_finished_positions_and_resume_runs_only_the_others(tmp_path):
     out = tmp_path / "campaign"
@@ -104,6 +107,7 @@ def test_ctrl_c_keeps_finished_positions_and_resume_runs_only_the_others(tmp_pat
     assert not (out / ".partial").exists()
 
 
+@pytest.mark.slow
 @pytest.mark.twin
 def test_resume_refuses_other_settings(tmp_path, capsys):
     out = tmp_path / "campaign"
@@ -155,6 +159,7 @@ def boards_campaign(ports, out, answers, *extra):
                           input=answers, capture_output=True, text=True, timeout=180, check=False)
 
 
+@pytest.mark.slow
 @pytest.mark.twin
 def test_boards_campaign_asks_for_each_position_and_logs_its_program(idle_twin, tmp_path):
     out = tmp_path / "campaign"
@@ -191,6 +196,7 @@ def test_boards_campaign_without_a_board_is_one_line(tmp_path):
     assert campaign_file(tmp_path / "c")["positions"][0]["status"] == "failed"
 
 
+@pytest.mark.slow
 @pytest.mark.twin
 def test_one_job_reports_progress_while_a_position_runs(tmp_path):
     from thermotilt.calibration.campaign import PARTIAL_DIR, TwinCampaign, TwinSetup

@@ -109,6 +109,7 @@ def test_a_position_on_a_worker_stops_at_the_campaigns_stop_event_and_ships_what
     assert shipped.sim_seconds == pytest.approx(summary["sim_seconds"], abs=1.0)
 
 
+@pytest.mark.slow
 def test_an_unreachable_scheduler_is_one_line(tmp_path):
     out = tmp_path / "campaign"
     result = subprocess.run([*THERMOTILT, "campaign", "--twin", "--out", str(out), "--positions", "0",
@@ -146,6 +147,7 @@ def test_a_worker_without_the_build_is_one_line_before_anything_is_written(tmp_p
     assert not (out / CAMPAIGN_FILE).exists()
 
 
+@pytest.mark.slow
 def test_a_scheduler_without_workers_is_one_line(tmp_path):
     out = tmp_path / "campaign"
     with LocalCluster(n_workers=0, processes=True, dashboard_address="127.0.0.1:0") as empty:

@@ -45,6 +45,7 @@ def _discover(run: Path):
     return Search(load_measured(run), Model.load()).run()
 
 
+@pytest.mark.slow
 @pytest.mark.twin
 @pytest.mark.parametrize("effect, channel", CASES)
 def test_an_effect_hidden_at_snr_4_is_named_with_its_value_inside_the_interval(
@@ -105,6 +106,7 @@ def test_a_log_without_the_drive_skips_the_chamber_channels_and_says_why(inputs:
     assert "pwm" in measured.skipped_channels["inner"]
 
 
+@pytest.mark.slow
 @pytest.mark.twin
 def test_a_chamber_effect_needs_inputs_with_the_drive(inputs: Path, tmp_path: Path) -> None:
     result = _cli("hide-effect", "--inputs", str(inputs), "--effect", "heatsink", "--out", str(tmp_path / "out"))
@@ -112,6 +114,7 @@ def test_a_chamber_effect_needs_inputs_with_the_drive(inputs: Path, tmp_path: Pa
     assert "pwm" in result.stderr and len(result.stderr.strip().splitlines()) == 1
 
 
+@pytest.mark.slow
 @pytest.mark.twin
 @pytest.mark.parametrize("noise", ["white", "model", "autocorrelated"])
 def test_null_runs_give_none(inputs: Path, tmp_path: Path, noise: str) -> None:
@@ -120,6 +123,7 @@ def test_null_runs_give_none(inputs: Path, tmp_path: Path, noise: str) -> None:
     assert outcome.verdict == "none", [(e.candidate, e.channel, e.adjusted_p) for e in outcome.effects]
 
 
+@pytest.mark.slow
 @pytest.mark.twin
 def test_sensor_lag_and_rate_sensitivity_on_one_ramp_rate_are_ambiguous(tmp_path: Path) -> None:
     # No holds: one slow ramp up and down over 20..30 degC, where the drift's
@@ -134,6 +138,7 @@ def test_sensor_lag_and_rate_sensitivity_on_one_ramp_rate_are_ambiguous(tmp_path
     assert "ramp" in outcome.ambiguous[0].experiment or "hold" in outcome.ambiguous[0].experiment
 
 
+@pytest.mark.slow
 @pytest.mark.twin
 def test_sensitivity_loss_at_one_inclination_is_not_testable(tmp_path: Path) -> None:
     single = staircase_inputs(tmp_path / "inputs" / "run.csv", positions=((30.0, 0.0),))
@@ -142,6 +147,7 @@ def test_sensitivity_loss_at_one_inclination_is_not_testable(tmp_path: Path) -> 
     assert "sensitivity_loss" in outcome.not_testable
 
 
+@pytest.mark.slow
 @pytest.mark.twin
 def test_discover_writes_a_model_that_loads_and_closes_the_gap(inputs: Path, tmp_path: Path) -> None:
     hide_effect(inputs, tmp_path / "hidden", "hysteresis", seed=11, snr=4.0, channel="Y")
@@ -162,6 +168,7 @@ def test_discover_writes_a_model_that_loads_and_closes_the_gap(inputs: Path, tmp
     assert (tmp_path / "found" / "residuals.png").stat().st_size > 0
 
 
+@pytest.mark.slow
 @pytest.mark.twin
 def test_discover_twin_runs_the_scenario_again_and_the_found_model_closes_its_gap(tmp_path: Path) -> None:
     hidden = tmp_path / "hidden.toml"
@@ -179,6 +186,7 @@ def test_discover_twin_runs_the_scenario_again_and_the_found_model_closes_its_ga
         assert twin["after"] < twin["before"], channel
 
 
+@pytest.mark.slow
 @pytest.mark.twin
 def test_discover_twin_needs_a_twin_run(tmp_path: Path, inputs: Path) -> None:
     hide_effect(inputs, tmp_path / "run", "none", seed=4, noise="white")
@@ -187,6 +195,7 @@ def test_discover_twin_needs_a_twin_run(tmp_path: Path, inputs: Path) -> None:
     assert "summary.json" in result.stderr and len(result.stderr.strip().splitlines()) == 1
 
 
+@pytest.mark.slow
 @pytest.mark.twin
 def test_truth_stays_out_of_the_run(inputs: Path, tmp_path: Path) -> None:
     hide_effect(inputs, tmp_path, "cross_axis", seed=1, snr=2.0, channel="Y")
@@ -195,6 +204,7 @@ def test_truth_stays_out_of_the_run(inputs: Path, tmp_path: Path) -> None:
     assert json.loads((tmp_path / "truth.json").read_text())["effect"] == "cross_axis"
 
 
+@pytest.mark.slow
 def test_a_model_that_does_not_load_is_one_line(tmp_path: Path, inputs: Path) -> None:
     bad = tmp_path / "bad.toml"
     bad.write_text("[drift]\nenabled = 3\n")
@@ -204,6 +214,7 @@ def test_a_model_that_does_not_load_is_one_line(tmp_path: Path, inputs: Path) ->
     assert "bad.toml" in result.stderr
 
 
+@pytest.mark.slow
 def test_a_run_without_rows_is_one_line(tmp_path: Path, inputs: Path) -> None:
     empty = tmp_path / "run.csv"
     empty.write_text(inputs.read_text().splitlines()[0] + "\n")
@@ -212,6 +223,7 @@ def test_a_run_without_rows_is_one_line(tmp_path: Path, inputs: Path) -> None:
     assert result.stderr.strip() == f"thermotilt: error: {empty}: no rows"
 
 
+@pytest.mark.slow
 def test_a_run_without_the_chamber_temperature_is_one_line(tmp_path: Path, inputs: Path) -> None:
     lines = inputs.read_text().splitlines()
     header = lines[0].split(",")
@@ -224,6 +236,7 @@ def test_a_run_without_the_chamber_temperature_is_one_line(tmp_path: Path, input
     assert "chamber_c" in result.stderr and len(result.stderr.strip().splitlines()) == 1
 
 
+@pytest.mark.slow
 @pytest.mark.twin
 def test_a_channel_without_its_column_is_skipped_and_said(tmp_path: Path, inputs: Path) -> None:
     hide_effect(inputs, tmp_path / "run", "none", seed=4, noise="white")
@@ -243,6 +256,7 @@ def test_every_candidate_is_a_registered_term() -> None:
         assert candidate.parameter in model.terms[name]
 
 
+@pytest.mark.slow
 @pytest.mark.twin
 def test_an_effect_the_inputs_do_not_excite_cannot_be_hidden(inputs: Path, tmp_path: Path) -> None:
     # Every position holds Z at g cos 30 deg: a gain loss there is one constant offset.

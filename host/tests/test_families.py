@@ -55,6 +55,7 @@ def test_a_rate_effect_recommends_the_rate_term():
     assert recommend(scores) == {"X": "poly22+rate"}
 
 
+@pytest.mark.slow
 def test_the_fit_command_writes_families_json(tmp_path, capsys):
     temperatures, sets = cycle()
     for angle in ANGLES_DEG:

@@ -129,6 +129,7 @@ def assert_frames_match(frames: list, steps: list[int], first: int, result: dict
     assert not mismatches, f"{len(mismatches)} differences, first: {mismatches[:5]}"
 
 
+@pytest.mark.slow
 @pytest.mark.twin
 def test_native_series_gives_every_frame_the_firmware_sent():
     duration_s = 120.0
@@ -165,6 +166,7 @@ def test_native_series_gives_every_frame_the_firmware_sent():
     assert_frames_match(imu, steps, first, result)
 
 
+@pytest.mark.slow
 @pytest.mark.twin
 def test_native_series_replays_a_twin_run_of_the_model(tmp_path, monkeypatch):
     """The twin's own loop (simulate.run) with the physics model: what it

@@ -73,6 +73,7 @@ def simulate_idle(tmp_path, *options):
     return json.loads((out / "summary.json").read_text()), wall_s
 
 
+@pytest.mark.slow
 @pytest.mark.twin
 @pytest.mark.parametrize("options, paced", [
     (["--pty"], True),

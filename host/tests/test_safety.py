@@ -79,6 +79,7 @@ def true_range(rows, column: str) -> tuple[float, float]:
     return min(values), max(values)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("start_c, max_c", [(40.0, 45.0), (-10.0, 0.0)], ids=["heating", "cooling"])
 def test_reversed_leads_trip_wrong_way_in_seconds(tmp_path, start_c, max_c):
     frames, rows = run(tmp_path, program(start_c, max_c, 40.0), "peltier_reversed")
@@ -92,6 +93,7 @@ def test_reversed_leads_trip_wrong_way_in_seconds(tmp_path, start_c, max_c):
     assert high - low < 3.0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "fault, start_c, max_c",
     [
@@ -112,6 +114,7 @@ def test_a_face_that_does_not_follow_trips_no_response(tmp_path, fault, start_c,
     assert INNER_MIN_C < low and high < INNER_MAX_C
 
 
+@pytest.mark.slow
 def test_a_thermistor_coming_off_during_a_hold_trips_at_once(tmp_path):
     # The face reaches 40 degC in ~3 min; the detached thermistor then falls
     # towards the room while the drive heats at full power.
@@ -123,6 +126,7 @@ def test_a_thermistor_coming_off_during_a_hold_trips_at_once(tmp_path):
     assert true_range(rows, "true_inner_c")[1] < 41.0
 
 
+@pytest.mark.slow
 def test_a_failed_heatsink_stops_at_the_outer_limit(tmp_path):
     # Cooling pumps the heat into the outer face; with its path to ambient
     # gone it heats by tenths of a degC a second. A 40 degC outer limit set

@@ -127,6 +127,7 @@ def test_bias_instability_is_flicker_with_a_flat_allan_floor(model):
         assert allan_deviation(values, cluster) == pytest.approx(floor, rel=0.15), cluster
 
 
+@pytest.mark.slow
 def test_bias_instability_starts_stationary_and_continues_across_step_lengths(model):
     quiet = flicker_only(model)
     first = [Sensor(quiet, seed=seed, environment_c=25.0).step(0.01, 25.0, 0.0, 0.0).ax
@@ -290,6 +291,7 @@ def field_runs(model):
     return {name: [emulated_field(model, seed, name) for seed in FIELD_SEEDS] for name in FIELD_SET}
 
 
+@pytest.mark.slow
 def test_field_runs_read_the_papers_temperatures(field_runs):
     # Section 4.3: the sensor read 9 -> 48 degC and 26 -> 16 degC (the
     # 1/8 degC register, the 15 s die lag and the filter within 0.2 degC).
@@ -318,6 +320,7 @@ def test_field_rms_after_compensation_is_of_the_papers_order(field_runs, model):
         assert clean < after / PAPER_FACTOR, (name, axis, clean)
 
 
+@pytest.mark.slow
 @pytest.mark.twin
 def test_in_the_twin_the_imu_reads_the_field_warming_range(tmp_path, model):
     # Compressed to 300 s the ramp runs at 0.13 degC/s, and once the lags'

@@ -78,6 +78,7 @@ def test_fig8_writes_the_documented_outputs(fig8_run):
     assert "step 16 -> 18 degC" in stdout and "hold 22 degC" in stdout
 
 
+@pytest.mark.slow
 @pytest.mark.twin
 @pytest.mark.parametrize("hold_start, reported", [
     # Waiting for a setpoint a disconnected Peltier never reaches: full drive
@@ -187,6 +188,7 @@ def test_cycle_compensated_output_is_flat(cycle_runs, angle):
         assert worst <= COMPENSATED_TOLERANCE_LSB, (axis, worst)
 
 
+@pytest.mark.slow
 @pytest.mark.twin
 def test_same_seed_gives_identical_run_csv_and_another_seed_differs(tmp_path):
     outputs = []
@@ -201,6 +203,7 @@ def lines_of(path, text):
     return [line for line in path.read_text(errors="replace").splitlines() if text in line]
 
 
+@pytest.mark.slow
 @pytest.mark.twin
 def test_a_fault_the_chamber_catches_is_printed_and_kept(tmp_path):
     out = tmp_path / "reversed"
@@ -211,6 +214,7 @@ def test_a_fault_the_chamber_catches_is_printed_and_kept(tmp_path):
     assert summary["boards"]["thermal_chamber"]["reported_errors"] == [reported[0].split(" reported ")[1]]
 
 
+@pytest.mark.slow
 @pytest.mark.twin
 def test_faults_from_the_command_line_show_in_the_frames(tmp_path):
     out = tmp_path / "faults"
@@ -230,6 +234,7 @@ def test_faults_from_the_command_line_show_in_the_frames(tmp_path):
     assert summary["boards"]["thermal_chamber"]["corrupted_bytes"] == 0
 
 
+@pytest.mark.slow
 @pytest.mark.twin
 def test_faults_from_the_model_file(tmp_path):
     model = tmp_path / "broken-rig.toml"
@@ -254,6 +259,7 @@ start_s = 30.0
     assert json.loads((out / "summary.json").read_text())["model"] == str(model)
 
 
+@pytest.mark.slow
 def test_bad_use_is_one_readable_line(tmp_path):
     for arguments, message in (
         (["fig9"], "unknown scenario"),
@@ -267,6 +273,7 @@ def test_bad_use_is_one_readable_line(tmp_path):
         assert result.stderr.count("\n") == 1 and message in result.stderr, result.stderr
 
 
+@pytest.mark.slow
 @pytest.mark.twin
 def test_the_twin_through_pseudo_terminals(tmp_path):
     out = tmp_path / "twin"

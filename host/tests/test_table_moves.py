@@ -48,6 +48,7 @@ def test_reseed_restarts_the_filters_from_the_next_sample():
     assert all((f["ax_filt"], f["az_filt"]) == (11592.0, 11592.0) for f in reseeded)
 
 
+@pytest.mark.slow
 def test_the_campaign_reseeds_at_every_move_and_logs_the_time_since(tmp_path):
     out = tmp_path / "campaign"
     result = subprocess.run(

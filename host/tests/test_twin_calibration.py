@@ -28,6 +28,7 @@ def fitted(tmp_path_factory):
     return folder / "fit"
 
 
+@pytest.mark.slow
 def test_a_twin_campaign_recovers_the_models_surfaces(fitted):
     document = json.loads((fitted / "coefficients.json").read_text())
     comparisons = compare(read_fit(fitted), str(resources.files("thermotilt") / "models" / "default.toml"))

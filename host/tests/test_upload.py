@@ -97,6 +97,7 @@ def idle_twin(out: Path, *options):
     return pty_twin(out, "idle", *options)
 
 
+@pytest.mark.slow
 @pytest.mark.twin
 def test_upload_round_trip_through_the_twins_ports(fit_dir, tmp_path):
     table = read_table(fit_dir)
@@ -396,6 +397,7 @@ def test_a_bad_fit_dir_is_one_line(tmp_path, capsys, make, message):
     assert_one_line(capsys, main(["upload", str(make(tmp_path)), "--port", str(tmp_path / "no-port")]), message)
 
 
+@pytest.mark.slow
 def test_a_missing_port_and_a_silent_board_are_one_line(fit_dir, tmp_path):
     assert_one_line_error(run("upload", fit_dir, "--port", tmp_path / "ttyUSB9"), 1, "cannot open")
     master, slave = os.openpty()
@@ -448,6 +450,7 @@ def test_the_idle_scenario_powers_both_boards_and_sends_nothing():
     assert build("idle", ScenarioOptions(duration_s=60.0)).duration_s == 60.0
 
 
+@pytest.mark.slow
 @pytest.mark.twin
 def test_a_runs_saved_eeprom_starts_the_next_run(fit_dir, tmp_path):
     """What the IMU saved in one run (imu_reader_eeprom.bin) is what it

@@ -92,6 +92,7 @@ def test_the_report_has_the_table_and_the_figure(tmp_path, capsys):
     assert (tmp_path / "run" / "validation" / "field.png").read_bytes().startswith(b"\x89PNG")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("make, arguments, message", [
     (lambda folder: None, [], "cannot read"),
     (lambda folder: (folder / "run.csv").write_text("time_s,ax\n1,2\n"), [], "the header is not run.csv's"),
@@ -111,6 +112,7 @@ def test_bad_validate_input_is_one_line(tmp_path, make, arguments, message):
     assert message in result.stderr
 
 
+@pytest.mark.slow
 @pytest.mark.twin
 def test_host_compensation_equals_the_firmwares(tmp_path):
     """One surface evaluation, two implementations: the twin's firmware
