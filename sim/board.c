@@ -18,12 +18,13 @@ enum { SUPPLY_MILLIVOLTS = 5000, WGM_PHASE_CORRECT_8BIT = 1 };
 /*
  * simavr's default sleep callback waits in real time. Our firmware sleeps
  * between ticks, so skipping the wait is what makes simulation much faster
- * than real time; simulated time still advances by the slept cycles.
+ * than real time; simulated time still advances by the slept cycles, which
+ * simavr adds right after this call: how_long and one more.
  */
 static void skip_sleep(avr_t *avr, avr_cycle_count_t how_long)
 {
-    (void)avr;
-    (void)how_long;
+    board_t *board = (board_t *)avr->custom.data;
+    board->slept_cycles += how_long + 1;
 }
 
 /*
@@ -185,6 +186,8 @@ int board_load(board_t *board, const char *elf_path, const char *mcu, uint32_t f
                (size_t)board->avr->ramend + 1 - board->stack_floor);
     }
     free_flash_image(&firmware);
+    /* simavr hands its callbacks only the avr; custom.data goes nowhere else, as we set no custom init. */
+    board->avr->custom.data = board;
     board->avr->sleep = skip_sleep;
     count_phase_correct_pwm_to_top(board->avr);
     board->reset_watch.kind = "thermotilt_board";
@@ -221,6 +224,12 @@ size_t board_stack_untouched(const board_t *board, size_t *capacity)
         ++untouched;
     }
     return untouched;
+}
+
+void board_cycle_counts(const board_t *board, uint64_t *awake, uint64_t *asleep)
+{
+    *asleep = board->slept_cycles;
+    *awake = board->avr->cycle - board->slept_cycles;
 }
 
 void board_free(board_t *board)

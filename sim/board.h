@@ -30,6 +30,7 @@ typedef struct board {
     board_reset_fn reset_hooks[BOARD_RESET_HOOKS];
     void *reset_contexts[BOARD_RESET_HOOKS];
     int reset_hook_count;
+    uint64_t slept_cycles; /* cycles simavr skipped while the CPU slept, since load */
 } board_t;
 
 /*
@@ -71,6 +72,13 @@ int board_on_reset(board_t *board, board_reset_fn hook, void *context);
 size_t board_eeprom_size(const board_t *board);
 int board_eeprom_read(board_t *board, size_t offset, uint8_t *out, size_t length);
 int board_eeprom_write(board_t *board, size_t offset, const uint8_t *bytes, size_t length);
+
+/*
+ * Cycles since load the CPU executed instructions (awake) and slept; the
+ * two add up to the cycles simulated. Always counted: it costs an addition
+ * per sleep.
+ */
+void board_cycle_counts(const board_t *board, uint64_t *awake, uint64_t *asleep);
 
 /* Releases the MCU; the board can be loaded again afterwards. */
 void board_free(board_t *board);

@@ -158,6 +158,11 @@ int twin_eeprom_write(twin_t *twin, size_t offset, const uint8_t *bytes, size_t 
     return board_eeprom_write(&twin->board, offset, bytes, length);
 }
 
+void twin_cycle_counts(const twin_t *twin, uint64_t *awake, uint64_t *asleep)
+{
+    board_cycle_counts(&twin->board, awake, asleep);
+}
+
 size_t twin_stack_untouched(const twin_t *twin, size_t *capacity)
 {
     return board_stack_untouched(&twin->board, capacity);

@@ -49,6 +49,9 @@ size_t twin_eeprom_size(const twin_t *twin);
 int twin_eeprom_read(twin_t *twin, size_t offset, uint8_t *out, size_t length);
 int twin_eeprom_write(twin_t *twin, size_t offset, const uint8_t *bytes, size_t length);
 
+/* Cycles since create the CPU executed (awake) and slept; they add up to twin_cycles. */
+void twin_cycle_counts(const twin_t *twin, uint64_t *awake, uint64_t *asleep);
+
 /* SRAM bytes between the static data and RAMEND that the stack never reached; capacity gets their count. */
 size_t twin_stack_untouched(const twin_t *twin, size_t *capacity);
 

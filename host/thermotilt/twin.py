@@ -97,6 +97,7 @@ def _load_library(path: Path) -> ctypes.CDLL:
         "twin_eeprom_read": (ctypes.c_int, [handle, ctypes.c_size_t, ctypes.c_char_p, ctypes.c_size_t]),
         "twin_eeprom_write": (ctypes.c_int, [handle, ctypes.c_size_t, ctypes.c_char_p, ctypes.c_size_t]),
         "twin_stack_untouched": (ctypes.c_size_t, [handle, ctypes.POINTER(ctypes.c_size_t)]),
+        "twin_cycle_counts": (None, [handle, ctypes.POINTER(ctypes.c_uint64), ctypes.POINTER(ctypes.c_uint64)]),
         "twin_adc_set_millivolts": (ctypes.c_int, [handle, ctypes.c_uint, ctypes.c_double]),
         "twin_adc_set_fault": (ctypes.c_int, [handle, ctypes.c_uint, ctypes.c_int]),
         "twin_lsm9ds0_attach": (None, [handle]),
@@ -259,6 +260,15 @@ class Board:
         capacity = ctypes.c_size_t(0)
         untouched = self._lib.twin_stack_untouched(self._live(), ctypes.byref(capacity))
         return int(untouched), int(capacity.value)
+
+    def cycle_counts(self) -> tuple[int, int]:
+        """(cycles the CPU executed, cycles it slept) since the board was
+        made; they add up to cycles. The firmware sleeps in idle mode until
+        its next interrupt, and simavr skips the slept cycles."""
+        awake = ctypes.c_uint64(0)
+        asleep = ctypes.c_uint64(0)
+        self._lib.twin_cycle_counts(self._live(), ctypes.byref(awake), ctypes.byref(asleep))
+        return int(awake.value), int(asleep.value)
 
     @property
     def eeprom_size(self) -> int:
