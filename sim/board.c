@@ -9,6 +9,7 @@
 #include <simavr/avr_eeprom.h>
 #include <simavr/avr_timer.h>
 #include <simavr/avr_uart.h>
+#include <simavr/sim_core.h>
 #include <simavr/sim_cycle_timers.h>
 #include <simavr/sim_elf.h>
 #include <simavr/sim_io.h>
@@ -106,6 +107,7 @@ static void after_reset(avr_io_t *io)
     for (int i = 0; i < board->reset_hook_count; ++i) {
         board->reset_hooks[i](board->reset_contexts[i]);
     }
+    board->profile.depth = 0;
 }
 
 int board_on_reset(board_t *board, board_reset_fn hook, void *context)
@@ -232,8 +234,129 @@ void board_cycle_counts(const board_t *board, uint64_t *awake, uint64_t *asleep)
     *awake = board->avr->cycle - board->slept_cycles;
 }
 
+enum {
+    OPCODE_CALL_MASK = 0xFE0E,
+    OPCODE_CALL = 0x940E,
+    OPCODE_RCALL_MASK = 0xF000,
+    OPCODE_RCALL = 0xD000,
+    OPCODE_ICALL = 0x9509,
+    OPCODE_EICALL = 0x9519,
+};
+
+/* "rcall ." only reserves stack space: avr-gcc's way to grow a frame by a return address. */
+static int is_call(uint16_t opcode)
+{
+    return (opcode & OPCODE_CALL_MASK) == OPCODE_CALL ||
+           ((opcode & OPCODE_RCALL_MASK) == OPCODE_RCALL && opcode != OPCODE_RCALL) || opcode == OPCODE_ICALL ||
+           opcode == OPCODE_EICALL;
+}
+
+/* Calls deeper than the shadow holds go unrecorded; the SP rule never pops a shallower one for them. */
+static void push_call(board_profile_t *profile, uint32_t call_site, uint16_t sp)
+{
+    if (profile->depth < BOARD_PROFILE_CALL_DEPTH) {
+        profile->calls[profile->depth].call_site = call_site;
+        profile->calls[profile->depth].sp = sp;
+        profile->depth++;
+    }
+}
+
+static void take_sample(board_profile_t *profile, uint32_t pc)
+{
+    profile->taken++;
+    if (profile->kept == profile->capacity) {
+        return;
+    }
+    board_profile_sample_t *sample = &profile->samples[profile->kept++];
+    sample->frames[0] = pc;
+    for (int frame = 1; frame < BOARD_PROFILE_FRAMES; ++frame) {
+        sample->frames[frame] =
+            frame <= profile->depth ? profile->calls[profile->depth - frame].call_site : BOARD_PROFILE_NO_FRAME;
+    }
+}
+
+/* The return address an interrupt's entry pushed, big-endian in words above SP. */
+static uint32_t interrupted_at(const avr_t *avr, uint16_t sp)
+{
+    uint32_t word_address = 0;
+    for (int i = 1; i <= avr->address_size; ++i) {
+        word_address = word_address << 8 | avr->data[sp + i];
+    }
+    return word_address * 2;
+}
+
+/*
+ * simavr's run function with the profiler around it: one instruction (or a
+ * slice of sleep), then interrupts. The stack's shadow follows calls by
+ * their opcode and returns by the SP rising above a call's return address,
+ * so code that unwinds the stack by other means is followed too.
+ */
+static void run_profiled(avr_t *avr)
+{
+    board_t *board = (board_t *)avr->custom.data;
+    board_profile_t *profile = &board->profile;
+    int executes = avr->state == cpu_Running;
+    avr_flashaddr_t pc = avr->pc;
+    uint16_t sp_before = _avr_sp_get(avr);
+    uint8_t interrupts_running = avr->interrupts.running_ptr;
+    avr_cycle_count_t cycle_before = avr->cycle;
+    uint64_t slept_before = board->slept_cycles;
+
+    profile->plain_run(avr);
+
+    uint16_t sp = _avr_sp_get(avr);
+    int interrupt_entered = avr->interrupts.running_ptr > interrupts_running;
+    uint16_t sp_after_instruction = interrupt_entered ? (uint16_t)(sp + avr->address_size) : sp;
+    if (executes) {
+        profile->awake_cycles += (avr->cycle - cycle_before) - (board->slept_cycles - slept_before);
+        while (profile->awake_cycles >= profile->next_sample_at) {
+            take_sample(profile, pc);
+            profile->next_sample_at += profile->period_cycles;
+        }
+        if (is_call((uint16_t)(avr->flash[pc] | avr->flash[pc + 1] << 8))) {
+            push_call(profile, pc, (uint16_t)(sp_before - avr->address_size));
+        }
+    }
+    while (profile->depth > 0 && profile->calls[profile->depth - 1].sp < sp_after_instruction) {
+        profile->depth--;
+    }
+    if (interrupt_entered) {
+        push_call(profile, interrupted_at(avr, sp), sp);
+    }
+}
+
+int board_profile_start(board_t *board, uint64_t period_cycles, size_t capacity)
+{
+    board_profile_t *profile = &board->profile;
+    if (period_cycles == 0 || capacity == 0) {
+        return -1;
+    }
+    board_profile_sample_t *samples = realloc(profile->samples, capacity * sizeof *samples);
+    if (!samples) {
+        return -1;
+    }
+    avr_run_t plain_run = profile->plain_run ? profile->plain_run : board->avr->run;
+    memset(profile, 0, sizeof *profile);
+    profile->samples = samples;
+    profile->capacity = capacity;
+    profile->period_cycles = period_cycles;
+    profile->next_sample_at = period_cycles;
+    profile->plain_run = plain_run;
+    board->avr->run = run_profiled;
+    return 0;
+}
+
+void board_profile_stop(board_t *board)
+{
+    if (board->profile.plain_run) {
+        board->avr->run = board->profile.plain_run;
+        board->profile.plain_run = NULL;
+    }
+}
+
 void board_free(board_t *board)
 {
+    free(board->profile.samples);
     if (board->avr) {
         avr_terminate(board->avr);
         /* avr_make_mcu_by_name allocated the MCU with avr_t at its start. */

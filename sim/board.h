@@ -16,6 +16,35 @@ typedef void (*board_reset_fn)(void *context);
 
 enum { BOARD_RESET_HOOKS = 4 };
 
+/*
+ * One profiler sample: the PC of the instruction that was executing, then
+ * the call sites of the functions above it, innermost first (an interrupt's
+ * entry counts as a call from the instruction it interrupted), as flash
+ * byte addresses; BOARD_PROFILE_NO_FRAME pads a shallower stack.
+ */
+enum { BOARD_PROFILE_FRAMES = 8, BOARD_PROFILE_CALL_DEPTH = 64 };
+#define BOARD_PROFILE_NO_FRAME UINT32_MAX
+typedef struct board_profile_sample {
+    uint32_t frames[BOARD_PROFILE_FRAMES];
+} board_profile_sample_t;
+
+typedef struct board_profile {
+    board_profile_sample_t *samples; /* NULL while the profiler has never run */
+    size_t capacity;
+    size_t kept;
+    uint64_t taken; /* kept, and those that found the buffer full */
+    uint64_t period_cycles;
+    uint64_t awake_cycles; /* since board_profile_start */
+    uint64_t next_sample_at;
+    /* A shadow of the call stack: each call site with the SP just below its return address. */
+    struct {
+        uint32_t call_site;
+        uint16_t sp;
+    } calls[BOARD_PROFILE_CALL_DEPTH];
+    int depth;
+    avr_run_t plain_run; /* simavr's run function while the profiler runs, else NULL */
+} board_profile_t;
+
 typedef struct board {
     avr_t *avr;
     board_uart_byte_fn on_uart_byte;
@@ -31,6 +60,7 @@ typedef struct board {
     void *reset_contexts[BOARD_RESET_HOOKS];
     int reset_hook_count;
     uint64_t slept_cycles; /* cycles simavr skipped while the CPU slept, since load */
+    board_profile_t profile;
 } board_t;
 
 /*
@@ -79,6 +109,19 @@ int board_eeprom_write(board_t *board, size_t offset, const uint8_t *bytes, size
  * per sleep.
  */
 void board_cycle_counts(const board_t *board, uint64_t *awake, uint64_t *asleep);
+
+/*
+ * A sampling profiler of the awake CPU: every period_cycles executed cycles
+ * it records the running instruction and its callers (board_profile_sample_t),
+ * keeping up to capacity samples and counting the rest. Starting again
+ * discards the samples. While it runs, each instruction passes through it
+ * (simavr's run function is swapped for one that samples); stopped, the
+ * board runs as if it never had been, and its samples stay readable until
+ * the next start or board_free. Returns 0, or -1 for a zero period or
+ * capacity, or out of memory.
+ */
+int board_profile_start(board_t *board, uint64_t period_cycles, size_t capacity);
+void board_profile_stop(board_t *board);
 
 /* Releases the MCU; the board can be loaded again afterwards. */
 void board_free(board_t *board);

@@ -163,6 +163,37 @@ void twin_cycle_counts(const twin_t *twin, uint64_t *awake, uint64_t *asleep)
     board_cycle_counts(&twin->board, awake, asleep);
 }
 
+int twin_profile_start(twin_t *twin, uint64_t period_cycles, size_t capacity)
+{
+    return board_profile_start(&twin->board, period_cycles, capacity);
+}
+
+void twin_profile_stop(twin_t *twin)
+{
+    board_profile_stop(&twin->board);
+}
+
+size_t twin_profile_frames(void)
+{
+    return BOARD_PROFILE_FRAMES;
+}
+
+void twin_profile_counts(const twin_t *twin, uint64_t *taken, size_t *kept)
+{
+    *taken = twin->board.profile.taken;
+    *kept = twin->board.profile.kept;
+}
+
+size_t twin_profile_read(const twin_t *twin, uint32_t *frames, size_t max_samples)
+{
+    const board_profile_t *profile = &twin->board.profile;
+    size_t count = profile->kept < max_samples ? profile->kept : max_samples;
+    if (count > 0) {
+        memcpy(frames, profile->samples, count * sizeof *profile->samples);
+    }
+    return count;
+}
+
 size_t twin_stack_untouched(const twin_t *twin, size_t *capacity)
 {
     return board_stack_untouched(&twin->board, capacity);

@@ -52,6 +52,20 @@ int twin_eeprom_write(twin_t *twin, size_t offset, const uint8_t *bytes, size_t 
 /* Cycles since create the CPU executed (awake) and slept; they add up to twin_cycles. */
 void twin_cycle_counts(const twin_t *twin, uint64_t *awake, uint64_t *asleep);
 
+/*
+ * The sampling profiler (board_profile_start): a sample every period_cycles
+ * awake cycles, up to capacity kept. Start returns 0, or -1 for a zero
+ * period or capacity, or out of memory. Counts gives the samples taken and
+ * those kept. Read copies up to max_samples kept samples, twin_profile_frames()
+ * uint32 each (the PC, then the call sites innermost first, UINT32_MAX past
+ * the last), into frames, and returns how many.
+ */
+int twin_profile_start(twin_t *twin, uint64_t period_cycles, size_t capacity);
+void twin_profile_stop(twin_t *twin);
+size_t twin_profile_frames(void);
+void twin_profile_counts(const twin_t *twin, uint64_t *taken, size_t *kept);
+size_t twin_profile_read(const twin_t *twin, uint32_t *frames, size_t max_samples);
+
 /* SRAM bytes between the static data and RAMEND that the stack never reached; capacity gets their count. */
 size_t twin_stack_untouched(const twin_t *twin, size_t *capacity);
 

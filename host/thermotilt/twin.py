@@ -10,10 +10,14 @@ bytes; only the optional pseudo-terminal depends on who talks to it.
 
 from __future__ import annotations
 
+import bisect
 import ctypes
 import math
 import operator
 import os
+import re
+import subprocess
+from collections import Counter
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
@@ -98,6 +102,11 @@ def _load_library(path: Path) -> ctypes.CDLL:
         "twin_eeprom_write": (ctypes.c_int, [handle, ctypes.c_size_t, ctypes.c_char_p, ctypes.c_size_t]),
         "twin_stack_untouched": (ctypes.c_size_t, [handle, ctypes.POINTER(ctypes.c_size_t)]),
         "twin_cycle_counts": (None, [handle, ctypes.POINTER(ctypes.c_uint64), ctypes.POINTER(ctypes.c_uint64)]),
+        "twin_profile_start": (ctypes.c_int, [handle, ctypes.c_uint64, ctypes.c_size_t]),
+        "twin_profile_stop": (None, [handle]),
+        "twin_profile_frames": (ctypes.c_size_t, []),
+        "twin_profile_counts": (None, [handle, ctypes.POINTER(ctypes.c_uint64), ctypes.POINTER(ctypes.c_size_t)]),
+        "twin_profile_read": (ctypes.c_size_t, [handle, ctypes.POINTER(ctypes.c_uint32), ctypes.c_size_t]),
         "twin_adc_set_millivolts": (ctypes.c_int, [handle, ctypes.c_uint, ctypes.c_double]),
         "twin_adc_set_fault": (ctypes.c_int, [handle, ctypes.c_uint, ctypes.c_int]),
         "twin_lsm9ds0_attach": (None, [handle]),
@@ -144,11 +153,99 @@ def _integer_in(value: int, allowed: range, what: str) -> int:
     return number
 
 
+_NO_FRAME = 2**32 - 1
+# avr-nm's lines: address, size (for symbols that have one), type, demangled name.
+_NM_LINE = re.compile(r"^([0-9a-f]+) (?:([0-9a-f]+) )?([A-Za-z]) (.+)$")
+_CODE_SYMBOL_TYPES = frozenset("TtWw")
+# Data-space symbols carry avr-gcc's 0x800000 offset; code lies below.
+_DATA_SPACE = 0x800000
+_CLONE_SUFFIX = re.compile(r" \[clone [^]]+\]")
+_RUNTIME_ROUTINE = re.compile(r"^__(?!vector_)")
+
+
+class FirmwareSymbols:
+    """A firmware image's functions by flash address, from its symbol table
+    (avr-nm), demangled and without GCC's clone suffixes. Only functions that
+    stay out of line have a symbol: code that LTO inlined is part of its
+    caller."""
+
+    def __init__(self, elf: Path | str) -> None:
+        listing = subprocess.run(["avr-nm", "--numeric-sort", "--print-size", "--demangle", "--defined-only",
+                                  str(_existing(Path(elf)))], check=True, capture_output=True, text=True).stdout
+        self._sized: list[tuple[int, int, str]] = []
+        self._labels: list[tuple[int, str]] = []
+        for line in listing.splitlines():
+            match = _NM_LINE.match(line)
+            if not match or match[3] not in _CODE_SYMBOL_TYPES or int(match[1], 16) >= _DATA_SPACE:
+                continue
+            address, name = int(match[1], 16), _CLONE_SUFFIX.sub("", match[4])
+            if match[2]:
+                self._sized.append((address, address + int(match[2], 16), name))
+            else:
+                self._labels.append((address, name))
+        self._sized_starts = [start for start, _, _ in self._sized]
+        self._label_starts = [start for start, _ in self._labels]
+        self._found: dict[int, str] = {}
+
+    def name_at(self, address: int) -> str:
+        """The function holding this flash byte address: the sized symbol
+        around it, else the assembly label before it, else "?"."""
+        name = self._found.get(address)
+        if name is None:
+            name = self._found[address] = self._look_up(address)
+        return name
+
+    def _look_up(self, address: int) -> str:
+        index = bisect.bisect_right(self._sized_starts, address) - 1
+        if index >= 0 and address < self._sized[index][1]:
+            return self._sized[index][2]
+        index = bisect.bisect_right(self._label_starts, address) - 1
+        return self._labels[index][1] if index >= 0 else "?"
+
+    def names(self) -> set[str]:
+        return {name for _, _, name in self._sized} | {name for _, name in self._labels}
+
+
+def is_runtime_routine(name: str) -> bool:
+    """libgcc's and avr-libc's assembly routines: soft float, integer
+    division, prologues and epilogues (their names begin with __; the
+    interrupt handlers' __vector_N do not count)."""
+    return _RUNTIME_ROUTINE.match(name) is not None
+
+
+@dataclass(frozen=True)
+class Profile:
+    """What the profiler saw: each sample is the PC of the running
+    instruction, then the call sites above it, innermost first (an
+    interrupt's entry counts as a call from the instruction it interrupted),
+    as flash byte addresses. taken counts every sample, also those the
+    buffer had no room for."""
+
+    period_cycles: int
+    taken: int
+    samples: tuple[tuple[int, ...], ...]
+
+    def stacks(self, symbols: FirmwareSymbols) -> Counter[tuple[str, ...]]:
+        """Samples per call stack, as function names innermost first."""
+        return Counter(tuple(symbols.name_at(address) for address in frames) for frames in self.samples)
+
+    def by_function(self, symbols: FirmwareSymbols) -> Counter[str]:
+        """Samples per function. A runtime routine's (soft float, integer
+        division, prologues: libgcc's and avr-libc's __ names) go to the
+        first function up the stack that is not one; a sample whose stack
+        holds none stays with the routine."""
+        counts: Counter[str] = Counter()
+        for names, samples in self.stacks(symbols).items():
+            counts[next((name for name in names if not is_runtime_routine(name)), names[0])] += samples
+        return counts
+
+
 class Board:
     """One MCU running a firmware image. Use as a context manager, or close()."""
 
     def __init__(self, elf: Path | str, mcu: str, frequency_hz: int = DEFAULT_FREQUENCY_HZ) -> None:
         self._handle: int | None = None
+        self._profile_period = 0
         frequency_hz = _integer_in(frequency_hz, range(1, 2**32), "frequency_hz")
         elf = _existing(Path(elf))
         self._lib = _library()
@@ -269,6 +366,37 @@ class Board:
         asleep = ctypes.c_uint64(0)
         self._lib.twin_cycle_counts(self._live(), ctypes.byref(awake), ctypes.byref(asleep))
         return int(awake.value), int(asleep.value)
+
+    def start_profile(self, period_cycles: int = 997, capacity: int = 1 << 18) -> None:
+        """Samples the awake CPU every period_cycles executed cycles (the
+        running instruction and its callers), keeping up to capacity
+        samples; starting again discards them. While it runs, every
+        instruction passes through the sampler; a board never profiled, or
+        stopped, runs at full speed. The default period is a prime, so it
+        keeps no step with the firmware's periodic work (Timer0's tick is
+        16384 cycles)."""
+        period_cycles = _integer_in(period_cycles, range(1, 2**32), "period_cycles")
+        capacity = _integer_in(capacity, range(1, 2**32), "capacity")
+        if self._lib.twin_profile_start(self._live(), period_cycles, capacity) != 0:
+            raise MemoryError(f"no room for {capacity} profile samples")
+        self._profile_period = period_cycles
+
+    def stop_profile(self) -> None:
+        self._lib.twin_profile_stop(self._live())
+
+    def profile(self) -> Profile:
+        """The samples since start_profile (while it runs, or after stop_profile)."""
+        handle = self._live()
+        taken = ctypes.c_uint64(0)
+        kept = ctypes.c_size_t(0)
+        self._lib.twin_profile_counts(handle, ctypes.byref(taken), ctypes.byref(kept))
+        width = self._lib.twin_profile_frames()
+        buffer = (ctypes.c_uint32 * (kept.value * width))()
+        count = self._lib.twin_profile_read(handle, buffer, kept.value)
+        addresses = buffer[:count * width]
+        samples = tuple(tuple(address for address in addresses[i:i + width] if address != _NO_FRAME)
+                        for i in range(0, len(addresses), width))
+        return Profile(self._profile_period, int(taken.value), samples)
 
     @property
     def eeprom_size(self) -> int:
