@@ -77,8 +77,11 @@ class BoardLink:
         self.board.write_uart(build_frame(frame_type, seq, values).encode("ascii"))
 
     def report(self) -> dict:
+        awake, asleep = self.board.cycle_counts()
         return {
             "cycles": self.board.cycles,
+            "awake_cycles": awake,
+            "sleep_cycles": asleep,
             "frames": self.reader.frames,
             "frames_by_type": dict(sorted(self.reader.frames_by_type.items())),
             "rejected": self.reader.malformed,
@@ -114,6 +117,38 @@ class WallClockPacer:
         ahead = simulated_s - (self._clock() - self._start)
         if ahead > 0:
             self._sleep(ahead)
+
+
+class StepTiming:
+    """Wall seconds a run spends in each part of its steps, for `make bench`:
+    pass one to run(). Each lap charges the time since the previous lap to
+    a phase: physics (the chamber and sensor models), board_io (the ctypes
+    calls that set inputs and read the drive), boards (run_until: simavr
+    running both firmware images, and the ctypes call into it), frames
+    (reading, saving and parsing what the boards sent), csv (run.csv rows)
+    and other (the schedule of commands, faults and table moves, and the
+    wait of a paced run). Without one, a run's laps are calls of a function
+    that does nothing."""
+
+    PHASES = ("physics", "board_io", "boards", "frames", "csv", "other")
+
+    def __init__(self, clock: Callable[[], float] = time.perf_counter) -> None:
+        self._clock = clock
+        self.seconds = dict.fromkeys(self.PHASES, 0.0)
+        self._last = clock()
+
+    def start(self) -> None:
+        """Laps count from now (run() starts it before the first step)."""
+        self._last = self._clock()
+
+    def lap(self, phase: str) -> None:
+        now = self._clock()
+        self.seconds[phase] += now - self._last
+        self._last = now
+
+
+def _no_lap(_phase: str) -> None:
+    pass
 
 
 class _FaultSchedule:
@@ -161,12 +196,13 @@ def run(
     progress: Callable[[float], None] | None = None,
     eeprom: bytes | None = None,
     realtime: bool = False,
+    timing: StepTiming | None = None,
 ) -> RunResult:
     """Plays a scenario; writes run.csv, serial/ and summary.json in out_dir.
     eeprom: bytes the IMU's EEPROM holds from address 0 when it starts, e.g.
     the 148-byte coefficient block of `thermotilt fit` (coefficients.bin).
     realtime: no step ends before its simulated time has passed on the wall
-    clock, as on a board."""
+    clock, as on a board. timing: where the steps' wall time goes."""
     for fault in model.faults:
         if fault.name in CHAMBER_FAULTS and not scenario.uses_chamber:
             raise SimulationError(
@@ -193,7 +229,7 @@ def run(
                 )
             writer = RunLogWriter(csv_stream, with_truth=True, flush_each_row=False)
             try:
-                _play(scenario, model, seed, links, writer, pty, on_pty, progress, realtime)
+                _play(scenario, model, seed, links, writer, pty, on_pty, progress, realtime, timing)
                 interrupted = False
             except KeyboardInterrupt:
                 # Ctrl-C keeps what was simulated so far, summary included.
@@ -241,6 +277,7 @@ def _play(
     on_pty: Callable[[str, str], None] | None,
     progress: Callable[[float], None] | None,
     realtime: bool,
+    timing: StepTiming | None,
 ) -> None:
     imu = links[IMU]
     chamber_link = links.get(CHAMBER)
@@ -292,6 +329,10 @@ def _play(
     drive = None
     steps = round(scenario.duration_s / STEP_S)
     pacer = WallClockPacer() if realtime else None
+    lap = _no_lap
+    if timing is not None:
+        lap = timing.lap
+        timing.start()
     for step in range(steps):
         t = step * STEP_S
         faults.update(t)
@@ -302,22 +343,30 @@ def _play(
             links[command.board].send(command.frame_type, command.values)
         ambient = scenario.ambient_c(t)
         environment = ambient
+        lap("other")
         if chamber is not None:
             drive = chamber_link.board.read_l298n()
+            lap("board_io")
             current = -drive.direction if peltier_reversed else drive.direction
             chamber.step(STEP_S, drive.duty, current, ambient)
             inner_mv, outer_mv = chamber.thermistor_millivolts()
+            lap("physics")
             chamber_link.board.set_adc_millivolts(INNER_THERMISTOR_CHANNEL, inner_mv)
             chamber_link.board.set_adc_millivolts(OUTER_THERMISTOR_CHANNEL, outer_mv)
             environment = chamber.inner_c
+            lap("board_io")
         sample = sensor.step(STEP_S, environment, position.incl_x_deg, position.incl_y_deg)
+        lap("physics")
         imu.board.set_lsm9ds0(sample.ax, sample.ay, sample.az, sample.temperature_raw)
+        lap("board_io")
 
         end = (step + 1) * STEP_S
         for link in links.values():
             link.board.run_until(end)
+        lap("boards")
         if pacer is not None:
             pacer.wait_until(end)
+            lap("other")
         if chamber_link is not None:
             for frame in chamber_link.receive():
                 if frame.type == "CHS":
@@ -325,6 +374,7 @@ def _play(
                     program_ran |= frame["phase"] in ("W", "C", "R")
                     program_over = program_ran and frame["phase"] in ("D", "I")
         imu_frames = [frame for frame in imu.receive() if frame.type == "IMU"]
+        lap("frames")
         if imu_frames:
             context = {
                 "ambient_c": format_number(ambient, 3),
@@ -335,6 +385,7 @@ def _play(
             truth = _truth(sample, chamber, drive)
             for frame in imu_frames:
                 writer.write_imu_frame(frame, chamber_state, context, truth)
+        lap("csv")
         if progress is not None and step % 100 == 99:
             progress(end)
         if scenario.ends_with_program and program_over:
