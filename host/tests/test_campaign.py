@@ -30,6 +30,28 @@ def statuses(out):
     return {entry["label"]: entry["status"] for entry in campaign_file(out)["positions"]}
 
 
+def interrupt_once_a_position_is_done(command, out):
+    """Runs the campaign command and sends Ctrl-C once a position is done;
+    it must exit 130 keeping that position. Returns the statuses then and
+    each finished position's run.csv."""
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+    def first_done():
+        assert process.poll() is None, process.communicate()
+        return (out / "campaign.json").exists() and "done" in statuses(out).values()
+
+    wait_for(first_done, "a finished position", timeout_s=120)
+    process.send_signal(signal.SIGINT)
+    stdout, stderr = process.communicate(timeout=60)
+    assert process.returncode == 130, stderr
+    assert stderr.rstrip().endswith("thermotilt: interrupted")
+    assert "add --resume" in stdout
+    before = statuses(out)
+    finished = {label for label, status in before.items() if status == "done"}
+    assert finished
+    return before, {label: (out / label / "run.csv").read_bytes() for label in finished}
+
+
 @pytest.mark.slow
 @pytest.mark.twin
 def test_positions_run_in_workers_each_into_its_own_folder(tmp_path, capsys):
@@ -78,24 +100,10 @@ def test_ctrl_c_keeps_finished_positions_and_resume_runs_only_the_others(tmp_pat
     longer = ["--hold-seconds", "3", *SHORT[2:]]
     command = [*THERMOTILT, "campaign", "--twin", "--out", str(out), "--positions", "0,X+30,X-30",
                "--jobs", "2", *longer]
-    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-
-    def first_done():
-        assert process.poll() is None, process.communicate()
-        return (out / "campaign.json").exists() and "done" in statuses(out).values()
-
     # Two workers, three positions: once one is done the last one is running.
-    wait_for(first_done, "a finished position", timeout_s=120)
-    process.send_signal(signal.SIGINT)
-    stdout, stderr = process.communicate(timeout=60)
-    assert process.returncode == 130, stderr
-    assert stderr.rstrip().endswith("thermotilt: interrupted")
-    assert "add --resume" in stdout
-    before = statuses(out)
-    finished = {label for label, status in before.items() if status == "done"}
-    assert finished and set(before.values()) <= {"done", "interrupted", "pending"}
+    before, kept = interrupt_once_a_position_is_done(command, out)
+    assert set(before.values()) <= {"done", "interrupted", "pending"}
     assert "interrupted" in before.values()
-    kept = {label: (out / label / "run.csv").read_bytes() for label in finished}
 
     assert cli.main(["campaign", "--twin", "--out", str(out), "--positions", "0,X+30,X-30",
                      "--jobs", "2", *longer]) == 1

@@ -5,7 +5,6 @@ same way; an unreachable scheduler or a worker without the build is one
 line (docs/calibration.md)."""
 
 import json
-import signal
 import subprocess
 
 import pytest
@@ -20,8 +19,7 @@ from thermotilt.calibration.campaign import (
 )
 from thermotilt.scenarios import ScenarioOptions
 
-from test_campaign import SHORT, THERMOTILT, campaign_file, statuses
-from test_log import wait_for
+from test_campaign import SHORT, THERMOTILT, campaign_file, interrupt_once_a_position_is_done, statuses
 
 TIMES = ("started_utc", "wall_seconds")
 
@@ -68,23 +66,9 @@ def test_ctrl_c_on_a_cluster_keeps_finished_positions_and_resume_runs_the_others
     out = tmp_path / "campaign"
     command = [*THERMOTILT, "campaign", "--twin", "--out", str(out), "--positions", "0,X+30,X-30",
                "--scheduler", cluster.scheduler_address, *SHORT]
-    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-
-    def first_done():
-        assert process.poll() is None, process.communicate()
-        return (out / CAMPAIGN_FILE).exists() and "done" in statuses(out).values()
-
     # Two workers, three positions: the last one starts only when one is done.
-    wait_for(first_done, "a finished position", timeout_s=120)
-    process.send_signal(signal.SIGINT)
-    stdout, stderr = process.communicate(timeout=60)
-    assert process.returncode == 130, stderr
-    assert stderr.rstrip().endswith("thermotilt: interrupted")
-    assert "add --resume" in stdout
-    before = statuses(out)
-    finished = {label for label, status in before.items() if status == "done"}
-    assert finished and set(before.values()) == {"done", "pending"}
-    kept = {label: (out / label / "run.csv").read_bytes() for label in finished}
+    before, kept = interrupt_once_a_position_is_done(command, out)
+    assert set(before.values()) == {"done", "pending"}
 
     result = subprocess.run([*command, "--resume"], capture_output=True, text=True, timeout=180, check=False)
     assert result.returncode == 0, result.stderr
