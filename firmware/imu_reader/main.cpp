@@ -128,10 +128,7 @@ bool blockErrorCode(BlockStatus status, Protocol::ErrorCode& code)
     }
 }
 
-// LTO inlines setup(), loop() and what they call into main(), whose one frame
-// then holds all their locals for good. Not inlined, these two keep the
-// 148-byte block on the stack only while they run.
-__attribute__((noinline)) void loadCoefficients()
+void loadCoefficients()
 {
     uint8_t block[COEFFICIENT_BLOCK_SIZE];
     EEPROM.get(COEFFICIENTS_EEPROM_ADDRESS, block);
@@ -149,7 +146,7 @@ __attribute__((noinline)) void loadCoefficients()
     }
 }
 
-__attribute__((noinline)) void saveCoefficients()
+void saveCoefficients()
 {
     uint8_t block[COEFFICIENT_BLOCK_SIZE];
     encodeCoefficients(coefficients, block);
@@ -246,22 +243,22 @@ void handleCommand()
     const FrameParser& command = link.command();
     uint8_t set = 0;
     uint8_t axis = 0;
-    if (link.commandIs(Protocol::Frame::START) || link.commandIs(Protocol::Frame::STOP)) {
-        streaming = link.commandIs(Protocol::Frame::START);
+    if (link.commandIs(Protocol::Tag::START) || link.commandIs(Protocol::Tag::STOP)) {
+        streaming = link.commandIs(Protocol::Tag::START);
         processing.restartDecimation();
         link.acknowledge();
-    } else if (link.commandIs(Protocol::Frame::RESEED)) {
+    } else if (link.commandIs(Protocol::Tag::RESEED)) {
         // After a tilt-table move: the filters would take ~90 s to forget the
         // old angle; seeded again, the next samples average from the new one.
         processing.reset();
         link.acknowledge();
-    } else if (link.commandIs(Protocol::Frame::VERSION)) {
+    } else if (link.commandIs(Protocol::Tag::VERSION)) {
         link.sendVersion("imu_reader", FIRMWARE_VERSION);
         link.acknowledge();
-    } else if (link.commandIs(Protocol::Frame::STATUS)) {
+    } else if (link.commandIs(Protocol::Tag::STATUS)) {
         sendConfiguration();
         link.acknowledge();
-    } else if (link.commandIs(Protocol::Frame::SETDEC)) {
+    } else if (link.commandIs(Protocol::Tag::SETDEC)) {
         int32_t factor = 0;
         if (command.fieldCount() < Protocol::FieldCount::SETDEC || !command.fieldInt(0, factor) ||
             factor < 1 || factor > 255) {
@@ -270,14 +267,14 @@ void handleCommand()
         }
         processing.setDecimation((uint8_t)factor);
         link.acknowledge();
-    } else if (link.commandIs(Protocol::Frame::GETCOE)) {
+    } else if (link.commandIs(Protocol::Tag::GETCOE)) {
         if (command.fieldCount() < Protocol::FieldCount::GETCOE || !parseSetAndAxis(command, set, axis)) {
             link.reject(Error::BAD_ARG, Detail::SET_AXIS);
             return;
         }
         sendCoefficients(set, axis);
         link.acknowledge();
-    } else if (link.commandIs(Protocol::Frame::SETCOE)) {
+    } else if (link.commandIs(Protocol::Tag::SETCOE)) {
         AxisSurface surface;
         bool valid = command.fieldCount() >= Protocol::FieldCount::SETCOE && parseSetAndAxis(command, set, axis);
         for (uint8_t term = 0; valid && term < COMP_COEFFICIENT_COUNT; ++term) {
@@ -294,14 +291,14 @@ void handleCommand()
         coefficients.set[set].axis[axis] = surface;
         coefficientSource = UPLOADED;
         link.acknowledge();
-    } else if (link.commandIs(Protocol::Frame::SAVECOE)) {
+    } else if (link.commandIs(Protocol::Tag::SAVECOE)) {
         saveCoefficients();
         link.acknowledge();
-    } else if (link.commandIs(Protocol::Frame::DEFCOE)) {
+    } else if (link.commandIs(Protocol::Tag::DEFCOE)) {
         loadDefaultCoefficients(coefficients);
         coefficientSource = FROM_DEFAULTS;
         link.acknowledge();
-    } else if (link.commandIs(Protocol::Frame::RESET)) {
+    } else if (link.commandIs(Protocol::Tag::RESET)) {
         link.acknowledge();
         // The ACK leaves before the reset cuts the line.
         Serial.flush();
@@ -326,9 +323,7 @@ void setup()
     connectSensor();
 }
 
-// Not inlined either: its locals would sit under loadCoefficients() at start-up,
-// the deepest the stack goes.
-__attribute__((noinline)) void loop()
+void loop()
 {
     if (resetting) {
         return;

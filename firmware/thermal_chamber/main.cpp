@@ -455,7 +455,7 @@ void clearFault()
 void handleCommand(uint32_t now)
 {
     const FrameParser& command = link.command();
-    if (link.commandIs(Protocol::Frame::START)) {
+    if (link.commandIs(Protocol::Tag::START)) {
         if (fault != NO_FAULT) {
             link.reject(Error::FAULT, faultName(fault));
             return;
@@ -470,25 +470,25 @@ void handleCommand(uint32_t now)
         controller.reset();
         programState = programRun.start(inner.celsius);
         link.acknowledge();
-    } else if (link.commandIs(Protocol::Frame::STOP)) {
+    } else if (link.commandIs(Protocol::Tag::STOP)) {
         stopProgram();
         link.acknowledge();
-    } else if (link.commandIs(Protocol::Frame::VERSION)) {
+    } else if (link.commandIs(Protocol::Tag::VERSION)) {
         link.sendVersion("thermal_chamber", FIRMWARE_VERSION);
         link.acknowledge();
-    } else if (link.commandIs(Protocol::Frame::STATUS)) {
+    } else if (link.commandIs(Protocol::Tag::STATUS)) {
         sendProgram();
         sendGuard();
         link.acknowledge();
-    } else if (link.commandIs(Protocol::Frame::SETPRG)) {
+    } else if (link.commandIs(Protocol::Tag::SETPRG)) {
         setProgram(command);
-    } else if (link.commandIs(Protocol::Frame::SETCTL)) {
+    } else if (link.commandIs(Protocol::Tag::SETCTL)) {
         setControl(command);
-    } else if (link.commandIs(Protocol::Frame::SETGRD)) {
+    } else if (link.commandIs(Protocol::Tag::SETGRD)) {
         setGuard(command);
-    } else if (link.commandIs(Protocol::Frame::SETHB)) {
+    } else if (link.commandIs(Protocol::Tag::SETHB)) {
         setHeartbeat(command);
-    } else if (link.commandIs(Protocol::Frame::CLEAR)) {
+    } else if (link.commandIs(Protocol::Tag::CLEAR)) {
         clearFault();
     } else {
         link.reject(Error::UNKNOWN_CMD, command.type());
