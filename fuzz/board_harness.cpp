@@ -348,6 +348,12 @@ private:
             boot();
         }
         ArduinoShim::advanceMillis(stepMs);
+        // Between passes the sketch idles for at most a timer tick on the AVR;
+        // a step past its watchdog's timeout is a stall, which resets the
+        // board before loop() could see the whole step as elapsed time.
+        if (ArduinoShim::watchdogExpired()) {
+            resetByWatchdog();
+        }
         for (size_t i = 0; i < count; ++i) {
             ArduinoShim::receiveSerial((uint8_t)(*bytes)[from + i]);
         }
@@ -358,6 +364,12 @@ private:
             resetFlags_ = _BV(WDRF);
             booted_ = false;
         }
+    }
+
+    void resetByWatchdog()
+    {
+        resetFlags_ = _BV(WDRF);
+        boot();
     }
 
     void boot()
