@@ -76,7 +76,7 @@ void SerialLink::send()
     memcpy(type, line_ + 1, typeLength);
     type[typeLength] = '\0';
     // An ERR always fits; the guard keeps a broken writer from recursing.
-    if (strcmp(type, Protocol::Tag::ERR) != 0) {
+    if (strcmp_P(type, Protocol::Frame::ERR.tag) != 0) {
         report(Protocol::Error::FRAME_ENCODE, type);
     }
 }

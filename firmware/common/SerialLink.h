@@ -31,7 +31,11 @@ public:
     // ERR, at most once per MALFORMED_REPORT_MS.
     bool poll();
     const FrameParser& command() const { return parser_; }
-    bool commandIs(const char* tag) const { return parser_.typeIs(tag); }
+    // Inline, as start(): e.g. commandIs(Protocol::Frame::START).
+    __attribute__((always_inline)) bool commandIs(Protocol::FrameType type) const
+    {
+        return parser_.typeIs_P(type.tag);
+    }
 
     // millis() when the last valid frame from the host arrived.
     uint32_t lastHostFrameMs() const { return lastHostFrameMs_; }

@@ -128,7 +128,10 @@ bool blockErrorCode(BlockStatus status, Protocol::ErrorCode& code)
     }
 }
 
-void loadCoefficients()
+// LTO inlines setup(), loop() and what they call into main(), whose one frame
+// then holds all their locals for good. Not inlined, these two keep the
+// 148-byte block on the stack only while they run.
+__attribute__((noinline)) void loadCoefficients()
 {
     uint8_t block[COEFFICIENT_BLOCK_SIZE];
     EEPROM.get(COEFFICIENTS_EEPROM_ADDRESS, block);
@@ -146,7 +149,7 @@ void loadCoefficients()
     }
 }
 
-void saveCoefficients()
+__attribute__((noinline)) void saveCoefficients()
 {
     uint8_t block[COEFFICIENT_BLOCK_SIZE];
     encodeCoefficients(coefficients, block);
@@ -243,22 +246,22 @@ void handleCommand()
     const FrameParser& command = link.command();
     uint8_t set = 0;
     uint8_t axis = 0;
-    if (link.commandIs(Protocol::Tag::START) || link.commandIs(Protocol::Tag::STOP)) {
-        streaming = link.commandIs(Protocol::Tag::START);
+    if (link.commandIs(Protocol::Frame::START) || link.commandIs(Protocol::Frame::STOP)) {
+        streaming = link.commandIs(Protocol::Frame::START);
         processing.restartDecimation();
         link.acknowledge();
-    } else if (link.commandIs(Protocol::Tag::RESEED)) {
+    } else if (link.commandIs(Protocol::Frame::RESEED)) {
         // After a tilt-table move: the filters would take ~90 s to forget the
         // old angle; seeded again, the next samples average from the new one.
         processing.reset();
         link.acknowledge();
-    } else if (link.commandIs(Protocol::Tag::VERSION)) {
+    } else if (link.commandIs(Protocol::Frame::VERSION)) {
         link.sendVersion("imu_reader", FIRMWARE_VERSION);
         link.acknowledge();
-    } else if (link.commandIs(Protocol::Tag::STATUS)) {
+    } else if (link.commandIs(Protocol::Frame::STATUS)) {
         sendConfiguration();
         link.acknowledge();
-    } else if (link.commandIs(Protocol::Tag::SETDEC)) {
+    } else if (link.commandIs(Protocol::Frame::SETDEC)) {
         int32_t factor = 0;
         if (command.fieldCount() < Protocol::FieldCount::SETDEC || !command.fieldInt(0, factor) ||
             factor < 1 || factor > 255) {
@@ -267,14 +270,14 @@ void handleCommand()
         }
         processing.setDecimation((uint8_t)factor);
         link.acknowledge();
-    } else if (link.commandIs(Protocol::Tag::GETCOE)) {
+    } else if (link.commandIs(Protocol::Frame::GETCOE)) {
         if (command.fieldCount() < Protocol::FieldCount::GETCOE || !parseSetAndAxis(command, set, axis)) {
             link.reject(Error::BAD_ARG, Detail::SET_AXIS);
             return;
         }
         sendCoefficients(set, axis);
         link.acknowledge();
-    } else if (link.commandIs(Protocol::Tag::SETCOE)) {
+    } else if (link.commandIs(Protocol::Frame::SETCOE)) {
         AxisSurface surface;
         bool valid = command.fieldCount() >= Protocol::FieldCount::SETCOE && parseSetAndAxis(command, set, axis);
         for (uint8_t term = 0; valid && term < COMP_COEFFICIENT_COUNT; ++term) {
@@ -291,14 +294,14 @@ void handleCommand()
         coefficients.set[set].axis[axis] = surface;
         coefficientSource = UPLOADED;
         link.acknowledge();
-    } else if (link.commandIs(Protocol::Tag::SAVECOE)) {
+    } else if (link.commandIs(Protocol::Frame::SAVECOE)) {
         saveCoefficients();
         link.acknowledge();
-    } else if (link.commandIs(Protocol::Tag::DEFCOE)) {
+    } else if (link.commandIs(Protocol::Frame::DEFCOE)) {
         loadDefaultCoefficients(coefficients);
         coefficientSource = FROM_DEFAULTS;
         link.acknowledge();
-    } else if (link.commandIs(Protocol::Tag::RESET)) {
+    } else if (link.commandIs(Protocol::Frame::RESET)) {
         link.acknowledge();
         // The ACK leaves before the reset cuts the line.
         Serial.flush();
@@ -323,7 +326,9 @@ void setup()
     connectSensor();
 }
 
-void loop()
+// Not inlined either: its locals would sit under loadCoefficients() at start-up,
+// the deepest the stack goes.
+__attribute__((noinline)) void loop()
 {
     if (resetting) {
         return;

@@ -455,7 +455,7 @@ void clearFault()
 void handleCommand(uint32_t now)
 {
     const FrameParser& command = link.command();
-    if (link.commandIs(Protocol::Tag::START)) {
+    if (link.commandIs(Protocol::Frame::START)) {
         if (fault != NO_FAULT) {
             link.reject(Error::FAULT, faultName(fault));
             return;
@@ -470,25 +470,25 @@ void handleCommand(uint32_t now)
         controller.reset();
         programState = programRun.start(inner.celsius);
         link.acknowledge();
-    } else if (link.commandIs(Protocol::Tag::STOP)) {
+    } else if (link.commandIs(Protocol::Frame::STOP)) {
         stopProgram();
         link.acknowledge();
-    } else if (link.commandIs(Protocol::Tag::VERSION)) {
+    } else if (link.commandIs(Protocol::Frame::VERSION)) {
         link.sendVersion("thermal_chamber", FIRMWARE_VERSION);
         link.acknowledge();
-    } else if (link.commandIs(Protocol::Tag::STATUS)) {
+    } else if (link.commandIs(Protocol::Frame::STATUS)) {
         sendProgram();
         sendGuard();
         link.acknowledge();
-    } else if (link.commandIs(Protocol::Tag::SETPRG)) {
+    } else if (link.commandIs(Protocol::Frame::SETPRG)) {
         setProgram(command);
-    } else if (link.commandIs(Protocol::Tag::SETCTL)) {
+    } else if (link.commandIs(Protocol::Frame::SETCTL)) {
         setControl(command);
-    } else if (link.commandIs(Protocol::Tag::SETGRD)) {
+    } else if (link.commandIs(Protocol::Frame::SETGRD)) {
         setGuard(command);
-    } else if (link.commandIs(Protocol::Tag::SETHB)) {
+    } else if (link.commandIs(Protocol::Frame::SETHB)) {
         setHeartbeat(command);
-    } else if (link.commandIs(Protocol::Tag::CLEAR)) {
+    } else if (link.commandIs(Protocol::Frame::CLEAR)) {
         clearFault();
     } else {
         link.reject(Error::UNKNOWN_CMD, command.type());

@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include <Crc16.h>
+#include <ProgramMemory.h>
 #ifndef __AVR__
 #include <stdio.h>
 #endif
@@ -102,10 +103,14 @@ uint16_t Protocol::checksum(const char *text, uint8_t length)
     return crc16Xmodem((const uint8_t *)text, length);
 }
 
+#define THERMOTILT_FRAME(tag, direction, fields) const char Protocol::ProgmemTag::tag[] PROGMEM = #tag;
+#include "ProtocolFrames.def"
+#undef THERMOTILT_FRAME
+
 bool Protocol::isBoardFrame(const char *type)
 {
 #define THERMOTILT_FRAME(tag, direction, fields) \
-    if (THERMOTILT_DIRECTION_##direction && strcmp(type, Tag::tag) == 0) return true;
+    if (THERMOTILT_DIRECTION_##direction && strcmp_P(type, ProgmemTag::tag) == 0) return true;
 #define THERMOTILT_DIRECTION_BOARD true
 #define THERMOTILT_DIRECTION_HOST false
 #include "ProtocolFrames.def"
@@ -141,6 +146,16 @@ void FrameWriter::beginFrame(const char *type, uint16_t seq, uint8_t expectedFie
     append(",");
     append(formatUnsigned(seq, digits + sizeof digits - 1));
     fieldCount_ = 0;
+}
+
+void FrameWriter::beginFrame_P(const char *type, uint16_t seq, uint8_t expectedFieldCount)
+{
+    // Room for one character more than a TYPE may have: a longer one, cut
+    // here, stays too long.
+    char tag[MAX_TYPE_LENGTH + 2];
+    strncpy_P(tag, type, sizeof tag - 1);
+    tag[sizeof tag - 1] = '\0';
+    beginFrame(tag, seq, expectedFieldCount);
 }
 
 void FrameWriter::append(const char *text)
@@ -407,6 +422,11 @@ MalformedReason FrameParser::splitLine(uint8_t end)
 bool FrameParser::typeIs(const char *tag) const
 {
     return strcmp(line_, tag) == 0;
+}
+
+bool FrameParser::typeIs_P(const char *tag) const
+{
+    return strcmp_P(line_, tag) == 0;
 }
 
 const char *FrameParser::field(uint8_t index) const

@@ -32,9 +32,17 @@ constexpr uint8_t countFields(const char *fields)
     return *fields == '\0' ? 0 : (uint8_t)(countCommas(fields) + 1);
 }
 
-// Type tags, e.g. Protocol::Tag::IMU == "IMU".
+// Type tags, e.g. Protocol::Tag::IMU == "IMU", for tools and tests. The
+// boards reach a tag through Frame, which keeps it in program memory.
 namespace Tag {
 #define THERMOTILT_FRAME(tag, direction, fields) constexpr char tag[] = #tag;
+#include "ProtocolFrames.def"
+#undef THERMOTILT_FRAME
+}
+
+// The same in program memory (PROGMEM, Protocol.cpp).
+namespace ProgmemTag {
+#define THERMOTILT_FRAME(tag, direction, fields) extern const char tag[];
 #include "ProtocolFrames.def"
 #undef THERMOTILT_FRAME
 }
@@ -51,12 +59,12 @@ namespace FieldCount {
 // On the AVR a constant like this lives in RAM once a call takes it whole, so
 // only inline functions take it and pass its members on.
 struct FrameType {
-    const char *tag;
+    const char *tag;  // in program memory (PROGMEM)
     uint8_t fieldCount;
 };
 
 namespace Frame {
-#define THERMOTILT_FRAME(tag, direction, fields) constexpr FrameType tag = {Tag::tag, FieldCount::tag};
+#define THERMOTILT_FRAME(tag, direction, fields) constexpr FrameType tag = {ProgmemTag::tag, FieldCount::tag};
 #include "ProtocolFrames.def"
 #undef THERMOTILT_FRAME
 }
@@ -121,7 +129,7 @@ public:
     // count was added.
     __attribute__((always_inline)) void begin(Protocol::FrameType type, uint16_t seq)
     {
-        beginFrame(type.tag, seq, type.fieldCount);
+        beginFrame_P(type.tag, seq, type.fieldCount);
     }
     // Any valid TYPE with any number of fields (tools, tests, fuzzing).
     void begin(const char *type, uint16_t seq) { beginFrame(type, seq, ANY_FIELD_COUNT); }
@@ -145,6 +153,8 @@ private:
     static const uint8_t ANY_FIELD_COUNT = 0xFF;
 
     void beginFrame(const char *type, uint16_t seq, uint8_t expectedFieldCount);
+    // The same with the TYPE in program memory.
+    void beginFrame_P(const char *type, uint16_t seq, uint8_t expectedFieldCount);
     bool startField();
     void append(const char *text);
     bool addNonFinite(float value);
@@ -169,6 +179,8 @@ public:
 
     const char *type() const { return line_; }
     bool typeIs(const char *tag) const;
+    // The same with the tag in program memory, e.g. Protocol::Frame::START.tag.
+    bool typeIs_P(const char *tag) const;
     uint16_t seq() const { return seq_; }
     uint8_t fieldCount() const { return fieldCount_; }
     // Field i after TYPE and SEQ, or 0 when i is out of range.
