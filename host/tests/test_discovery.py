@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from scipy import stats
 
 from thermotilt.discovery.candidates import BY_NAME
 from thermotilt.discovery.hide import hide_effect, staircase_inputs
@@ -30,6 +31,8 @@ CASES = (
     ("cross_axis", "Y"),
     ("temperature_offset", "temperature"),
 )
+
+WIDE_INTERVAL = stats.norm.isf(0.0005) / stats.norm.isf(0.025)
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess[str]:
@@ -63,7 +66,13 @@ def _assert_named_at_snr_4(inputs: Path, tmp_path: Path, effect: str, channel: s
     if BY_NAME[effect].per_axis:
         assert found.channel == channel
     low, high = found.interval
-    assert low <= truth.value <= high
+    # A 95 % interval misses one case in 20 by design, so these 13 cases
+    # would fail together about half the time on any new draw of the noise
+    # (a twin run moved by a millisecond is one). The test takes the same
+    # fit's 99.9 % interval instead (1.3 % for all 13); the 95 % interval's
+    # coverage over seeds is a figure of `make bench-discovery`.
+    half_width = WIDE_INTERVAL * (high - low) / 2.0
+    assert abs(truth.value - found.value) <= half_width
     # The gap left is the noise: at SNR 4 the hidden effect is 4x the noise
     # RMS, so the residual before is sqrt(17) x the noise, and the fitted
     # effect takes at least 80 % of what separates that from the noise

@@ -60,6 +60,9 @@ def _case(task: tuple[str, str, float | None, str, int, str]) -> dict:
         true_gap = gap_rms(channel, (measured.observed[channel] - replay(measured, true_model)[channel])[used])
         before, after = outcome.gap[channel]["before"], outcome.gap[channel]["after"]
         result["shrink"] = (before - after) / (before - true_gap) if before > true_gap else float("nan")
+        if outcome.effects:
+            low, high = outcome.effects[0].interval
+            result["covered"] = bool(low <= truth.value <= high)
     return result
 
 
@@ -144,6 +147,14 @@ def main() -> None:
         if shrink:
             print(f"gap shrink relative to the true model, SNR >= 2 and named right: median "
                   f"{np.median(shrink):.0%}, least {min(shrink):.0%} (target >= 80 %)")
+        for side, names in (("sensor", lambda r: r["channel"] not in CHAMBER_CHANNELS),
+                            ("chamber", lambda r: r["channel"] in CHAMBER_CHANNELS)):
+            named = [r for r in hidden if _named_right(r) and names(r)]
+            if named:
+                inside = sum(r["covered"] for r in named)
+                print(f"{side}: true value inside the 95 % interval {inside}/{len(named)} = "
+                      f"{inside / len(named):.0%} of the runs named right (target about 95 %)"
+                      + ("; the chamber's runs share one twin cycle's noise" if side == "chamber" else ""))
         print("confusion (rows: hidden effect; columns: first effect found, or the verdict):")
         columns = [c.name for c in CANDIDATES] + ["ambiguous", "none"]
         table = defaultdict(Counter)

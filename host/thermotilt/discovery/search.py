@@ -13,7 +13,7 @@ AR(1) misses. The p-values of all candidates and channels of a round are
 adjusted for the false-discovery rate (Benjamini-Hochberg); a candidate is
 found only when it is significant after that, shrinks the channel's RMS
 residual by at least MIN_GAP_REDUCTION, has a value its parameter can take
-and makes no other channel worse. The chamber's channels carry the unknown
+and no other channel's data reject the change it makes there. The chamber's channels carry the unknown
 start of the chamber as nuisance columns. docs/discovery.md states the rules.
 """
 
@@ -342,7 +342,7 @@ class Search:
                  and self._within_bounds(t)),
                 key=lambda t: (t.channel not in CHAMBER_CHANNELS, -t.gap_reduction),
             )
-            accepted = [t for t in accepted if not self._spoils_another_channel(t, model, residual)]
+            accepted = [t for t in accepted if not self._contradicted_elsewhere(t, model, base, channels)]
             if not accepted:
                 break
             best = accepted[0]
@@ -489,21 +489,29 @@ class Search:
                 rivals.append(other.candidate)
         return rivals
 
-    def _spoils_another_channel(self, test: Test, model: Model,
-                                residual: Mapping[str, np.ndarray]) -> bool:
-        """An effect that explains its channel by making another one's gap
-        worse by more than a found effect must take off (a thermistor offset
-        that the sensor's own temperature contradicts) is not the missing
-        effect."""
+    def _contradicted_elsewhere(self, test: Test, model: Model, base: Mapping[str, np.ndarray],
+                                channels: Mapping[str, Channel]) -> bool:
+        """Another channel's data reject the change the effect makes there
+        (a thermistor offset that the sensor's own temperature contradicts
+        is not the missing effect). Each other channel's residual is fitted
+        on that change with its own whitening, so a change its declared
+        noise could make (a drift slope per mounting) contradicts nothing:
+        contradicted when the data take less than half of the change and
+        reject all of it, one-sided at ALPHA over the channels checked."""
         candidate = BY_NAME[test.candidate]
         predicted = self.predict(candidate.changed(model, {test.channel: test.value}))
-        for channel in self.measured.channels:
-            if channel == test.channel:
+        changes = {}
+        for name, other in channels.items():
+            if name == test.channel:
                 continue
-            used = self.measured.used[channel]
-            before = gap_rms(channel, residual[channel][used])
-            after = gap_rms(channel, (self.measured.observed[channel] - predicted[channel])[used])
-            if after > before / (1.0 - MIN_GAP_REDUCTION):
+            change = other.blocks((predicted[name] - base[name])[other.rows])
+            if np.any(change) and other.testable(change):
+                changes[name] = change
+        critical = stats.norm.isf(ALPHA / max(len(changes), 1))
+        for name, change in changes.items():
+            fit = channels[name].fit(change[:, None])
+            share, error = float(fit.params[0]), float(fit.bse[0])
+            if share < 0.5 and (1.0 - share) > critical * error:
                 return True
         return False
 
