@@ -16,6 +16,7 @@ void KalmanFilter::reset()
     covariance_ = measurementNoise_;
     gain_ = 1.0f;
     seeded_ = false;
+    gainSettled_ = false;
 }
 
 float KalmanFilter::update(float measurement)
@@ -25,8 +26,13 @@ float KalmanFilter::update(float measurement)
         seeded_ = true;
         return estimate_;
     }
-    covariance_ += processNoise_;
-    gain_ = covariance_ / (covariance_ + measurementNoise_);
+    if (!gainSettled_) {
+        float predicted = covariance_ + processNoise_;
+        gain_ = predicted / (predicted + measurementNoise_);
+        float updated = (1.0f - gain_) * predicted;
+        gainSettled_ = updated == covariance_;
+        covariance_ = updated;
+    }
 
     // A float near 16000 LSB has a resolution of 0.002 LSB, while a correction
     // of gain * 1 LSB is 0.001 LSB: plain "estimate += correction" would round
@@ -36,8 +42,6 @@ float KalmanFilter::update(float measurement)
     float sum = estimate_ + correction;
     lostLowBits_ = (sum - estimate_) - correction;
     estimate_ = sum;
-
-    covariance_ = (1.0f - gain_) * covariance_;
     return estimate_;
 }
 
