@@ -25,6 +25,8 @@ static const char* malformedName(Protocol::MalformedReason reason)
 
 SerialLink::SerialLink()
     : writer_(line_, sizeof line_),
+      pending_(0),
+      pendingLength_(0),
       nextSeq_(0),
       malformedSeen_(0),
       encodeFailures_(0),
@@ -64,7 +66,9 @@ void SerialLink::send()
 {
     const char* text = writer_.finish();
     if (text) {
-        Serial.write(text);
+        pending_ = text;
+        pendingLength_ = (uint8_t)strlen(text);
+        writePending();
         return;
     }
     ++encodeFailures_;
@@ -79,6 +83,32 @@ void SerialLink::send()
     if (strcmp_P(type, Protocol::Frame::ERR.tag) != 0) {
         report(Protocol::Error::FRAME_ENCODE, type);
     }
+}
+
+void SerialLink::writePending()
+{
+    if (!pendingLength_) {
+        return;
+    }
+    int room = Serial.availableForWrite();
+    uint8_t count = room < (int)pendingLength_ ? (uint8_t)room : pendingLength_;
+    Serial.write(pending_, count);
+    pending_ += count;
+    pendingLength_ -= count;
+}
+
+void SerialLink::finishPending()
+{
+    if (pendingLength_) {
+        Serial.write(pending_, pendingLength_);
+        pendingLength_ = 0;
+    }
+}
+
+void SerialLink::flush()
+{
+    finishPending();
+    Serial.flush();
 }
 
 void SerialLink::sendVersion(const char* device, const char* firmwareVersion)

@@ -48,10 +48,19 @@ public:
     // the constant from memory, which on the AVR keeps it in RAM.
     __attribute__((always_inline)) FrameWriter& start(Protocol::FrameType type)
     {
+        finishPending();
         writer_.begin(type, nextSeq_++);
         return writer_;
     }
+    // Hands the frame to Serial as far as its transmit buffer has room; the
+    // rest waits for writePending(), so the loop never spins on the UART (an
+    // IMU frame is longer than the 64-byte buffer). The next start(), or
+    // flush(), writes what is still waiting first, so frames never interleave.
     void send();
+    // Call every loop pass: more of a frame that did not fit.
+    void writePending();
+    // Everything sent is on the line (before a reset cuts it).
+    void flush();
     uint16_t encodeFailures() const { return encodeFailures_; }
 
     // The VER frame: which firmware, which protocol, why the board last reset.
@@ -74,9 +83,13 @@ public:
 
 private:
     void sendError(int32_t commandSeq, const char* code, const char* detail);
+    void finishPending();
 
     char line_[Protocol::LINE_BUFFER_SIZE];
     FrameWriter writer_;
+    // What of writer_'s last frame Serial has not taken yet.
+    const char* pending_;
+    uint8_t pendingLength_;
     FrameParser parser_;
     uint16_t nextSeq_;
     uint16_t malformedSeen_;

@@ -304,7 +304,7 @@ void handleCommand()
     } else if (link.commandIs(Protocol::Frame::RESET)) {
         link.acknowledge();
         // The ACK leaves before the reset cuts the line.
-        Serial.flush();
+        link.flush();
         startCommandedReset();
         resetting = true;
     } else {
@@ -334,6 +334,7 @@ __attribute__((noinline)) void loop()
         return;
     }
     feedWatchdog();
+    link.writePending();
     if (link.poll()) {
         handleCommand();
         if (resetting) {

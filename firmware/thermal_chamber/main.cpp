@@ -512,6 +512,7 @@ void setup()
 void loop()
 {
     feedWatchdog();
+    link.writePending();
     uint32_t now = millis();
     if (link.poll()) {
         handleCommand(now);
