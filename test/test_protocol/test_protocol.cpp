@@ -2,6 +2,7 @@
 
 #include <string.h>
 
+#include "ProgramMemory.h"
 #include "Protocol.h"
 
 // Expected lines and checksums were computed independently in Python:
@@ -47,6 +48,32 @@ static void test_table(void)
     TEST_ASSERT_EQUAL_UINT8(7, Protocol::FieldCount::SETPRG);
     TEST_ASSERT_EQUAL_UINT8(0, Protocol::FieldCount::START);
     TEST_ASSERT_EQUAL_STRING("SAVECOE", Protocol::Tag::SAVECOE);
+}
+
+// Integers at their extremes (the AVR formats them with avr-libc's ultoa,
+// elsewhere a division loop). The expected text stays in flash: the Nano's
+// RAM has no room for it beside this program's other strings.
+static const char INTEGER_EXTREMES[] PROGMEM = "$IMU,65535,0,4294967295,0,-1,2147483647,-2147483648,-16384";
+
+static void test_integer_extremes(void)
+{
+    FrameWriter writer(buffer, sizeof buffer);
+    writer.begin(Protocol::Tag::IMU, 65535);
+    writer.addUnsigned(0UL);
+    writer.addUnsigned(4294967295UL);
+    writer.addInt(0);
+    writer.addInt(-1);
+    writer.addInt(2147483647L);
+    writer.addInt(-2147483647L - 1);
+    writer.addInt(-16384);
+    const char *line = writer.finish();
+    TEST_ASSERT_NOT_NULL(line);
+    char body[64];
+    size_t length = strcspn(line, "*");
+    TEST_ASSERT_TRUE(length < sizeof body);
+    memcpy(body, line, length);
+    body[length] = '\0';
+    TEST_ASSERT_EQUAL_INT(0, strcmp_P(body, INTEGER_EXTREMES));
 }
 
 static void test_imu(void)
@@ -303,6 +330,7 @@ int runUnityTests(void)
     UNITY_BEGIN();
     RUN_TEST(test_checksum);
     RUN_TEST(test_table);
+    RUN_TEST(test_integer_extremes);
     RUN_TEST(test_imu);
     RUN_TEST(test_coe);
     RUN_TEST(test_bad_sum);

@@ -20,6 +20,7 @@ const uint8_t TRAILER_SIZE = 1 + CHECKSUM_DIGITS + 3;
 // Enough for a 32-bit integer, or a float with |value| < 1e9 and up to 8
 // decimals, or 8 significant digits in scientific notation.
 const uint8_t NUMBER_BUFFER_SIZE = 24;
+const uint8_t MAX_UINT32_DIGITS = 10;
 const uint8_t MAX_DECIMALS = 8;
 const float LARGEST_FIXED = 1e9f;
 
@@ -59,14 +60,24 @@ int8_t hexValue(char c)
 
 // Hand-written because avr-libc's ultoa is not portable and snprintf would
 // pull the whole printf engine into the Nano image for one integer.
+// The digits of value as text that ends at or before end, with room before
+// it for a sign. On the AVR avr-libc's ultoa divides by ten with a multiply
+// (__ultoa_invert): the 32-bit division of the loop below costs some 600
+// cycles a digit, most of what an IMU frame's integers cost to format.
 const char *formatUnsigned(uint32_t value, char *end)
 {
+#ifdef __AVR__
+    char *start = end - MAX_UINT32_DIGITS;
+    ultoa(value, start, 10);
+    return start;
+#else
     *end = '\0';
     do {
         *--end = (char)('0' + (uint8_t)(value % 10u));
         value /= 10u;
     } while (value != 0u);
     return end;
+#endif
 }
 
 // avr-libc's printf has no floating point unless a special library is
