@@ -127,6 +127,9 @@ void SerialLink::announceStart(const char* device, const char* firmwareVersion)
     if (resetWasAbnormal()) {
         report(Protocol::Error::RESET, resetCauseName());
     }
+    // Whole before setup() goes on to the sensor: a host reads the
+    // restart's VER and its ERR RESET together.
+    finishPending();
 }
 
 void SerialLink::acknowledge()
