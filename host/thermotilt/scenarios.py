@@ -14,6 +14,8 @@ from typing import Callable
 
 import numpy as np
 
+from .native import PAPER_PROPORTIONAL_GAIN
+
 # The firmware prints its version and reads its thermistors first; commands
 # are sent once it runs, as a host would after opening the port.
 PROGRAM_SENT_S = 1.0
@@ -26,7 +28,7 @@ HOLD_STARTS = ("T", "F", "A")
 DEFAULT_HOLD_START = "A"
 # --controller: the SETCTL a scenario sends before START; "float" sends none
 # and runs the firmware's default, the paper's P law in float.
-CONTROLLERS = {"float": None, "rounded-error": ("PR", 350.0, 0.0)}
+CONTROLLERS = {"float": None, "rounded-error": ("PR", PAPER_PROPORTIONAL_GAIN, 0.0)}
 
 # Figure 8 and section 3.2: steps of 2 degC held for one minute.
 PAPER_STEP_C = 2.0
