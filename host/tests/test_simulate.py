@@ -165,6 +165,24 @@ def test_cycle_at_0_deg_drifts_like_section_4_1(cycle_runs):
                                                            abs=DRIFT_SPAN_TOLERANCE_LSB), axis
 
 
+# The P law settles where its drive balances the chamber's heat flows, at
+# most a full drive's error away from the setpoint: 255/350 degC (the bound
+# test_figure8 uses before its noise allowance).
+SETTLED_ERROR_BOUND_C = 255 / 350
+
+
+@pytest.mark.twin
+@pytest.mark.parametrize("angle", [0, 30])
+def test_each_half_of_a_cycle_spans_minus_10_to_45_degc(cycle_runs, angle):
+    # Issue 7: the warming half once began at about 0 degC (its first holds
+    # were the chamber still cooling from the room) and the cold end reached
+    # -6 to -7 degC; the paper's calibration spans -10..45 in both halves.
+    rows = read_run_log(str(cycle_runs[angle] / "run.csv"))
+    for phase in ("W", "C"):
+        inner = [number(row["chamber_c"]) for row in rows if row["phase"] == phase and row["chamber_c"] != ""]
+        assert min(inner) < -10 + SETTLED_ERROR_BOUND_C and max(inner) > 45 - SETTLED_ERROR_BOUND_C, phase
+
+
 @pytest.mark.twin
 @pytest.mark.parametrize("angle", [0, 30])
 def test_a_calibration_cycle_never_trips_the_chambers_guard(cycle_runs, angle):
