@@ -147,9 +147,9 @@ def main() -> None:
         if shrink:
             print(f"gap shrink relative to the true model, SNR >= 2 and named right: median "
                   f"{np.median(shrink):.0%}, least {min(shrink):.0%} (target >= 80 %)")
-        for side, names in (("sensor", lambda r: r["channel"] not in CHAMBER_CHANNELS),
-                            ("chamber", lambda r: r["channel"] in CHAMBER_CHANNELS)):
-            named = [r for r in hidden if _named_right(r) and names(r)]
+        for side, on_side in (("sensor", lambda r: r["channel"] not in CHAMBER_CHANNELS),
+                              ("chamber", lambda r: r["channel"] in CHAMBER_CHANNELS)):
+            named = [r for r in hidden if _named_right(r) and on_side(r)]
             if named:
                 inside = sum(r["covered"] for r in named)
                 print(f"{side}: true value inside the 95 % interval {inside}/{len(named)} = "

@@ -13,8 +13,9 @@ AR(1) misses. The p-values of all candidates and channels of a round are
 adjusted for the false-discovery rate (Benjamini-Hochberg); a candidate is
 found only when it is significant after that, shrinks the channel's RMS
 residual by at least MIN_GAP_REDUCTION, has a value its parameter can take
-and no other channel's data reject the change it makes there. The chamber's channels carry the unknown
-start of the chamber as nuisance columns. docs/discovery.md states the rules.
+and no other channel's data reject the change it makes there. The chamber's
+channels carry the unknown start of the chamber as nuisance columns.
+docs/discovery.md states the rules.
 """
 
 from __future__ import annotations
