@@ -58,12 +58,11 @@ int8_t hexValue(char c)
     return -1;
 }
 
-// Hand-written because avr-libc's ultoa is not portable and snprintf would
-// pull the whole printf engine into the Nano image for one integer.
 // The digits of value as text that ends at or before end, with room before
 // it for a sign. On the AVR avr-libc's ultoa divides by ten with a multiply
-// (__ultoa_invert): the 32-bit division of the loop below costs some 600
-// cycles a digit, most of what an IMU frame's integers cost to format.
+// (__ultoa_invert): a 32-bit division costs some 600 cycles a digit, most of
+// what an IMU frame's integers cost to format. ultoa is not standard C, and
+// snprintf would bring the printf engine, so elsewhere the loop is by hand.
 const char *formatUnsigned(uint32_t value, char *end)
 {
 #ifdef __AVR__
