@@ -13,8 +13,8 @@ public:
     bool answers;
     bool acceptsWrites;
     uint8_t writeCount;
-    uint8_t writtenReg[4];
-    uint8_t writtenValue[4];
+    uint8_t writtenReg[5];
+    uint8_t writtenValue[5];
     uint8_t lastSubAddress;
 
     void reset()
@@ -32,7 +32,7 @@ public:
         if (!answers || address7 != deviceAddress || !acceptsWrites) {
             return false;
         }
-        if (writeCount < 4) {
+        if (writeCount < 5) {
             writtenReg[writeCount] = reg;
             writtenValue[writeCount] = value;
         }
@@ -72,19 +72,22 @@ static void test_begin_writes_table1(void)
 {
     Lsm9ds0Accel accel(bus);
     TEST_ASSERT_EQUAL(Lsm9ds0Accel::Ok, accel.begin());
-    TEST_ASSERT_EQUAL(4, bus.writeCount);
+    TEST_ASSERT_EQUAL(5, bus.writeCount);
     // CTRL_REG1_XM: AODR 0110 (100 Hz), BDU 1, Z/Y/X 111 -> 0110 1111 = 0x6F
     TEST_ASSERT_EQUAL_HEX8(0x20, bus.writtenReg[0]);
     TEST_ASSERT_EQUAL_HEX8(0x6F, bus.writtenValue[0]);
     // CTRL_REG2_XM: ABW 11 (50 Hz), AFS 000 (2 g), rest 0 -> 1100 0000 = 0xC0
     TEST_ASSERT_EQUAL_HEX8(0x21, bus.writtenReg[1]);
     TEST_ASSERT_EQUAL_HEX8(0xC0, bus.writtenValue[1]);
+    // CTRL_REG4_XM: P2_DRDYA only, accelerometer data-ready on INT2_XM -> 0000 1000 = 0x08
+    TEST_ASSERT_EQUAL_HEX8(0x23, bus.writtenReg[2]);
+    TEST_ASSERT_EQUAL_HEX8(0x08, bus.writtenValue[2]);
     // CTRL_REG5_XM: TEMP_EN 1, M_RES 00, M_ODR 100, LIR 00 -> 1001 0000 = 0x90
-    TEST_ASSERT_EQUAL_HEX8(0x24, bus.writtenReg[2]);
-    TEST_ASSERT_EQUAL_HEX8(0x90, bus.writtenValue[2]);
+    TEST_ASSERT_EQUAL_HEX8(0x24, bus.writtenReg[3]);
+    TEST_ASSERT_EQUAL_HEX8(0x90, bus.writtenValue[3]);
     // CTRL_REG7_XM: MD 00, magnetometer running, so the temperature updates.
-    TEST_ASSERT_EQUAL_HEX8(0x26, bus.writtenReg[3]);
-    TEST_ASSERT_EQUAL_HEX8(0x00, bus.writtenValue[3]);
+    TEST_ASSERT_EQUAL_HEX8(0x26, bus.writtenReg[4]);
+    TEST_ASSERT_EQUAL_HEX8(0x00, bus.writtenValue[4]);
 }
 
 static void test_begin_wrong_id(void)
@@ -129,6 +132,26 @@ static void test_accel_burst_decode(void)
     TEST_ASSERT_EQUAL_INT16(16385, xyz[0]);            // 0x4001
     TEST_ASSERT_EQUAL_INT16(-16384, xyz[1]);           // 0xC000
     TEST_ASSERT_EQUAL_INT16(32767, xyz[2]);            // 0x7FFF
+}
+
+static void test_fresh_accel_reads_status_and_sample_in_one_burst(void)
+{
+    const uint8_t statusAndSample[7] = {0x0F, 0x01, 0x40, 0x00, 0xC0, 0xFF, 0x7F};
+    memcpy(&bus.regs[0x27], statusAndSample, 7);
+    Lsm9ds0Accel accel(bus);
+    int16_t xyz[3] = {0, 0, 0};
+    bool fresh = false;
+    TEST_ASSERT_TRUE(accel.readFreshAcceleration(xyz, fresh));
+    TEST_ASSERT_EQUAL_HEX8(0xA7, bus.lastSubAddress);  // 0x27 | auto-increment
+    TEST_ASSERT_TRUE(fresh);
+    TEST_ASSERT_EQUAL_INT16(16385, xyz[0]);
+    TEST_ASSERT_EQUAL_INT16(-16384, xyz[1]);
+    TEST_ASSERT_EQUAL_INT16(32767, xyz[2]);
+    bus.regs[0x27] = 0x07;  // per-axis flags without ZYXADA: an old sample
+    TEST_ASSERT_TRUE(accel.readFreshAcceleration(xyz, fresh));
+    TEST_ASSERT_FALSE(fresh);
+    bus.answers = false;
+    TEST_ASSERT_FALSE(accel.readFreshAcceleration(xyz, fresh));
 }
 
 static void test_accel_read_fails(void)
@@ -185,6 +208,59 @@ static void test_data_ready(void)
     TEST_ASSERT_FALSE(accel.dataReady());
 }
 
+static void readSamples(DataReadyLine& line, uint8_t count, bool levelWhenReady, bool levelAfterRead)
+{
+    for (uint8_t i = 0; i < count; ++i) {
+        line.sampleRead(levelWhenReady, levelAfterRead);
+    }
+}
+
+static void test_data_ready_line_learns_either_polarity(void)
+{
+    const bool levels[2] = {true, false};
+    for (uint8_t i = 0; i < 2; ++i) {
+        const bool active = levels[i];
+        DataReadyLine line;
+        readSamples(line, DataReadyLine::SAMPLES_TO_TRUST - 1, active, !active);
+        TEST_ASSERT_FALSE(line.trusted());
+        TEST_ASSERT_FALSE(line.saysReady(active));
+        line.sampleRead(active, !active);
+        TEST_ASSERT_TRUE(line.trusted());
+        TEST_ASSERT_EQUAL(active, line.activeHigh());
+        TEST_ASSERT_TRUE(line.saysReady(active));
+        TEST_ASSERT_FALSE(line.saysReady(!active));
+    }
+}
+
+static void test_data_ready_line_that_does_not_toggle_is_never_trusted(void)
+{
+    // An unwired pin with its pull-up: high whether or not a sample is ready.
+    DataReadyLine line;
+    readSamples(line, 3 * DataReadyLine::SAMPLES_TO_TRUST, true, true);
+    TEST_ASSERT_FALSE(line.trusted());
+    TEST_ASSERT_FALSE(line.saysReady(true));
+}
+
+static void test_data_ready_line_loses_trust_on_one_bad_sample(void)
+{
+    DataReadyLine line;
+    readSamples(line, DataReadyLine::SAMPLES_TO_TRUST, true, false);
+    TEST_ASSERT_TRUE(line.trusted());
+    // Stuck active after the read: the next pass would read a sample twice.
+    line.sampleRead(true, true);
+    TEST_ASSERT_FALSE(line.trusted());
+    readSamples(line, DataReadyLine::SAMPLES_TO_TRUST, true, false);
+    TEST_ASSERT_TRUE(line.trusted());
+    // The polarity seen flips (a floating pin): trust starts again from that sample.
+    line.sampleRead(false, true);
+    TEST_ASSERT_FALSE(line.trusted());
+    readSamples(line, DataReadyLine::SAMPLES_TO_TRUST - 1, false, true);
+    TEST_ASSERT_TRUE(line.trusted());
+    TEST_ASSERT_FALSE(line.activeHigh());
+    line.distrust();
+    TEST_ASSERT_FALSE(line.trusted());
+}
+
 static void test_accel_scale(void)
 {
     // 1 g / 0.061 mg = 16393.4 LSB; 16393 * 0.000061 = 0.999973 g
@@ -202,11 +278,15 @@ int runUnityTests(void)
     RUN_TEST(test_begin_write_nack);
     RUN_TEST(test_begin_other_address);
     RUN_TEST(test_accel_burst_decode);
+    RUN_TEST(test_fresh_accel_reads_status_and_sample_in_one_burst);
     RUN_TEST(test_accel_read_fails);
     RUN_TEST(test_temp_sign_extension);
     RUN_TEST(test_temp_bytes);
     RUN_TEST(test_temp_offset_param);
     RUN_TEST(test_data_ready);
+    RUN_TEST(test_data_ready_line_learns_either_polarity);
+    RUN_TEST(test_data_ready_line_that_does_not_toggle_is_never_trusted);
+    RUN_TEST(test_data_ready_line_loses_trust_on_one_bad_sample);
     RUN_TEST(test_accel_scale);
     return UNITY_END();
 }

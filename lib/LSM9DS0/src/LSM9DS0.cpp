@@ -13,11 +13,20 @@ Lsm9ds0Accel::Status Lsm9ds0Accel::begin()
     }
     if (!bus_.writeRegister(address7_, Lsm9ds0::CTRL_REG1_XM, Lsm9ds0::CTRL_REG1_XM_100HZ_BDU_XYZ) ||
         !bus_.writeRegister(address7_, Lsm9ds0::CTRL_REG2_XM, Lsm9ds0::CTRL_REG2_XM_ABW50_2G) ||
+        !bus_.writeRegister(address7_, Lsm9ds0::CTRL_REG4_XM, Lsm9ds0::CTRL_REG4_XM_P2_DRDYA) ||
         !bus_.writeRegister(address7_, Lsm9ds0::CTRL_REG5_XM, Lsm9ds0::CTRL_REG5_XM_TEMP_EN) ||
         !bus_.writeRegister(address7_, Lsm9ds0::CTRL_REG7_XM, Lsm9ds0::CTRL_REG7_XM_MAG_CONTINUOUS)) {
         return WriteFailed;
     }
     return Ok;
+}
+
+static void decodeAxes(const uint8_t bytes[6], int16_t out[3])
+{
+    for (uint8_t axis = 0; axis < 3; ++axis) {
+        uint16_t word = (uint16_t)((uint16_t)bytes[2 * axis + 1] << 8) | bytes[2 * axis];
+        out[axis] = (int16_t)word;
+    }
 }
 
 bool Lsm9ds0Accel::readAcceleration(int16_t out[3])
@@ -26,10 +35,18 @@ bool Lsm9ds0Accel::readAcceleration(int16_t out[3])
     if (!bus_.readRegisters(address7_, Lsm9ds0::OUT_X_L_A | Lsm9ds0::AUTO_INCREMENT, bytes, 6)) {
         return false;
     }
-    for (uint8_t axis = 0; axis < 3; ++axis) {
-        uint16_t word = (uint16_t)((uint16_t)bytes[2 * axis + 1] << 8) | bytes[2 * axis];
-        out[axis] = (int16_t)word;
+    decodeAxes(bytes, out);
+    return true;
+}
+
+bool Lsm9ds0Accel::readFreshAcceleration(int16_t out[3], bool& fresh)
+{
+    uint8_t bytes[7];
+    if (!bus_.readRegisters(address7_, Lsm9ds0::STATUS_REG_A | Lsm9ds0::AUTO_INCREMENT, bytes, 7)) {
+        return false;
     }
+    fresh = (bytes[0] & Lsm9ds0::STATUS_REG_A_ZYXADA) != 0;
+    decodeAxes(bytes + 1, out);
     return true;
 }
 
@@ -51,6 +68,21 @@ bool Lsm9ds0Accel::dataReady()
         return false;
     }
     return (status & Lsm9ds0::STATUS_REG_A_ZYXADA) != 0;
+}
+
+void DataReadyLine::sampleRead(bool levelWhenReady, bool levelAfterRead)
+{
+    if (levelWhenReady == levelAfterRead) {
+        agreeing_ = 0;
+        return;
+    }
+    if (levelWhenReady != activeLevel_) {
+        activeLevel_ = levelWhenReady;
+        agreeing_ = 0;
+    }
+    if (agreeing_ < SAMPLES_TO_TRUST) {
+        ++agreeing_;
+    }
 }
 
 int16_t temperatureRawFromBytes(uint8_t low, uint8_t high)

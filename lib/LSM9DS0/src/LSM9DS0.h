@@ -32,6 +32,7 @@ const uint8_t OUT_TEMP_H_XM = 0x06;
 const uint8_t WHO_AM_I_XM = 0x0F;
 const uint8_t CTRL_REG1_XM = 0x20;
 const uint8_t CTRL_REG2_XM = 0x21;
+const uint8_t CTRL_REG4_XM = 0x23;
 const uint8_t CTRL_REG5_XM = 0x24;
 const uint8_t CTRL_REG7_XM = 0x26;
 const uint8_t STATUS_REG_A = 0x27;
@@ -54,6 +55,9 @@ const uint8_t CTRL_REG5_XM_TEMP_EN = (1 << 7) | (0x4 << 2);
 // resets to power-down (10), and the temperature output is refreshed at the
 // magnetometer's data rate, so without this the temperature would freeze.
 const uint8_t CTRL_REG7_XM_MAG_CONTINUOUS = 0x00;
+// CTRL_REG4_XM: P2_DRDYA (bit 3), the accelerometer's data-ready on INT2_XM,
+// so a board that wires the pin need not poll STATUS_REG_A (DataReadyLine).
+const uint8_t CTRL_REG4_XM_P2_DRDYA = 1 << 3;
 
 const uint8_t STATUS_REG_A_ZYXADA = 1 << 3;
 
@@ -72,11 +76,14 @@ public:
 
     explicit Lsm9ds0Accel(I2cBus& bus, uint8_t address7 = Lsm9ds0::ADDRESS_XM_SDO_HIGH);
 
-    // Checks WHO_AM_I_XM and writes the Table 1 settings.
+    // Checks WHO_AM_I_XM and writes the Table 1 settings, with data-ready on INT2_XM.
     Status begin();
 
     // X, Y, Z in raw LSB from one 6-byte auto-increment read of OUT_X_L_A..OUT_Z_H_A.
     bool readAcceleration(int16_t out[3]);
+    // The same from one 7-byte read that starts at STATUS_REG_A; fresh tells
+    // whether ZYXADA said the sample was new.
+    bool readFreshAcceleration(int16_t out[3], bool& fresh);
     // 12-bit two's complement from OUT_TEMP_L_XM/OUT_TEMP_H_XM, sign-extended.
     bool readTemperatureRaw(int16_t& out);
     // True when STATUS_REG_A reports a new X/Y/Z sample; false also on bus error.
@@ -87,6 +94,35 @@ public:
 private:
     I2cBus& bus_;
     uint8_t address7_;
+};
+
+// Whether INT2_XM's data-ready can stand in for polling STATUS_REG_A, learned
+// from the samples themselves: the firmware does not set the line's polarity
+// (INT_CTRL_REG_M's IEA, whose meaning the sources found disagree on), and
+// the pin may not be wired at all (a pulled-up input then never changes). A
+// line is trusted once, for SAMPLES_TO_TRUST samples in a row, it was at one
+// level when a sample was ready and at the other once the sample was read
+// (reading OUT_Z_H_A clears data-ready); one sample that breaks the rule, or
+// distrust(), takes the trust away, and the caller polls again.
+class DataReadyLine {
+public:
+    static const uint8_t SAMPLES_TO_TRUST = 8;
+
+    DataReadyLine() : activeLevel_(true), agreeing_(0) {}
+
+    // The pin's level when a sample was found ready (by the line or by
+    // STATUS_REG_A) and just after that sample was read.
+    void sampleRead(bool levelWhenReady, bool levelAfterRead);
+    void distrust() { agreeing_ = 0; }
+
+    bool trusted() const { return agreeing_ >= SAMPLES_TO_TRUST; }
+    // True when a trusted line at this level says a sample is ready.
+    bool saysReady(bool level) const { return trusted() && level == activeLevel_; }
+    bool activeHigh() const { return activeLevel_; }
+
+private:
+    bool activeLevel_;
+    uint8_t agreeing_;
 };
 
 // Two's complement of the 12 right-justified bits in OUT_TEMP_H_XM:OUT_TEMP_L_XM;
