@@ -2,6 +2,7 @@
 
 #include <string.h>
 
+#include <simavr/avr_ioport.h>
 #include <simavr/avr_twi.h>
 #include <simavr/sim_cycle_timers.h>
 
@@ -10,7 +11,9 @@ enum {
     OUT_TEMP_L_XM = 0x05,
     OUT_TEMP_H_XM = 0x06,
     WHO_AM_I_XM = 0x0F,
+    INT_CTRL_REG_M = 0x12,
     CTRL_REG1_XM = 0x20,
+    CTRL_REG4_XM = 0x23,
     CTRL_REG5_XM = 0x24,
     STATUS_REG_A = 0x27,
     OUT_X_L_A = 0x28,
@@ -20,6 +23,10 @@ enum {
     TEMP_EN = 0x80,
     ZYXADA = 0x08,
     ZYXAOR = 0x80,
+    P2_DRDYA = 0x08,
+    IEA = 0x08,
+    /* Datasheet reset value: XMIEN, YMIEN, ZMIEN and IEA set. */
+    INT_CTRL_REG_M_RESET = 0xE8,
 };
 
 /* AODR[3:0] of CTRL_REG1_XM -> output data rate in mHz (0 = power-down). */
@@ -29,6 +36,22 @@ static const uint32_t output_rate_mhz[16] = {0, 3125, 6250, 12500, 25000, 50000,
 static uint8_t data_rate_index(const lsm9ds0_t *sensor)
 {
     return (uint8_t)(sensor->registers[CTRL_REG1_XM] >> 4);
+}
+
+/*
+ * INT2_XM with P2_DRDYA: data-ready as a level, active while ZYXADA is set.
+ * The model takes IEA set as active-high; the firmware learns the polarity
+ * rather than relying on it (lib/LSM9DS0, DataReadyLine).
+ */
+static void update_int2(lsm9ds0_t *sensor)
+{
+    int active = (sensor->registers[CTRL_REG4_XM] & P2_DRDYA) && (sensor->registers[STATUS_REG_A] & ZYXADA);
+    int active_high = (sensor->registers[INT_CTRL_REG_M] & IEA) != 0;
+    uint32_t level = (uint32_t)(active ? active_high : !active_high);
+    if (level != sensor->int2_level) {
+        sensor->int2_level = level;
+        avr_raise_irq(sensor->irq + LSM9DS0_IRQ_INT2, level);
+    }
 }
 
 static void store_sample(lsm9ds0_t *sensor)
@@ -51,6 +74,7 @@ static void store_sample(lsm9ds0_t *sensor)
         status |= ZYXAOR;
     }
     sensor->registers[STATUS_REG_A] = (uint8_t)(status | ZYXADA | enabled_axes);
+    update_int2(sensor);
 }
 
 /* Runs every 1/ODR; at power-down it polls every millisecond for a new rate. */
@@ -73,6 +97,7 @@ static uint8_t read_register(lsm9ds0_t *sensor, uint8_t reg)
     /* Reading the last output byte hands the sample over: new data clears. */
     if (reg == OUT_Z_H_A) {
         sensor->registers[STATUS_REG_A] = 0;
+        update_int2(sensor);
     }
     return value;
 }
@@ -117,6 +142,7 @@ static void on_twi_message(struct avr_irq_t *irq, uint32_t value, void *param)
             sensor->expecting_pointer = 0;
         } else if (sensor->pointer != WHO_AM_I_XM && sensor->pointer != STATUS_REG_A) {
             sensor->registers[sensor->pointer] = data;
+            update_int2(sensor);
             if (sensor->auto_increment) {
                 sensor->pointer = (sensor->pointer + 1) & 0x7F;
             }
@@ -131,9 +157,10 @@ static void on_twi_message(struct avr_irq_t *irq, uint32_t value, void *param)
     }
 }
 
-static const char *irq_names[2] = {
+static const char *irq_names[LSM9DS0_IRQ_COUNT] = {
     [TWI_IRQ_INPUT] = "8>lsm9ds0.out",
     [TWI_IRQ_OUTPUT] = "32<lsm9ds0.in",
+    [LSM9DS0_IRQ_INT2] = ">lsm9ds0.int2_xm",
 };
 
 void lsm9ds0_init(avr_t *avr, lsm9ds0_t *sensor, uint8_t address7)
@@ -144,7 +171,8 @@ void lsm9ds0_init(avr_t *avr, lsm9ds0_t *sensor, uint8_t address7)
     sensor->registers[WHO_AM_I_XM] = WHO_AM_I_XM_VALUE;
     /* CTRL_REG1_XM resets to 0x07: power-down with all axes enabled. */
     sensor->registers[CTRL_REG1_XM] = 0x07;
-    sensor->irq = avr_alloc_irq(&avr->irq_pool, 0, 2, irq_names);
+    sensor->registers[INT_CTRL_REG_M] = INT_CTRL_REG_M_RESET;
+    sensor->irq = avr_alloc_irq(&avr->irq_pool, 0, LSM9DS0_IRQ_COUNT, irq_names);
     avr_irq_register_notify(sensor->irq + TWI_IRQ_OUTPUT, on_twi_message, sensor);
     avr_cycle_timer_register(avr, avr->frequency / 1000, produce_sample, sensor);
 }
@@ -160,6 +188,27 @@ void lsm9ds0_attach(lsm9ds0_t *sensor)
     avr_t *avr = sensor->avr;
     avr_connect_irq(sensor->irq + TWI_IRQ_INPUT, avr_io_getirq(avr, AVR_IOCTL_TWI_GETIRQ(0), TWI_IRQ_INPUT));
     avr_connect_irq(avr_io_getirq(avr, AVR_IOCTL_TWI_GETIRQ(0), TWI_IRQ_OUTPUT), sensor->irq + TWI_IRQ_OUTPUT);
+    sensor->int2_level = (sensor->registers[INT_CTRL_REG_M] & IEA) ? 0 : 1;
+    sensor->int2_wired = 0;
+    lsm9ds0_wire_int2(sensor, 1);
+}
+
+void lsm9ds0_wire_int2(lsm9ds0_t *sensor, int wired)
+{
+    avr_irq_t *pin = avr_io_getirq(sensor->avr, AVR_IOCTL_IOPORT_GETIRQ(LSM9DS0_INT2_PORT), LSM9DS0_INT2_BIT);
+    wired = wired != 0;
+    if (wired == sensor->int2_wired) {
+        return;
+    }
+    sensor->int2_wired = (uint8_t)wired;
+    if (wired) {
+        avr_connect_irq(sensor->irq + LSM9DS0_IRQ_INT2, pin);
+        avr_raise_irq(pin, sensor->int2_level);
+    } else {
+        avr_unconnect_irq(sensor->irq + LSM9DS0_IRQ_INT2, pin);
+        /* The firmware's pull-up holds a pin that nothing drives high. */
+        avr_raise_irq(pin, 1);
+    }
 }
 
 void lsm9ds0_set_acceleration(lsm9ds0_t *sensor, int16_t x, int16_t y, int16_t z)

@@ -13,9 +13,17 @@
 #include <simavr/sim_avr.h>
 #include <simavr/sim_irq.h>
 
+/* After the TWI pair: INT2_XM's level (data-ready when P2_DRDYA is set). */
+enum { LSM9DS0_IRQ_INT2 = 2, LSM9DS0_IRQ_COUNT = 3 };
+/* INT2_XM is wired to the Nano's D2 (PD2, INT0), as in the README. */
+#define LSM9DS0_INT2_PORT 'D'
+#define LSM9DS0_INT2_BIT 2
+
 typedef struct lsm9ds0 {
     avr_t *avr;
-    avr_irq_t *irq; /* [TWI_IRQ_INPUT] to the AVR, [TWI_IRQ_OUTPUT] from it */
+    avr_irq_t *irq; /* [TWI_IRQ_INPUT] to the AVR, [TWI_IRQ_OUTPUT] from it, [LSM9DS0_IRQ_INT2] */
+    uint32_t int2_level;
+    uint8_t int2_wired;
     uint8_t address;
     uint8_t registers[128];
     uint8_t selected;
@@ -37,7 +45,10 @@ typedef enum lsm9ds0_fault {
 enum { LSM9DS0_ADDRESS_SDO_HIGH = 0x1D };
 
 void lsm9ds0_init(avr_t *avr, lsm9ds0_t *sensor, uint8_t address7);
+/* On the TWI bus, with INT2_XM wired to D2. */
 void lsm9ds0_attach(lsm9ds0_t *sensor);
+/* Connects INT2_XM to D2 or cuts the wire (D2 then reads its pull-up, high). */
+void lsm9ds0_wire_int2(lsm9ds0_t *sensor, int wired);
 /*
  * The MCU was reset (a board_reset_fn, so context is the sensor): simavr
  * dropped the sample clock's timer, which the sensor keeps running, with its

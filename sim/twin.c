@@ -254,6 +254,15 @@ int twin_lsm9ds0_set_fault(twin_t *twin, int fault)
     return 0;
 }
 
+int twin_lsm9ds0_wire_data_ready(twin_t *twin, int wired)
+{
+    if (!twin->sensor_attached) {
+        return -1;
+    }
+    lsm9ds0_wire_int2(&twin->sensor, wired);
+    return 0;
+}
+
 int twin_l298n_attach(twin_t *twin)
 {
     if (strcmp(twin->board.avr->mmcu, "atmega2560") != 0) {

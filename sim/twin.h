@@ -78,6 +78,8 @@ int twin_adc_set_fault(twin_t *twin, unsigned channel, int fault);
 void twin_lsm9ds0_attach(twin_t *twin);
 int twin_lsm9ds0_set(twin_t *twin, int16_t ax, int16_t ay, int16_t az, int16_t temperature_raw);
 int twin_lsm9ds0_set_fault(twin_t *twin, int fault);
+/* INT2_XM (data-ready) to D2: wired at attach; 0 cuts the wire, 1 mends it. */
+int twin_lsm9ds0_wire_data_ready(twin_t *twin, int wired);
 
 /* The L298N observer needs an ATmega2560; -1 on any other MCU. */
 int twin_l298n_attach(twin_t *twin);

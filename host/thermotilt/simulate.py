@@ -310,6 +310,8 @@ def _play(
                 (imu if name == "imu_hang" else chamber_link).board.hang()
         elif name in ("sensor_absent", "sensor_stuck"):
             imu.board.set_lsm9ds0_fault(name.split("_")[1] if active else "none")
+        elif name == "data_ready_cut":
+            imu.board.wire_lsm9ds0_data_ready(not active)
         elif name.endswith(("_open", "_short")):
             face, kind = name.split("_")
             channel = INNER_THERMISTOR_CHANNEL if face == "inner" else OUTER_THERMISTOR_CHANNEL

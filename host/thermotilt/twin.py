@@ -115,6 +115,7 @@ def _load_library(path: Path) -> ctypes.CDLL:
             [handle, ctypes.c_int16, ctypes.c_int16, ctypes.c_int16, ctypes.c_int16],
         ),
         "twin_lsm9ds0_set_fault": (ctypes.c_int, [handle, ctypes.c_int]),
+        "twin_lsm9ds0_wire_data_ready": (ctypes.c_int, [handle, ctypes.c_int]),
         "twin_l298n_attach": (ctypes.c_int, [handle]),
         "twin_l298n_read": (
             ctypes.c_int,
@@ -469,6 +470,12 @@ class Board:
         """Fault "absent" (no ACK), "stuck" (answers, no new data) or "none"."""
         code = _choice(fault, _SENSOR_FAULTS, "LSM9DS0 fault")
         if self._lib.twin_lsm9ds0_set_fault(self._live(), code) != 0:
+            raise TwinError("attach_lsm9ds0() first")
+
+    def wire_lsm9ds0_data_ready(self, wired: bool) -> None:
+        """Connects the sensor's INT2_XM (data-ready) to D2, as attach_lsm9ds0
+        does, or cuts that wire: D2 then reads its pull-up, high."""
+        if self._lib.twin_lsm9ds0_wire_data_ready(self._live(), int(bool(wired))) != 0:
             raise TwinError("attach_lsm9ds0() first")
 
     def attach_l298n(self) -> None:

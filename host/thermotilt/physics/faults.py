@@ -13,6 +13,7 @@ from .parameters import ModelError, finite_number
 FAULT_NAMES: tuple[str, ...] = (
     "sensor_absent",
     "sensor_stuck",
+    "data_ready_cut",
     "inner_open",
     "inner_short",
     "outer_open",
