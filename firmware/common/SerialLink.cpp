@@ -97,6 +97,18 @@ void SerialLink::writePending()
     pendingLength_ -= count;
 }
 
+bool SerialLink::hasWork() const
+{
+    if (Serial.available() > 0) {
+        return true;
+    }
+    if (!pendingLength_) {
+        return false;
+    }
+    int room = Serial.availableForWrite();
+    return room >= (int)pendingLength_ || room >= SERIAL_TX_BUFFER_SIZE - 1;
+}
+
 void SerialLink::finishPending()
 {
     if (pendingLength_) {

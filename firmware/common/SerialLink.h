@@ -61,6 +61,9 @@ public:
     void writePending();
     // Everything sent is on the line (before a reset cuts it).
     void flush();
+    // Whether a loop pass would find something to do here: a received byte,
+    // or room in Serial's buffer for the rest of a waiting frame.
+    bool hasWork() const;
     uint16_t encodeFailures() const { return encodeFailures_; }
 
     // The VER frame: which firmware, which protocol, why the board last reset.

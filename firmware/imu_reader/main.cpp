@@ -4,6 +4,7 @@
 #include <Arduino.h>
 #include <EEPROM.h>
 #include <Wire.h>
+#include <avr/sleep.h>
 
 #include <Compensation.h>
 #include <ImuProcessing.h>
@@ -19,10 +20,17 @@ namespace Error = Protocol::Error;
 namespace Detail = Protocol::ErrorDetail;
 
 const char FIRMWARE_VERSION[] = "0.2.0";
-// CTRL_REG1_XM runs the accelerometer at 100 Hz; data-ready is polled only
-// near the end of each period, so sampling follows the sensor's own clock.
+// CTRL_REG1_XM runs the accelerometer at 100 Hz, and sampling follows the
+// sensor's own clock: a sample is read when INT2_XM says it is ready or,
+// where that line is not wired or not trusted (DataReadyLine), when
+// STATUS_REG_A says so, polled only near the end of each period.
 const uint32_t SAMPLE_PERIOD_MS = 10;
 const uint32_t DATA_READY_WINDOW_MS = 2;
+// INT2_XM, optional (README, wiring); the pull-up holds an unwired pin high.
+const uint8_t DATA_READY_PIN = 2;
+// A trusted line idle this long is checked against STATUS_REG_A, early
+// enough that the sample it missed is still there to read.
+const uint32_t DATA_READY_LINE_SILENT_MS = SAMPLE_PERIOD_MS + DATA_READY_WINDOW_MS;
 const uint32_t SENSOR_RETRY_MS = 1000;
 // Ten periods without data-ready means the sensor stopped, even if it answers.
 const uint32_t SENSOR_SILENT_MS = 100;
@@ -85,6 +93,19 @@ bool streaming = true;
 bool resetting = false;
 uint32_t lastSampleMs = 0;
 uint32_t lastSensorAttemptMs = 0;
+DataReadyLine dataReadyLine;
+// Set by the pin's interrupt; it only wakes the loop, which reads the level.
+volatile bool dataReadyChanged = false;
+
+void onDataReadyChange()
+{
+    dataReadyChanged = true;
+}
+
+bool dataReadyLevel()
+{
+    return digitalRead(DATA_READY_PIN) == HIGH;
+}
 
 const char* sensorStatusName(Lsm9ds0Accel::Status status)
 {
@@ -101,6 +122,7 @@ void connectSensor()
     lastSensorAttemptMs = millis();
     Lsm9ds0Accel::Status status = sensor.begin();
     sensorReady = status == Lsm9ds0Accel::Status::Ok;
+    dataReadyLine.distrust();
     if (sensorReady) {
         processing.reset();
         lastSampleMs = lastSensorAttemptMs;
@@ -182,14 +204,28 @@ void sendImuFrame(const int16_t raw[AXES], const ImuOutput& out)
     link.send();
 }
 
-void sample(uint32_t now)
+// A sample found ready, by the data-ready line (onLine) or by STATUS_REG_A.
+// On the line's word the read starts at STATUS_REG_A, one byte more, so a
+// line stuck at its active level cannot pass an old sample off as new.
+void readSample(uint32_t now, bool onLine)
 {
+    bool levelWhenReady = dataReadyLevel();
     int16_t raw[AXES];
     int16_t temperatureRaw;
-    if (!sensor.readAcceleration(raw) || !sensor.readTemperatureRaw(temperatureRaw)) {
+    bool fresh = true;
+    bool read = onLine ? sensor.readFreshAcceleration(raw, fresh) : sensor.readAcceleration(raw);
+    // The read cleared data-ready: that edge needs no loop pass.
+    dataReadyChanged = false;
+    if (read && !fresh) {
+        dataReadyLine.distrust();
+        return;
+    }
+    if (!read || !sensor.readTemperatureRaw(temperatureRaw)) {
         sensorLost(Detail::READ_FAILED);
         return;
     }
+    lastSampleMs = now;
+    dataReadyLine.sampleRead(levelWhenReady, dataReadyLevel());
     // Read all the same, so the sensor hands over its next sample. While the
     // sensor is ready, the last attempt is the one that configured it.
     if (now - lastSensorAttemptMs < TEMPERATURE_SETTLE_MS) {
@@ -199,6 +235,31 @@ void sample(uint32_t now)
     ImuOutput out;
     if (processing.update(raw, temperatureRaw, coefficients, out, streaming)) {
         sendImuFrame(raw, out);
+    }
+}
+
+// While the data-ready line is trusted, a timer tick brings nothing to do:
+// sleep through the ticks until the line changes, the host sends a byte,
+// Serial has room for the rest of a frame, or the line's silence is due to
+// be checked. Otherwise one tick at a time, as the polling needs.
+void idleUntilWork()
+{
+    if (!sensorReady || !dataReadyLine.trusted()) {
+        idleUntilInterrupt();
+        return;
+    }
+    set_sleep_mode(SLEEP_MODE_IDLE);
+    for (;;) {
+        noInterrupts();
+        if (dataReadyChanged || link.hasWork() || millis() - lastSampleMs >= DATA_READY_LINE_SILENT_MS) {
+            interrupts();
+            return;
+        }
+        sleep_enable();
+        // SEI's next instruction runs before any interrupt: no wake-up is lost.
+        interrupts();
+        sleep_cpu();
+        sleep_disable();
     }
 }
 
@@ -322,6 +383,8 @@ void setup()
     Wire.setClock(I2C_CLOCK_HZ);
     Wire.setWireTimeout(WIRE_TIMEOUT_US, true);
     link.announceStart("imu_reader", FIRMWARE_VERSION);
+    pinMode(DATA_READY_PIN, INPUT_PULLUP);
+    attachInterrupt(digitalPinToInterrupt(DATA_READY_PIN), onDataReadyChange, CHANGE);
     loadCoefficients();
     connectSensor();
 }
@@ -346,13 +409,24 @@ __attribute__((noinline)) void loop()
         if (now - lastSensorAttemptMs >= SENSOR_RETRY_MS) {
             connectSensor();
         }
-    } else if (now - lastSampleMs >= SAMPLE_PERIOD_MS - DATA_READY_WINDOW_MS) {
-        if (sensor.dataReady()) {
-            lastSampleMs = now;
-            sample(now);
-        } else if (now - lastSampleMs >= SENSOR_SILENT_MS) {
-            sensorLost(Detail::NO_DATA);
+    } else {
+        dataReadyChanged = false;
+        uint32_t sinceSample = now - lastSampleMs;
+        uint32_t pollAfter =
+            dataReadyLine.trusted() ? DATA_READY_LINE_SILENT_MS : SAMPLE_PERIOD_MS - DATA_READY_WINDOW_MS;
+        if (dataReadyLine.saysReady(dataReadyLevel())) {
+            readSample(now, true);
+        } else if (sinceSample >= pollAfter) {
+            if (sensor.dataReady()) {
+                if (dataReadyLine.trusted() && !dataReadyLine.saysReady(dataReadyLevel())) {
+                    // It missed a sample that STATUS_REG_A has.
+                    dataReadyLine.distrust();
+                }
+                readSample(now, false);
+            } else if (sinceSample >= SENSOR_SILENT_MS) {
+                sensorLost(Detail::NO_DATA);
+            }
         }
     }
-    idleUntilInterrupt();
+    idleUntilWork();
 }

@@ -217,6 +217,42 @@ def test_same_seed_gives_identical_run_csv_and_another_seed_differs(tmp_path):
     assert outputs[0] != outputs[2]
 
 
+# The IMU's own fields: what it read and computed. The frame's millisecond
+# stamp, and with it the row's time_s, may move by the polling's lateness.
+IMU_DATA_COLUMNS = ("imu_temp_c", "ax_raw", "ay_raw", "az_raw", "ax_filt", "ay_filt", "az_filt",
+                    "ax_comp", "ay_comp", "az_comp", "comp_set", "coef_source", "imu_seq")
+
+
+def awake_fraction(out):
+    report = json.loads((out / "summary.json").read_text())["boards"]["imu_reader"]
+    return report["awake_cycles"] / (report["awake_cycles"] + report["sleep_cycles"])
+
+
+@pytest.mark.slow
+@pytest.mark.twin
+def test_the_data_ready_line_changes_no_output_and_its_loss_is_caught(tmp_path):
+    # Wired (the twin's default), never wired, cut mid-run, and cut then mended:
+    # the firmware polls STATUS_REG_A whenever it does not trust the line.
+    runs = {}
+    for name, faults in (("wired", []), ("unwired", ["data_ready_cut"]), ("cut", ["data_ready_cut@30"]),
+                         ("mended", ["data_ready_cut@20-40"])):
+        out = tmp_path / name
+        simulate("field-warming", "--duration", 60, "--seed", 3, "--out", out,
+                 *[argument for fault in faults for argument in ("--fault", fault)])
+        runs[name] = out
+    wired = read_run_log(str(runs["wired"] / "run.csv"))
+    for name, out in runs.items():
+        rows = read_run_log(str(out / "run.csv"))
+        assert [[row[column] for column in IMU_DATA_COLUMNS] for row in rows] == \
+            [[row[column] for column in IMU_DATA_COLUMNS] for row in wired], name
+        # A sample read late by at most a polling period reaches the host in the same or the next 10 ms step.
+        assert all(abs(number(row["time_s"]) - number(first["time_s"])) <= 0.0105
+                   for row, first in zip(rows, wired)), name
+        assert not lines_of(out / "serial" / "imu_reader.txt", "$ERR"), name
+    # Without the line the loop wakes at every timer tick near a sample and polls the bus.
+    assert awake_fraction(runs["wired"]) < awake_fraction(runs["mended"]) < awake_fraction(runs["unwired"])
+
+
 def lines_of(path, text):
     return [line for line in path.read_text(errors="replace").splitlines() if text in line]
 
