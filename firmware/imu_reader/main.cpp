@@ -3,7 +3,6 @@
 // IMU frames on the serial port (docs/protocol.md).
 #include <Arduino.h>
 #include <EEPROM.h>
-#include <Wire.h>
 #include <avr/sleep.h>
 
 #include <Compensation.h>
@@ -12,6 +11,7 @@
 #include <Protocol.h>
 
 #include "SerialLink.h"
+#include "SleepingTwi.h"
 #include "Watchdog.h"
 
 namespace {
@@ -42,45 +42,18 @@ const uint32_t SENSOR_SILENT_MS = 100;
 // magnetometer no turn-on time.
 const uint32_t TEMPERATURE_SETTLE_MS = 2 * 20;
 // Longer than a 100 Hz period: a held bus is given up on, never waited for.
-const uint32_t WIRE_TIMEOUT_US = 25000;
+const uint8_t I2C_TIMEOUT_MS = 25;
 // The LSM9DS0 supports 400 kHz fast mode; a sample's ~20 bus bytes then take
-// ~0.5 ms instead of ~2 ms of the 10 ms period, during which Wire keeps the
-// CPU awake. A level converter that cannot follow needs 100000 here.
+// ~0.5 ms instead of ~2 ms of the 10 ms period, and every byte costs a TWI
+// interrupt. A level converter that cannot follow needs 100000 here.
 const uint32_t I2C_CLOCK_HZ = 400000;
 const int COEFFICIENTS_EEPROM_ADDRESS = 0;
 const uint8_t AXES = IMU_AXES;
 
-class WireBus : public I2cBus {
-public:
-    bool writeRegister(uint8_t address7, uint8_t reg, uint8_t value) override
-    {
-        Wire.beginTransmission(address7);
-        Wire.write(reg);
-        Wire.write(value);
-        return Wire.endTransmission() == 0;
-    }
-
-    bool readRegisters(uint8_t address7, uint8_t firstReg, uint8_t* out, uint8_t count) override
-    {
-        Wire.beginTransmission(address7);
-        Wire.write(firstReg);
-        if (Wire.endTransmission(false) != 0) {
-            return false;
-        }
-        if (Wire.requestFrom(address7, count) != count) {
-            return false;
-        }
-        for (uint8_t i = 0; i < count; ++i) {
-            out[i] = (uint8_t)Wire.read();
-        }
-        return true;
-    }
-};
-
 // Where the active coefficients came from, as the IMU frame reports it.
 enum CoefficientSource : char { FROM_EEPROM = 'E', FROM_DEFAULTS = 'D', UPLOADED = 'U' };
 
-WireBus bus;
+SleepingTwi bus;
 Lsm9ds0Accel sensor(bus);
 SerialLink link;
 // The filters, trend and decimation of every sample (lib/ImuProcessing).
@@ -379,9 +352,7 @@ void setup()
 {
     startWatchdog();
     link.begin();
-    Wire.begin();
-    Wire.setClock(I2C_CLOCK_HZ);
-    Wire.setWireTimeout(WIRE_TIMEOUT_US, true);
+    bus.begin(I2C_CLOCK_HZ, I2C_TIMEOUT_MS);
     link.announceStart("imu_reader", FIRMWARE_VERSION);
     pinMode(DATA_READY_PIN, INPUT_PULLUP);
     attachInterrupt(digitalPinToInterrupt(DATA_READY_PIN), onDataReadyChange, CHANGE);

@@ -24,6 +24,10 @@ typedef bool boolean;
 #define OUTPUT 0x1
 #define INPUT_PULLUP 0x2
 
+#define CHANGE 1
+#define FALLING 2
+#define RISING 3
+
 #define interrupts() sei()
 #define noInterrupts() cli()
 
@@ -54,7 +58,14 @@ void digitalWrite(uint8_t pin, uint8_t value);
 int digitalRead(uint8_t pin);
 // A channel number (0..15) or an analog pin (A0...); 10 bits.
 int analogRead(uint8_t pin);
+// INT0 and INT1 are D2 and D3 on both boards' sketches' pins. Nothing
+// interrupts a fuzz target, so the handler is never called.
+#define digitalPinToInterrupt(pin) ((pin) == 2 ? 0 : ((pin) == 3 ? 1 : -1))
+void attachInterrupt(uint8_t interruptNumber, void (*handler)(void), int mode);
 void analogWrite(uint8_t pin, int value);
+
+// Arduino's transmit buffer.
+#define SERIAL_TX_BUFFER_SIZE 64
 
 class HardwareSerial {
 public:

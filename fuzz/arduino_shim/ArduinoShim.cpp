@@ -2,7 +2,7 @@
 
 #include <Arduino.h>
 #include <EEPROM.h>
-#include <Wire.h>
+#include <SleepingTwi.h>
 #include <avr/io.h>
 #include <avr/wdt.h>
 
@@ -13,7 +13,6 @@
 
 HardwareSerial Serial;
 EEPROMClass EEPROM;
-TwoWire Wire;
 volatile uint8_t MCUSR = 0;
 
 namespace {
@@ -92,7 +91,6 @@ void ArduinoShim::reset()
     mcu.serialWritten.clear();
     memset(mcu.pins, 0, sizeof mcu.pins);
     mcu.watchdogOn = false;
-    Wire = TwoWire();
 }
 
 void ArduinoShim::advanceMillis(uint32_t ms)
@@ -306,86 +304,27 @@ uint8_t& EEPROMClass::operator[](int address)
     return eepromCell(address);
 }
 
-void TwoWire::begin() {}
-
-void TwoWire::end() {}
-
-void TwoWire::setClock(uint32_t) {}
-
-void TwoWire::setWireTimeout(uint32_t, bool) {}
-
-bool TwoWire::getWireTimeoutFlag()
+// The IMU reader's TWI master (firmware/imu_reader/SleepingTwi.cpp drives
+// the AVR's TWI registers): a write is one write transaction to the device,
+// a read one write of the register address and one read.
+static ArduinoShim::I2cDevice* i2cDevice(uint8_t address7)
 {
-    return false;
+    return address7 < I2C_ADDRESSES ? surroundings.i2c[address7] : 0;
 }
 
-void TwoWire::clearWireTimeoutFlag() {}
+void SleepingTwi::begin(uint32_t, uint8_t) {}
 
-void TwoWire::beginTransmission(uint8_t address7)
+bool SleepingTwi::writeRegister(uint8_t address7, uint8_t reg, uint8_t value)
 {
-    txAddress_ = address7;
-    txLength_ = 0;
-    txOverflow_ = false;
+    const uint8_t bytes[2] = {reg, value};
+    ArduinoShim::I2cDevice* device = i2cDevice(address7);
+    return device && device->write(bytes, 2);
 }
 
-size_t TwoWire::write(uint8_t value)
+bool SleepingTwi::readRegisters(uint8_t address7, uint8_t firstReg, uint8_t* out, uint8_t count)
 {
-    if (txLength_ >= BUFFER_LENGTH) {
-        txOverflow_ = true;
-        return 0;
-    }
-    txBuffer_[txLength_++] = value;
-    return 1;
+    ArduinoShim::I2cDevice* device = i2cDevice(address7);
+    return count > 0 && device && device->write(&firstReg, 1) && device->read(out, count);
 }
 
-size_t TwoWire::write(const uint8_t* data, size_t length)
-{
-    size_t written = 0;
-    while (written < length && write(data[written]) == 1) {
-        ++written;
-    }
-    return written;
-}
-
-uint8_t TwoWire::endTransmission(uint8_t)
-{
-    if (txOverflow_) {
-        return 1;
-    }
-    ArduinoShim::I2cDevice* device = txAddress_ < I2C_ADDRESSES ? surroundings.i2c[txAddress_] : 0;
-    return device && device->write(txBuffer_, txLength_) ? 0 : 2;
-}
-
-uint8_t TwoWire::requestFrom(uint8_t address7, uint8_t quantity)
-{
-    return requestFrom(address7, quantity, (uint8_t)true);
-}
-
-uint8_t TwoWire::requestFrom(uint8_t address7, uint8_t quantity, uint8_t)
-{
-    rxIndex_ = 0;
-    rxLength_ = 0;
-    if (quantity > BUFFER_LENGTH) {
-        quantity = BUFFER_LENGTH;
-    }
-    ArduinoShim::I2cDevice* device = address7 < I2C_ADDRESSES ? surroundings.i2c[address7] : 0;
-    if (device && device->read(rxBuffer_, quantity)) {
-        rxLength_ = quantity;
-    }
-    return rxLength_;
-}
-
-int TwoWire::available()
-{
-    return rxLength_ - rxIndex_;
-}
-
-int TwoWire::read()
-{
-    return rxIndex_ < rxLength_ ? rxBuffer_[rxIndex_++] : -1;
-}
-
-int TwoWire::peek()
-{
-    return rxIndex_ < rxLength_ ? rxBuffer_[rxIndex_] : -1;
-}
+void attachInterrupt(uint8_t, void (*)(void), int) {}

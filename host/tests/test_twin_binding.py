@@ -486,8 +486,8 @@ def test_the_stack_high_water_mark_is_measured_on_painted_sram():
         untouched_at_start, capacity = board.stack_headroom()
         board.run_until(2.0)
         untouched, same_capacity = board.stack_headroom()
-    # The Nano's 2 KB SRAM ends at 0x8FF; above the ~1.5 KB of static data
-    # lie a few hundred bytes, which the running firmware's stack eats into.
-    assert same_capacity == capacity and 300 < capacity < 700
+    # The Nano's 2 KB SRAM ends at 0x8FF; above the ~1.2 KB of static data
+    # lie some 800 bytes, which the running firmware's stack eats into.
+    assert same_capacity == capacity and 300 < capacity < 1000
     assert untouched < untouched_at_start <= capacity
     assert capacity - untouched > 100

@@ -186,8 +186,7 @@ def speed_and_awake(model: Model) -> None:
 # Where the IMU's awake cycles go, by the first function up a sample's stack
 # that belongs to a stage. Vector numbers are the ATmega328P's.
 IMU_STAGES = (
-    ("I2C: Wire, the TWI ISR, the LSM9DS0 reads",
-     r"TwoWire::|twi_|\(anonymous namespace\)::WireBus::|__vector_24$"),
+    ("I2C: the TWI master and its ISR, the LSM9DS0 reads", r"SleepingTwi::|Lsm9ds0Accel::|__vector_24$"),
     ("Kalman filters and compensation (ImuProcessing::process)",
      r"ImuProcessing::|KalmanFilter::|surfaceCorrection|TrendDetector::"),
     ("frame formatting and printing: FrameWriter, float to text, CRC",
@@ -195,7 +194,7 @@ IMU_STAGES = (
     ("UART: HardwareSerial and its ISRs", r"HardwareSerial::|Print::|Serial0_available|serialEventRun|__vector_1[89]$"),
     ("timer tick: the Timer0 overflow ISR (millis)", r"__vector_16$"),
 )
-# Reading the clock is charged to whoever reads it (Wire polls micros() for its timeout).
+# Reading the clock is charged to whoever reads it (the TWI master checks millis() for its timeout).
 CLOCK_READS = ("millis", "micros")
 OTHER_STAGE = "other: loop and main, with what LTO inlined into them, and the rest"
 # After the Kalman filters' gain has settled (about 5500 samples after the

@@ -9,12 +9,19 @@
 #define SLEEP_MODE_PWR_SAVE 3
 #define SLEEP_MODE_STANDBY 6
 
-// The harness advances the clock itself between loop() calls, so sleeping
-// returns at once, as on the next interrupt.
+#include "../ArduinoShim.h"
+
+// The harness advances the clock itself between loop() calls, so sleep_mode()
+// returns at once, as on the next interrupt. sleep_cpu() is a sketch's own
+// sleep loop, which waits for a condition within one loop() call: it is
+// woken by the next 1 ms timer tick, as on the AVR.
 inline void set_sleep_mode(uint8_t) {}
 inline void sleep_enable() {}
 inline void sleep_disable() {}
-inline void sleep_cpu() {}
+inline void sleep_cpu()
+{
+    ArduinoShim::advanceMillis(1);
+}
 inline void sleep_mode() {}
 
 #endif
