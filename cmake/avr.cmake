@@ -29,11 +29,10 @@ set(CMAKE_EXECUTABLE_SUFFIX .elf)
 include(cmake/unity.cmake)
 
 set(core_dir "${ARDUINO_AVR_DIR}/cores/arduino")
-set(wire_dir "${ARDUINO_AVR_DIR}/libraries/Wire/src")
 file(GLOB core_sources "${core_dir}/*.c" "${core_dir}/*.cpp" "${core_dir}/*.S")
-add_library(arduino_core STATIC ${core_sources} "${wire_dir}/Wire.cpp" "${wire_dir}/utility/twi.c")
+add_library(arduino_core STATIC ${core_sources})
 target_include_directories(arduino_core PUBLIC "${core_dir}" "${ARDUINO_AVR_DIR}/variants/${ARDUINO_VARIANT}"
-  "${wire_dir}" "${ARDUINO_AVR_DIR}/libraries/EEPROM/src")
+  "${ARDUINO_AVR_DIR}/libraries/EEPROM/src")
 # The core is third-party code: build it quietly, as the Arduino IDE does. (Not
 # as SYSTEM includes: avr-gcc wraps system headers in extern "C".)
 target_compile_options(arduino_core PRIVATE -w)
