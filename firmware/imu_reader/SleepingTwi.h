@@ -1,8 +1,8 @@
 // The IMU reader's I2C master. Arduino's Wire drives the TWI from its
 // interrupt too, but endTransmission() and requestFrom() spin until the
-// transfer is over, and at 400 kHz that spinning was most of the reader's
-// awake time; here the CPU sleeps (idle mode) between the TWI's interrupts.
-// No reachable library does that, hence this one. It follows the TWI chapter
+// transfer is over, and at 400 kHz that spinning was the largest share of
+// the reader's awake time; here the CPU sleeps (idle mode) between the
+// TWI's interrupts. No reachable library does that, hence this one. It follows the TWI chapter
 // of the ATmega328P datasheet, with avr-libc's <util/twi.h> status codes.
 #ifndef THERMOTILT_SLEEPING_TWI_H
 #define THERMOTILT_SLEEPING_TWI_H
