@@ -165,3 +165,14 @@ def test_each_hold_lasts_a_minute_from_reaching_its_setpoint(fig8_runs, controll
     # The first hold waited for the run from 19 degC down to 17 degC.
     first_step_s = (status[starts[1]]["t_ms"] - status[0]["t_ms"]) / 1000
     assert first_step_s > PAPER_HOLD_S + 5
+
+
+@pytest.mark.slow
+@pytest.mark.twin
+def test_holds_too_short_to_settle_are_said_so_not_printed_as_nan(tmp_path):
+    result = subprocess.run([sys.executable, "-m", "thermotilt", "simulate", "fig8", "--hold-seconds", "10",
+                             "--out", str(tmp_path / "short")], capture_output=True, text=True, timeout=600,
+                            check=False)
+    assert result.returncode == 0, result.stderr
+    assert "nan" not in result.stdout and "Warning" not in result.stderr
+    assert f"no hold lasted {2 * figures.SETTLED_WINDOW_S:g} s" in result.stdout

@@ -122,12 +122,13 @@ def fig8_figures(rows: list[dict[str, str]]) -> dict:
     steps = step_responses(warming)
     crossing = crossing_step(steps, ambient)
     others = [step.overshoot_c for step in steps if step is not crossing]
+    settled = holds(warming)
     return {
         "ambient_c": round(ambient, 2),
         "holds": [
             {"setpoint_c": hold.setpoint_c, "settled_c": round(hold.settled_c, 3),
              "offset_c": round(hold.offset_c, 3)}
-            for hold in holds(warming)
+            for hold in settled
         ],
         "steps": [
             {"from_c": step.from_c, "to_c": step.to_c, "completion_s": round(step.completion_s, 2),
@@ -136,7 +137,7 @@ def fig8_figures(rows: list[dict[str, str]]) -> dict:
         ],
         "crossing_overshoot_c": None if crossing is None else round(crossing.overshoot_c, 3),
         "other_overshoot_c": round(max(others), 3) if others else None,
-        "imu_temperature_offset_c": round(imu_temperature_offset_c(warming), 2),
+        "imu_temperature_offset_c": round(imu_temperature_offset_c(warming), 2) if settled else None,
     }
 
 
@@ -145,6 +146,9 @@ def fig8_table(figures: dict) -> list[str]:
     def listed(values, form, unit):
         return ", ".join(format(value, form) for value in values) + f" {unit}"
 
+    if not figures["holds"]:
+        return [f"Figure 8: no hold lasted {2 * SETTLED_WINDOW_S:g} s, too short to settle; its features "
+                f"need --hold-seconds of at least {2 * SETTLED_WINDOW_S:g}"]
     below = [hold["offset_c"] for hold in figures["holds"] if hold["setpoint_c"] < figures["ambient_c"]]
     above = [hold["offset_c"] for hold in figures["holds"] if hold["setpoint_c"] > figures["ambient_c"]]
     crossing = figures["crossing_overshoot_c"]
