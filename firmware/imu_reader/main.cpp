@@ -177,12 +177,12 @@ void sendImuFrame(const int16_t raw[AXES], const ImuOutput& out)
     link.send();
 }
 
-// A sample found ready, by the data-ready line (onLine) or by STATUS_REG_A.
-// On the line's word the read starts at STATUS_REG_A, one byte more, so a
-// line stuck at its active level cannot pass an old sample off as new.
-void readSample(uint32_t now, bool onLine)
+// A sample found ready, by the data-ready line (onLine) or by STATUS_REG_A,
+// with the line at levelWhenReady. On the line's word the read starts at
+// STATUS_REG_A, one byte more, so a line stuck at its active level cannot
+// pass an old sample off as new.
+void readSample(uint32_t now, bool onLine, bool levelWhenReady)
 {
-    bool levelWhenReady = dataReadyLevel();
     int16_t raw[AXES];
     int16_t temperatureRaw;
     bool fresh = true;
@@ -385,15 +385,17 @@ __attribute__((noinline)) void loop()
         uint32_t sinceSample = now - lastSampleMs;
         uint32_t pollAfter =
             dataReadyLine.trusted() ? DATA_READY_LINE_SILENT_MS : SAMPLE_PERIOD_MS - DATA_READY_WINDOW_MS;
-        if (dataReadyLine.saysReady(dataReadyLevel())) {
-            readSample(now, true);
+        bool level = dataReadyLevel();
+        if (dataReadyLine.saysReady(level)) {
+            readSample(now, true, level);
         } else if (sinceSample >= pollAfter) {
             if (sensor.dataReady()) {
-                if (dataReadyLine.trusted() && !dataReadyLine.saysReady(dataReadyLevel())) {
+                level = dataReadyLevel();
+                if (dataReadyLine.trusted() && !dataReadyLine.saysReady(level)) {
                     // It missed a sample that STATUS_REG_A has.
                     dataReadyLine.distrust();
                 }
-                readSample(now, false);
+                readSample(now, false, level);
             } else if (sinceSample >= SENSOR_SILENT_MS) {
                 sensorLost(Detail::NO_DATA);
             }
