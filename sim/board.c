@@ -94,10 +94,25 @@ static void free_flash_image(elf_firmware_t *firmware)
 static avr_cycle_count_t stop_here(avr_t *avr, avr_cycle_count_t when, void *param);
 static avr_cycle_count_t send_next_byte(avr_t *avr, avr_cycle_count_t when, void *param);
 
+/*
+ * simavr runs one instruction per call of its run function unless
+ * run_cycle_limit allows more: then avr_run_one goes on executing until the
+ * next cycle timer is due, an interrupt is pending or the CPU stops running,
+ * the same points at which it would have stopped one instruction at a time,
+ * so the run is the same cycle for cycle. avr_reset sets the limit back to 1.
+ */
+static void set_run_cycle_limit(board_t *board)
+{
+    board->avr->run_cycle_limit = board->profile.plain_run || board->one_instruction_per_call
+                                      ? 1
+                                      : BOARD_RUN_CYCLE_LIMIT;
+}
+
 static void after_reset(avr_io_t *io)
 {
     board_t *board = (board_t *)((char *)io - offsetof(board_t, reset_watch));
     avr_t *avr = board->avr;
+    set_run_cycle_limit(board);
     if (board->run_until_cycle > avr->cycle) {
         avr_cycle_timer_register(avr, board->run_until_cycle - avr->cycle, stop_here, board);
     }
@@ -195,6 +210,7 @@ int board_load(board_t *board, const char *elf_path, const char *mcu, uint32_t f
     board->reset_watch.kind = "thermotilt_board";
     board->reset_watch.reset = after_reset;
     avr_register_io(board->avr, &board->reset_watch);
+    set_run_cycle_limit(board);
     return 0;
 }
 
@@ -343,6 +359,7 @@ int board_profile_start(board_t *board, uint64_t period_cycles, size_t capacity)
     profile->next_sample_at = period_cycles;
     profile->plain_run = plain_run;
     board->avr->run = run_profiled;
+    set_run_cycle_limit(board);
     return 0;
 }
 
@@ -351,7 +368,14 @@ void board_profile_stop(board_t *board)
     if (board->profile.plain_run) {
         board->avr->run = board->profile.plain_run;
         board->profile.plain_run = NULL;
+        set_run_cycle_limit(board);
     }
+}
+
+void board_run_one_instruction_per_call(board_t *board, int on)
+{
+    board->one_instruction_per_call = on != 0;
+    set_run_cycle_limit(board);
 }
 
 void board_free(board_t *board)

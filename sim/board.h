@@ -15,6 +15,8 @@ typedef void (*board_uart_byte_fn)(void *context, uint8_t byte);
 typedef void (*board_reset_fn)(void *context);
 
 enum { BOARD_RESET_HOOKS = 4 };
+/* simavr's run_cycle_limit: the most cycles one call of its run function executes (board_load). */
+enum { BOARD_RUN_CYCLE_LIMIT = 1 << 16 };
 
 /*
  * One profiler sample: the PC of the instruction that was executing, then
@@ -60,6 +62,7 @@ typedef struct board {
     void *reset_contexts[BOARD_RESET_HOOKS];
     int reset_hook_count;
     uint64_t slept_cycles; /* cycles simavr skipped while the CPU slept, since load */
+    int one_instruction_per_call; /* board_run_one_instruction_per_call */
     board_profile_t profile;
 } board_t;
 
@@ -122,6 +125,15 @@ void board_cycle_counts(const board_t *board, uint64_t *awake, uint64_t *asleep)
  */
 int board_profile_start(board_t *board, uint64_t period_cycles, size_t capacity);
 void board_profile_stop(board_t *board);
+
+/*
+ * simavr executes instructions in runs until its next cycle timer is due or
+ * an interrupt is pending (board_load sets its run_cycle_limit), which
+ * simulates the same cycles as one instruction per call of its run
+ * function, only faster. On (nonzero), this board runs one instruction per
+ * call, as simavr does by default, so that a test can show the two agree.
+ */
+void board_run_one_instruction_per_call(board_t *board, int on);
 
 /* Releases the MCU; the board can be loaded again afterwards. */
 void board_free(board_t *board);

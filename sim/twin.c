@@ -163,6 +163,11 @@ void twin_cycle_counts(const twin_t *twin, uint64_t *awake, uint64_t *asleep)
     board_cycle_counts(&twin->board, awake, asleep);
 }
 
+void twin_run_one_instruction_per_call(twin_t *twin, int on)
+{
+    board_run_one_instruction_per_call(&twin->board, on);
+}
+
 int twin_profile_start(twin_t *twin, uint64_t period_cycles, size_t capacity)
 {
     return board_profile_start(&twin->board, period_cycles, capacity);

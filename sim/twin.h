@@ -52,6 +52,9 @@ int twin_eeprom_write(twin_t *twin, size_t offset, const uint8_t *bytes, size_t 
 /* Cycles since create the CPU executed (awake) and slept; they add up to twin_cycles. */
 void twin_cycle_counts(const twin_t *twin, uint64_t *awake, uint64_t *asleep);
 
+/* board_run_one_instruction_per_call: on (nonzero), simavr's default pace, for tests. */
+void twin_run_one_instruction_per_call(twin_t *twin, int on);
+
 /*
  * The sampling profiler (board_profile_start): a sample every period_cycles
  * awake cycles, up to capacity kept. Start returns 0, or -1 for a zero

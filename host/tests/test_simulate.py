@@ -17,7 +17,8 @@ from pathlib import Path
 import pytest
 import serial
 
-from thermotilt import figures, physics
+from thermotilt import figures, physics, twin
+from thermotilt import simulate as simulate_module
 from thermotilt.coefficients import PAPER_DEFAULTS
 from thermotilt.protocol import FrameReader, build_frame
 from thermotilt.runlog import ALL_COLUMNS, read_run_log
@@ -215,6 +216,42 @@ def test_same_seed_gives_identical_run_csv_and_another_seed_differs(tmp_path):
         outputs.append((tmp_path / name / "run.csv").read_bytes())
     assert outputs[0] == outputs[1]
     assert outputs[0] != outputs[2]
+
+
+class OneInstructionPerCallBoard(twin.Board):
+    def __init__(self, *arguments, **options):
+        super().__init__(*arguments, **options)
+        self.run_one_instruction_per_call()
+
+
+@pytest.mark.slow
+@pytest.mark.twin
+def test_simavr_executing_runs_of_instructions_simulates_the_same_cycles(tmp_path, monkeypatch):
+    # The board lets simavr execute until its next cycle timer or interrupt
+    # (sim/board.c). Against simavr's default of one instruction per call, with
+    # both watchdogs firing, the data-ready line cut and mended, and bytes
+    # corrupted on the IMU's UART, every byte of both boards' output is the same.
+    model = physics.Model.load().with_faults(physics.parse_fault(text) for text in (
+        "imu_hang@30", "chamber_hang@50", "data_ready_cut@70-100", "imu_uart_corrupt=0.01@100-140"))
+    scenario = build("fig8", ScenarioOptions(hold_s=10))
+    runs = {}
+    for name, board in (("runs", twin.Board), ("single", OneInstructionPerCallBoard)):
+        monkeypatch.setattr(simulate_module, "Board", board)
+        out = tmp_path / name
+        out.mkdir()
+        summary = simulate_module.run(scenario, model, out, seed=5).summary
+        runs[name] = (out, summary)
+    (runs_out, runs_summary), (single_out, single_summary) = runs["runs"], runs["single"]
+    for summary in (runs_summary, single_summary):
+        del summary["wall_seconds"], summary["speed_x_real_time"]
+    assert runs_summary == single_summary
+    for report in runs_summary["boards"].values():
+        assert any(error.startswith("RESET WATCHDOG") for error in report["reported_errors"])
+    assert runs_summary["boards"]["imu_reader"]["corrupted_bytes"] > 0
+    for board in ("imu_reader", "thermal_chamber"):
+        serial_file = Path("serial") / f"{board}.txt"
+        assert (runs_out / serial_file).read_bytes() == (single_out / serial_file).read_bytes()
+    assert (runs_out / "run.csv").read_bytes() == (single_out / "run.csv").read_bytes()
 
 
 # The IMU's own fields: what it read and computed. The frame's millisecond

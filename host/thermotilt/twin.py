@@ -102,6 +102,7 @@ def _load_library(path: Path) -> ctypes.CDLL:
         "twin_eeprom_write": (ctypes.c_int, [handle, ctypes.c_size_t, ctypes.c_char_p, ctypes.c_size_t]),
         "twin_stack_untouched": (ctypes.c_size_t, [handle, ctypes.POINTER(ctypes.c_size_t)]),
         "twin_cycle_counts": (None, [handle, ctypes.POINTER(ctypes.c_uint64), ctypes.POINTER(ctypes.c_uint64)]),
+        "twin_run_one_instruction_per_call": (None, [handle, ctypes.c_int]),
         "twin_profile_start": (ctypes.c_int, [handle, ctypes.c_uint64, ctypes.c_size_t]),
         "twin_profile_stop": (None, [handle]),
         "twin_profile_frames": (ctypes.c_size_t, []),
@@ -367,6 +368,13 @@ class Board:
         asleep = ctypes.c_uint64(0)
         self._lib.twin_cycle_counts(self._live(), ctypes.byref(awake), ctypes.byref(asleep))
         return int(awake.value), int(asleep.value)
+
+    def run_one_instruction_per_call(self, on: bool = True) -> None:
+        """simavr's default pace: one instruction per call of its run
+        function, where the board otherwise lets it execute until its next
+        cycle timer or interrupt. Both simulate the same cycles; this is for
+        tests that show it."""
+        self._lib.twin_run_one_instruction_per_call(self._live(), int(on))
 
     def start_profile(self, period_cycles: int = 997, capacity: int = 1 << 18) -> None:
         """Samples the awake CPU every period_cycles executed cycles (the
