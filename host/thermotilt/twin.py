@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
 from types import TracebackType
+from typing import NamedTuple
 
 DEFAULT_FREQUENCY_HZ = 16_000_000
 SUPPLY_MILLIVOLTS = 5000.0
@@ -43,9 +44,8 @@ class TwinError(RuntimeError):
     """The twin cannot do what was asked: a missing build, a crashed firmware, a closed board."""
 
 
-@dataclass(frozen=True)
-class Drive:
-    """What the L298N delivered to the Peltier since the previous read."""
+class Drive(NamedTuple):
+    """What the L298N delivered to the Peltier since the previous read (read every step)."""
 
     duty: float  # mean fraction of the time current flowed, 0..1
     direction: int  # +1 heating, -1 cooling, 0 no current
@@ -146,6 +146,8 @@ def _choice(value: str, choices: dict[str, int], what: str) -> int:
 
 def _integer_in(value: int, allowed: range, what: str) -> int:
     """value as an int (numpy integers too) if it lies in allowed."""
+    if type(value) is int and value in allowed:
+        return value
     try:
         number = None if isinstance(value, bool) else operator.index(value)
     except TypeError:
@@ -248,6 +250,9 @@ class Board:
     def __init__(self, elf: Path | str, mcu: str, frequency_hz: int = DEFAULT_FREQUENCY_HZ) -> None:
         self._handle: int | None = None
         self._profile_period = 0
+        # read_l298n's out-parameters, made once: it runs every step.
+        self._drive_out = (ctypes.c_double(), ctypes.c_int(), ctypes.c_int())
+        self._drive_refs = tuple(ctypes.byref(value) for value in self._drive_out)
         frequency_hz = _integer_in(frequency_hz, range(1, 2**32), "frequency_hz")
         elf = _existing(Path(elf))
         self._lib = _library()
@@ -492,12 +497,10 @@ class Board:
             raise TwinError(f"the L298N observer watches ATmega2560 pins; this board is {self.mcu}")
 
     def read_l298n(self) -> Drive:
-        duty = ctypes.c_double()
-        direction = ctypes.c_int()
-        pwm = ctypes.c_int()
-        if self._lib.twin_l298n_read(self._live(), ctypes.byref(duty), ctypes.byref(direction), ctypes.byref(pwm)) != 0:
+        duty, direction, pwm = self._drive_out
+        if self._lib.twin_l298n_read(self._live(), *self._drive_refs) != 0:
             raise TwinError("attach_l298n() first")
-        return Drive(duty=duty.value, direction=direction.value, pwm=pwm.value)
+        return Drive(duty.value, direction.value, pwm.value)
 
     def set_l298n_disconnected(self, disconnected: bool) -> None:
         """A cut Peltier wire: the firmware still commands a PWM, nothing reaches the cell."""

@@ -5,8 +5,7 @@ from __future__ import annotations
 
 import math
 import zlib
-from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -21,9 +20,9 @@ _NOISE_BLOCK_SAMPLES = 4096
 _TERM_STREAMS = 2
 
 
-@dataclass(frozen=True, slots=True)
-class SensorSample:
-    """One LSM9DS0 sample: register contents and the model's intermediate values."""
+class SensorSample(NamedTuple):
+    """One LSM9DS0 sample: register contents and the model's intermediate values.
+    A named tuple: made every 10 ms step, it costs a fifth of a frozen dataclass."""
 
     ax: int
     ay: int
