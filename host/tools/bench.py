@@ -162,7 +162,7 @@ def speed_and_awake(model: Model) -> None:
                            Path(scratch) / "field").summary
         speed_line("imu alone, field-warming (10 min)", imu["sim_seconds"], imu["wall_seconds"])
         speed_line("chamber alone, a cycle's program (10 min)", CHAMBER_ALONE_S, chamber_alone_seconds(model))
-        # Timed, its laps add about 1.5 us to a step of some 160.
+        # Timed, its laps add about 1.5 us to a step of 150-250.
         timing = simulate.StepTiming()
         fig8 = simulate.run(build("fig8", ScenarioOptions()), model, Path(scratch) / "fig8", timing=timing).summary
         speed_line("both boards, fig8", fig8["sim_seconds"], fig8["wall_seconds"],
