@@ -20,7 +20,11 @@ if(NOT EXISTS "${ARDUINO_AVR_DIR}/cores/arduino/Arduino.h")
   message(FATAL_ERROR "No Arduino AVR core at ${ARDUINO_AVR_DIR}: install Debian's arduino-core-avr")
 endif()
 
-add_compile_options(-mmcu=${AVR_MCU} -Os -ffunction-sections -fdata-sections -flto
+# avr-gcc folds identical constants into one (-fipa-icf-variables) even when
+# one is PROGMEM and the other in RAM, so one of them is read from the wrong
+# memory: a PROGMEM {1, 5, 25, 125} beside the same table in RAM read 146 at
+# index 3 without LTO and 0 from the RAM copy with it (simavr, gcc-avr 5.4).
+add_compile_options(-mmcu=${AVR_MCU} -Os -ffunction-sections -fdata-sections -flto -fno-ipa-icf-variables
   $<$<COMPILE_LANGUAGE:CXX>:-fno-exceptions> $<$<COMPILE_LANGUAGE:CXX>:-fno-threadsafe-statics>)
 add_compile_definitions(F_CPU=${AVR_FREQUENCY}L ARDUINO=10807 ARDUINO_ARCH_AVR ${ARDUINO_BOARD_DEFINE})
 add_link_options(-mmcu=${AVR_MCU} -Os -flto -fuse-linker-plugin -Wl,--gc-sections)
