@@ -9,10 +9,17 @@
 #ifdef __AVR__
 #include <avr/pgmspace.h>
 #else
+#include <stdint.h>
 #include <string.h>
 
 #ifndef PROGMEM
 #define PROGMEM
+#endif
+#ifndef pgm_read_word
+#define pgm_read_word(address) (*(const uint16_t*)(address))
+#endif
+#ifndef pgm_read_dword
+#define pgm_read_dword(address) (*(const uint32_t*)(address))
 #endif
 #ifndef pgm_read_float
 #define pgm_read_float(address) (*(const float*)(address))
