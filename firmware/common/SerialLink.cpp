@@ -4,6 +4,7 @@
 #include <avr/sleep.h>
 #include <string.h>
 
+#include "Uart0.h"
 #include "Watchdog.h"
 
 namespace Detail = Protocol::ErrorDetail;
@@ -38,13 +39,13 @@ SerialLink::SerialLink()
 
 void SerialLink::begin()
 {
-    Serial.begin(SERIAL_BAUD);
+    Uart0::begin(SERIAL_BAUD);
 }
 
 bool SerialLink::poll()
 {
-    for (uint8_t read = 0; read < MAX_BYTES_PER_POLL && Serial.available() > 0; ++read) {
-        bool complete = parser_.feed((char)Serial.read());
+    for (uint8_t read = 0; read < MAX_BYTES_PER_POLL && Uart0::available() > 0; ++read) {
+        bool complete = parser_.feed((char)Uart0::read());
         if (parser_.malformedCount() != malformedSeen_) {
             malformedSeen_ = parser_.malformedCount();
             uint32_t now = millis();
@@ -90,29 +91,29 @@ void SerialLink::writePending()
     if (!pendingLength_) {
         return;
     }
-    int room = Serial.availableForWrite();
-    uint8_t count = room < (int)pendingLength_ ? (uint8_t)room : pendingLength_;
-    Serial.write(pending_, count);
+    uint8_t room = Uart0::availableForWrite();
+    uint8_t count = room < pendingLength_ ? room : pendingLength_;
+    Uart0::write(pending_, count);
     pending_ += count;
     pendingLength_ -= count;
 }
 
 bool SerialLink::hasWork() const
 {
-    if (Serial.available() > 0) {
+    if (Uart0::available() > 0) {
         return true;
     }
     if (!pendingLength_) {
         return false;
     }
-    int room = Serial.availableForWrite();
-    return room >= (int)pendingLength_ || room >= SERIAL_TX_BUFFER_SIZE - 1;
+    uint8_t room = Uart0::availableForWrite();
+    return room >= pendingLength_ || room >= Uart0::RING_SIZE - 1;
 }
 
 void SerialLink::finishPending()
 {
     if (pendingLength_) {
-        Serial.write(pending_, pendingLength_);
+        Uart0::write(pending_, pendingLength_);
         pendingLength_ = 0;
     }
 }
@@ -120,7 +121,7 @@ void SerialLink::finishPending()
 void SerialLink::flush()
 {
     finishPending();
-    Serial.flush();
+    Uart0::flush();
 }
 
 void SerialLink::sendVersion(const char* device, const char* firmwareVersion)

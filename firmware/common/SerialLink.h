@@ -1,6 +1,6 @@
 // The board's end of the serial protocol (docs/protocol.md): parses command
-// frames from Serial, numbers every frame it sends, and answers commands with
-// ACK or ERR. Malformed input is counted by the parser and reported, never
+// frames from the serial port (Uart0), numbers every frame it sends, and
+// answers commands with ACK or ERR. Malformed input is counted by the parser and reported, never
 // acted on. Nothing the host sends can hold the board's loop: each poll
 // reads a bounded number of bytes and malformed lines are reported at a
 // bounded rate.
@@ -11,7 +11,7 @@
 
 // Both boards and the host use one speed; see docs/protocol.md.
 const unsigned long SERIAL_BAUD = 115200;
-// Fewer than Serial's 64-byte receive buffer holds, so a flood is read over
+// Fewer than Uart0's 64-byte receive ring holds, so a flood is read over
 // several loop passes with the control work in between.
 const uint8_t MAX_BYTES_PER_POLL = 32;
 // A line-rate flood of short bad lines would need ~15x the line's capacity
@@ -52,9 +52,9 @@ public:
         writer_.begin(type, nextSeq_++);
         return writer_;
     }
-    // Hands the frame to Serial as far as its transmit buffer has room; the
+    // Hands the frame to Uart0 as far as its transmit ring has room; the
     // rest waits for writePending(), so the loop never spins on the UART (an
-    // IMU frame is longer than the 64-byte buffer). The next start(), or
+    // IMU frame is longer than the 64-byte ring). The next start(), or
     // flush(), writes what is still waiting first, so frames never interleave.
     void send();
     // Call every loop pass: more of a frame that did not fit.
@@ -62,7 +62,7 @@ public:
     // Everything sent is on the line (before a reset cuts it).
     void flush();
     // Whether a loop pass would find something to do here: a received byte,
-    // or room in Serial's buffer for the rest of a waiting frame.
+    // or room in Uart0's ring for the rest of a waiting frame.
     bool hasWork() const;
     uint16_t encodeFailures() const { return encodeFailures_; }
 
@@ -90,7 +90,7 @@ private:
 
     char line_[Protocol::LINE_BUFFER_SIZE];
     FrameWriter writer_;
-    // What of writer_'s last frame Serial has not taken yet.
+    // What of writer_'s last frame Uart0 has not taken yet.
     const char* pending_;
     uint8_t pendingLength_;
     FrameParser parser_;

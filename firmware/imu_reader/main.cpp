@@ -213,7 +213,7 @@ void readSample(uint32_t now, bool onLine, bool levelWhenReady)
 
 // While the data-ready line is trusted, a timer tick brings nothing to do:
 // sleep through the ticks until the line changes, the host sends a byte,
-// Serial has room for the rest of a frame, or the line's silence is due to
+// Uart0 has room for the rest of a frame, or the line's silence is due to
 // be checked. Otherwise one tick at a time, as the polling needs.
 void idleUntilWork()
 {

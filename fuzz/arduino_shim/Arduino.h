@@ -64,25 +64,5 @@ int analogRead(uint8_t pin);
 void attachInterrupt(uint8_t interruptNumber, void (*handler)(void), int mode);
 void analogWrite(uint8_t pin, int value);
 
-// Arduino's transmit buffer.
-#define SERIAL_TX_BUFFER_SIZE 64
-
-class HardwareSerial {
-public:
-    void begin(unsigned long baud);
-    void end();
-    int available();
-    int peek();
-    int read();
-    int availableForWrite();
-    void flush();
-    size_t write(uint8_t value);
-    size_t write(const uint8_t* buffer, size_t size);
-    size_t write(const char* text);
-    size_t write(const char* buffer, size_t size) { return write((const uint8_t*)buffer, size); }
-    explicit operator bool() { return true; }
-};
-
-extern HardwareSerial Serial;
 
 #endif

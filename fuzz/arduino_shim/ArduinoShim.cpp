@@ -3,6 +3,7 @@
 #include <Arduino.h>
 #include <EEPROM.h>
 #include <SleepingTwi.h>
+#include <Uart0.h>
 #include <avr/io.h>
 #include <avr/wdt.h>
 
@@ -11,13 +12,12 @@
 
 #include "invariant.h"
 
-HardwareSerial Serial;
 EEPROMClass EEPROM;
 volatile uint8_t MCUSR = 0;
 
 namespace {
 
-// Arduino's ring buffer of 64 keeps one slot free.
+// Uart0's receive ring of 64 keeps one slot free.
 const size_t SERIAL_RX_CAPACITY = 63;
 const uint8_t I2C_ADDRESSES = 128;
 const uint8_t ERASED = 0xFF;
@@ -231,53 +231,36 @@ void wdt_disable()
     mcu.watchdogOn = false;
 }
 
-void HardwareSerial::begin(unsigned long) {}
+// The boards' serial port (firmware/common/Uart0.cpp drives USART0's
+// registers): what the harness fed, and what the sketch wrote, whole.
+void Uart0::begin(uint32_t) {}
 
-void HardwareSerial::end() {}
-
-int HardwareSerial::available()
+uint8_t Uart0::available()
 {
-    return (int)ArduinoShim::serialBytesWaiting();
+    return (uint8_t)ArduinoShim::serialBytesWaiting();
 }
 
-int HardwareSerial::peek()
+int Uart0::read()
 {
-    return available() > 0 ? (uint8_t)mcu.serialReceived[mcu.serialReadAt] : -1;
-}
-
-int HardwareSerial::read()
-{
-    int value = peek();
-    if (value >= 0) {
-        ++mcu.serialReadAt;
-        mcu.serialRead += (char)value;
+    if (available() == 0) {
+        return -1;
     }
-    return value;
+    char value = mcu.serialReceived[mcu.serialReadAt++];
+    mcu.serialRead += value;
+    return (uint8_t)value;
 }
 
-int HardwareSerial::availableForWrite()
+uint8_t Uart0::availableForWrite()
 {
-    return (int)SERIAL_RX_CAPACITY;
+    return (uint8_t)SERIAL_RX_CAPACITY;
 }
 
-void HardwareSerial::flush() {}
-
-size_t HardwareSerial::write(uint8_t value)
+void Uart0::write(const char* bytes, uint8_t count)
 {
-    mcu.serialWritten += (char)value;
-    return 1;
+    mcu.serialWritten.append(bytes, count);
 }
 
-size_t HardwareSerial::write(const uint8_t* buffer, size_t size)
-{
-    mcu.serialWritten.append((const char*)buffer, size);
-    return size;
-}
-
-size_t HardwareSerial::write(const char* text)
-{
-    return write((const uint8_t*)text, strlen(text));
-}
+void Uart0::flush() {}
 
 uint8_t EEPROMClass::read(int address)
 {

@@ -2,9 +2,10 @@
 
 A board answers every command with ACK or ERR whose ``cmd_seq`` is the
 command's SEQ; a query sends its data frame (COE, VER, ICF, PRG) just before
-the ACK (docs/protocol.md). It reads commands through Serial's 64-byte
-receive buffer and answers at the 115200-baud line rate, so a host that sends
-the next command before the answer came overruns that buffer: in the twin,
+the ACK (docs/protocol.md). It reads commands through a 64-byte receive
+ring (firmware/common/Uart0) and answers at the 115200-baud line rate, so a
+host that sends the next command before the answer came overruns that
+ring: in the twin (with Arduino's Serial, whose ring was the same size),
 50 GETCOE (about 20 bytes each, each answered by about 110) sent back to back
 got 10 answers, sent 9 ms apart 43, and only from 11 ms apart all 50.
 :class:`CommandClient` therefore keeps one command in flight.

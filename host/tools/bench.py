@@ -191,7 +191,7 @@ IMU_STAGES = (
      r"ImuProcessing::|KalmanFilter::|surfaceCorrection|TrendDetector::"),
     ("frame formatting and printing: FrameWriter, float to text, CRC",
      r"FrameWriter::|SerialLink::|dtostr|dtoa_prf|crc16Xmodem"),
-    ("UART: HardwareSerial and its ISRs", r"HardwareSerial::|Print::|Serial0_available|serialEventRun|__vector_1[89]$"),
+    ("UART: Uart0 and its ISRs", r"Uart0::|__vector_1[89]$"),
     ("timer tick: the Timer0 overflow ISR (millis)", r"__vector_16$"),
 )
 # Reading the clock is charged to whoever reads it (the TWI master checks millis() for its timeout).
