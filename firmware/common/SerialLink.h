@@ -1,7 +1,7 @@
 // The board's end of the serial protocol (docs/protocol.md): parses command
 // frames from the serial port (Uart0), numbers every frame it sends, and
-// answers commands with ACK or ERR. Malformed input is counted by the parser and reported, never
-// acted on. Nothing the host sends can hold the board's loop: each poll
+// answers commands with ACK or ERR. Malformed input is counted by the
+// parser and reported, never acted on. Nothing the host sends can hold the board's loop: each poll
 // reads a bounded number of bytes and malformed lines are reported at a
 // bounded rate.
 #ifndef THERMOTILT_SERIAL_LINK_H

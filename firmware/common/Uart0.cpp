@@ -18,6 +18,11 @@ const uint8_t RING_MASK = Uart0::RING_SIZE - 1;
 // Arduino's SERIAL_8N1.
 const uint8_t EIGHT_DATA_BITS_NO_PARITY_ONE_STOP = (1 << UCSZ01) | (1 << UCSZ00);
 
+inline __attribute__((always_inline)) uint8_t nextIndex(uint8_t index)
+{
+    return (uint8_t)((index + 1) & RING_MASK);
+}
+
 uint8_t received[Uart0::RING_SIZE];
 uint8_t transmitted[Uart0::RING_SIZE];
 volatile uint8_t receivedHead = 0;
@@ -36,7 +41,7 @@ inline __attribute__((always_inline)) void onReceived()
     }
     uint8_t value = UDR0;
     uint8_t head = receivedHead;
-    uint8_t next = (uint8_t)((head + 1) & RING_MASK);
+    uint8_t next = nextIndex(head);
     if (next != receivedTail) {
         received[head] = value;
         receivedHead = next;
@@ -49,7 +54,7 @@ inline __attribute__((always_inline)) void onDataRegisterEmpty()
 {
     uint8_t tail = transmittedTail;
     UDR0 = transmitted[tail];
-    tail = (uint8_t)((tail + 1) & RING_MASK);
+    tail = nextIndex(tail);
     transmittedTail = tail;
     UCSR0A = (uint8_t)((UCSR0A & ((1 << U2X0) | (1 << MPCM0))) | (1 << TXC0));
     if (transmittedHead == tail) {
@@ -106,7 +111,7 @@ int Uart0::read()
         return -1;
     }
     uint8_t value = received[tail];
-    receivedTail = (uint8_t)((tail + 1) & RING_MASK);
+    receivedTail = nextIndex(tail);
     return value;
 }
 
@@ -120,7 +125,7 @@ void Uart0::write(const char* bytes, uint8_t count)
     written = true;
     uint8_t head = transmittedHead;
     while (count > 0) {
-        uint8_t next = (uint8_t)((head + 1) & RING_MASK);
+        uint8_t next = nextIndex(head);
         if (next == transmittedTail) {
             ATOMIC_BLOCK(ATOMIC_RESTORESTATE)
             {
