@@ -88,3 +88,27 @@ def test_coefficients_corrupted_block(tmp_path):
     result = run("coefficients", "--block", str(block))
     assert_one_line_error(result, 1)
     assert "CRC" in result.stderr
+
+
+def test_ctrl_c_while_a_position_is_reported_waits_for_the_report(monkeypatch, capsys):
+    """tqdm.write turns a KeyboardInterrupt inside its lock into a RuntimeError
+    (a traceback instead of exit 130, seen once in CI): the report finishes,
+    then the Ctrl-C is raised."""
+    import os
+    import signal
+
+    from thermotilt import cli
+    from thermotilt.calibration.campaign import DONE, PositionRecord
+
+    written = []
+
+    def write_then_ctrl_c(line, file=None):
+        written.append(line)
+        os.kill(os.getpid(), signal.SIGINT)
+
+    monkeypatch.setattr(cli.tqdm, "write", write_then_ctrl_c)
+    record = PositionRecord("X+30", 30.0, 0.0, status=DONE, wall_seconds=61.0, reported_errors=["ERR RESET"])
+    with pytest.raises(KeyboardInterrupt):
+        cli._report_position(record)
+    assert written == ["X+30: done in 61 s", "X+30: reported ERR RESET"]
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler

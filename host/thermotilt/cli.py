@@ -6,9 +6,12 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import signal
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, NoReturn, Sequence, TypeVar
 
@@ -378,6 +381,24 @@ def _command_campaign(args: argparse.Namespace) -> int:
         return _finish_campaign(outcome, out_dir)
 
 
+@contextmanager
+def _ctrl_c_after_block() -> Iterator[None]:
+    """Ctrl-C during the block is raised when it ends. tqdm.write turns a
+    KeyboardInterrupt that lands while it takes its lock into a
+    RuntimeError, a traceback instead of exit 130."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    pressed: list[int] = []
+    previous = signal.signal(signal.SIGINT, lambda signum, _frame: pressed.append(signum))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    if pressed:
+        raise KeyboardInterrupt
+
+
 def _report_position(record: PositionRecord) -> None:
     from .calibration.campaign import DONE
 
@@ -386,11 +407,12 @@ def _report_position(record: PositionRecord) -> None:
         line += f" in {record.wall_seconds:.0f} s"
     if record.error:
         line += f" ({record.error})"
-    # Above the progress bar, if one is running.
-    tqdm.write(line, file=sys.stdout)
-    for error in record.reported_errors:
-        tqdm.write(f"{record.label}: reported {error}", file=sys.stdout)
-    sys.stdout.flush()
+    with _ctrl_c_after_block():
+        # Above the progress bar, if one is running.
+        tqdm.write(line, file=sys.stdout)
+        for error in record.reported_errors:
+            tqdm.write(f"{record.label}: reported {error}", file=sys.stdout)
+        sys.stdout.flush()
 
 
 def _finish_campaign(outcome: CampaignOutcome, out_dir: Path) -> int:
