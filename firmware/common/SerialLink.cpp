@@ -42,21 +42,20 @@ void SerialLink::begin()
     Uart0::begin(SERIAL_BAUD);
 }
 
-bool SerialLink::poll()
+bool SerialLink::poll(uint32_t nowMs)
 {
     for (uint8_t read = 0; read < MAX_BYTES_PER_POLL && Uart0::available() > 0; ++read) {
         bool complete = parser_.feed((char)Uart0::read());
         if (parser_.malformedCount() != malformedSeen_) {
             malformedSeen_ = parser_.malformedCount();
-            uint32_t now = millis();
-            if (!malformedReported_ || now - lastMalformedReportMs_ >= MALFORMED_REPORT_MS) {
+            if (!malformedReported_ || nowMs - lastMalformedReportMs_ >= MALFORMED_REPORT_MS) {
                 malformedReported_ = true;
-                lastMalformedReportMs_ = now;
+                lastMalformedReportMs_ = nowMs;
                 report(Protocol::Error::BAD_FRAME, malformedName(parser_.lastMalformedReason()));
             }
         }
         if (complete && !Protocol::isBoardFrame(parser_.type())) {
-            lastHostFrameMs_ = millis();
+            lastHostFrameMs_ = nowMs;
             return true;
         }
     }

@@ -28,8 +28,8 @@ public:
     // ready in command(). Frames a board sends (IMU, ACK, ERR, ...) are
     // ignored, so an echoing terminal cannot start a conversation of the
     // board with itself. A malformed line is answered with an unsolicited
-    // ERR, at most once per MALFORMED_REPORT_MS.
-    bool poll();
+    // ERR, at most once per MALFORMED_REPORT_MS. nowMs is the board's clock.
+    bool poll(uint32_t nowMs);
     const FrameParser& command() const { return parser_; }
     // Inline, as start(): e.g. commandIs(Protocol::Frame::START).
     __attribute__((always_inline)) bool commandIs(Protocol::FrameType type) const
@@ -37,7 +37,7 @@ public:
         return parser_.typeIs_P(type.tag);
     }
 
-    // millis() when the last valid frame from the host arrived.
+    // nowMs of the poll() that read the last valid frame from the host.
     uint32_t lastHostFrameMs() const { return lastHostFrameMs_; }
 
     // Starts a frame with the next sequence number; add the type's fields,

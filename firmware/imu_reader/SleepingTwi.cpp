@@ -5,6 +5,8 @@
 #include <avr/sleep.h>
 #include <util/twi.h>
 
+#include "Clock.h"
+
 namespace {
 
 enum Outcome : uint8_t { BUSY, DONE, FAILED };
@@ -111,10 +113,10 @@ bool SleepingTwi::readRegisters(uint8_t address7, uint8_t firstReg, uint8_t* out
 bool SleepingTwi::transfer(uint8_t address7, const uint8_t* send, uint8_t sendCount, uint8_t* receive,
                            uint8_t receiveCount)
 {
-    uint32_t startMs = millis();
+    uint32_t startMs = Clock::tickMs();
     // The last transfer's STOP is still on the bus for a few microseconds.
     while (TWCR & _BV(TWSTO)) {
-        if (millis() - startMs >= timeoutMs_) {
+        if (Clock::tickMs() - startMs >= timeoutMs_) {
             reset();
             return false;
         }
@@ -133,7 +135,7 @@ bool SleepingTwi::transfer(uint8_t address7, const uint8_t* send, uint8_t sendCo
             interrupts();
             return outcome == DONE;
         }
-        if (millis() - startMs >= timeoutMs_) {
+        if (Clock::tickMs() - startMs >= timeoutMs_) {
             interrupts();
             reset();
             return false;

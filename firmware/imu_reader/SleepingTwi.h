@@ -15,7 +15,8 @@ class SleepingTwi : public I2cBus {
 public:
     // As Wire.begin() and Wire.setClock(): the pins' pull-ups on, the bit
     // rate for clockHz, the TWI enabled. A transfer the bus does not finish
-    // within timeoutMs is abandoned and the TWI reset (Wire's setWireTimeout).
+    // within timeoutMs (give or take Clock's tick) is abandoned and the TWI
+    // reset (Wire's setWireTimeout).
     void begin(uint32_t clockHz, uint8_t timeoutMs);
 
     bool writeRegister(uint8_t address7, uint8_t reg, uint8_t value) override;

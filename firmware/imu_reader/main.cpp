@@ -10,6 +10,7 @@
 #include <LSM9DS0.h>
 #include <Protocol.h>
 
+#include "Clock.h"
 #include "SerialLink.h"
 #include "SleepingTwi.h"
 #include "Watchdog.h"
@@ -31,6 +32,8 @@ const uint8_t DATA_READY_PIN = 2;
 // A trusted line idle this long is checked against STATUS_REG_A, early
 // enough that the sample it missed is still there to read.
 const uint32_t DATA_READY_LINE_SILENT_MS = SAMPLE_PERIOD_MS + DATA_READY_WINDOW_MS;
+static_assert(DATA_READY_LINE_SILENT_MS + Clock::TICK_MS < 2 * SAMPLE_PERIOD_MS,
+              "a silent line must be checked before the sample it missed is overwritten");
 const uint32_t SENSOR_RETRY_MS = 1000;
 // Ten periods without data-ready means the sensor stopped, even if it answers.
 const uint32_t SENSOR_SILENT_MS = 100;
@@ -92,7 +95,7 @@ const char* sensorStatusName(Lsm9ds0Accel::Status status)
 
 void connectSensor()
 {
-    lastSensorAttemptMs = millis();
+    lastSensorAttemptMs = Clock::nowMs();
     Lsm9ds0Accel::Status status = sensor.begin();
     sensorReady = status == Lsm9ds0Accel::Status::Ok;
     dataReadyLine.distrust();
@@ -107,7 +110,7 @@ void connectSensor()
 void sensorLost(const char* why)
 {
     sensorReady = false;
-    lastSensorAttemptMs = millis();
+    lastSensorAttemptMs = Clock::nowMs();
     link.report(Error::SENSOR_MISSING, why);
 }
 
@@ -161,7 +164,7 @@ __attribute__((noinline)) void saveCoefficients()
 void sendImuFrame(const int16_t raw[AXES], const ImuOutput& out)
 {
     FrameWriter& frame = link.start(Protocol::Frame::IMU);
-    frame.addUnsigned(millis());
+    frame.addUnsigned(Clock::nowMs());
     for (uint8_t axis = 0; axis < AXES; ++axis) {
         frame.addInt(raw[axis]);
     }
@@ -211,7 +214,7 @@ void readSample(uint32_t now, bool onLine, bool levelWhenReady)
     }
 }
 
-// While the data-ready line is trusted, a timer tick brings nothing to do:
+// While the data-ready line is trusted, a tick of Clock brings nothing to do:
 // sleep through the ticks until the line changes, the host sends a byte,
 // Uart0 has room for the rest of a frame, or the line's silence is due to
 // be checked. Otherwise one tick at a time, as the polling needs.
@@ -222,9 +225,11 @@ void idleUntilWork()
         return;
     }
     set_sleep_mode(SLEEP_MODE_IDLE);
+    // Signed: the tick's time can be a little before lastSampleMs.
+    uint32_t silenceDueMs = lastSampleMs + DATA_READY_LINE_SILENT_MS;
     for (;;) {
         noInterrupts();
-        if (dataReadyChanged || link.hasWork() || millis() - lastSampleMs >= DATA_READY_LINE_SILENT_MS) {
+        if (dataReadyChanged || link.hasWork() || (int32_t)(Clock::tickMs() - silenceDueMs) >= 0) {
             interrupts();
             return;
         }
@@ -350,6 +355,7 @@ void handleCommand()
 
 void setup()
 {
+    Clock::begin();
     startWatchdog();
     link.begin();
     bus.begin(I2C_CLOCK_HZ, I2C_TIMEOUT_MS);
@@ -369,13 +375,14 @@ __attribute__((noinline)) void loop()
     }
     feedWatchdog();
     link.writePending();
-    if (link.poll()) {
+    if (link.poll(Clock::nowMs())) {
         handleCommand();
         if (resetting) {
             return;
         }
     }
-    uint32_t now = millis();
+    // After the command, which may have taken a while (SAVECOE ~0.5 s).
+    uint32_t now = Clock::nowMs();
     if (!sensorReady) {
         if (now - lastSensorAttemptMs >= SENSOR_RETRY_MS) {
             connectSensor();

@@ -514,7 +514,7 @@ void loop()
     feedWatchdog();
     link.writePending();
     uint32_t now = millis();
-    if (link.poll()) {
+    if (link.poll(now)) {
         handleCommand(now);
     }
     if (now - lastControlMs >= CONTROL_PERIOD_MS) {

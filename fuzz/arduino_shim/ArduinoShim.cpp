@@ -2,6 +2,7 @@
 
 #include <Arduino.h>
 #include <EEPROM.h>
+#include <Clock.h>
 #include <SleepingTwi.h>
 #include <Uart0.h>
 #include <avr/io.h>
@@ -168,6 +169,19 @@ bool ArduinoShim::watchdogExpired()
 unsigned long millis()
 {
     return (uint32_t)(mcu.clockUs / 1000u);
+}
+
+// The IMU reader's clock (firmware/imu_reader/Clock.cpp runs it on Timer1).
+void Clock::begin() {}
+
+uint32_t Clock::nowMs()
+{
+    return millis();
+}
+
+uint32_t Clock::tickMs()
+{
+    return millis() / Clock::TICK_MS * Clock::TICK_MS;
 }
 
 unsigned long micros()

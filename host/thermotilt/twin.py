@@ -387,8 +387,8 @@ class Board:
         samples; starting again discards them. While it runs, every
         instruction passes through the sampler; a board never profiled, or
         stopped, runs at full speed. The default period is a prime, so it
-        keeps no step with the firmware's periodic work (Timer0's tick is
-        16384 cycles)."""
+        keeps no step with the firmware's periodic work (the IMU's clock
+        ticks every 64000 cycles, the chamber's Timer0 every 16384)."""
         period_cycles = _integer_in(period_cycles, range(1, 2**32), "period_cycles")
         capacity = _integer_in(capacity, range(1, 2**32), "capacity")
         if self._lib.twin_profile_start(self._live(), period_cycles, capacity) != 0:
