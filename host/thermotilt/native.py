@@ -273,8 +273,8 @@ def imu_process_unrounded(
 
     What differs from the firmware path is only the inputs' quantisation: the
     sensor gives whole LSB (int16) and whole 1/8 degC, while these go into the
-    same filters, trend, decimation and compensation as they are, rounded only
-    to float32, the type the firmware's Kalman update takes and computes in.
+    same filters, trend, decimation and compensation as they are, rounded to
+    float32 and, in the Kalman filters, to 2^-15 of a unit (lib/Kalman).
     On whole LSB and temperatures raw / 8 + 21 it returns exactly what
     imu_process returns."""
     temperature = _floats(temperature_c, "temperature_c")

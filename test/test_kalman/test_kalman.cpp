@@ -107,9 +107,10 @@ static void test_one_lsb_step_at_one_g(void)
     TEST_ASSERT_FLOAT_WITHIN(0.005f, kOneG + 1.0f - 0.0068f, filter.estimate());
 }
 
-// The filter as written before the settled-gain shortcut: every update
-// computes the covariance and the gain.
-struct EveryStepFilter {
+// The filter as it was written before the settled-gain shortcut and the
+// fixed-point estimate: every update computes the covariance and the gain,
+// and the estimate is a float with Kahan summation.
+struct FloatFilter {
     float estimate, lostLowBits, covariance;
     bool seeded;
 
@@ -130,19 +131,25 @@ struct EveryStepFilter {
     }
 };
 
-// The shortcut must change nothing: every estimate bit for bit the same as
-// the filter that computes the gain each time, before and after it settles.
-static void test_settled_gain_gives_the_same_estimates(void)
+// Two ulps of a float between 2^14 and 2^15 LSB, where 1 g lies: what the
+// two estimates' roundings to float may differ by. A twelfth of the 0.1 LSB
+// an IMU frame prints.
+static const float kFloatFilterTolerance = 2.0f / 256.0f;
+
+// Neither change may show in a frame: every estimate within the tolerance of
+// the float filter's, before and after the gain settles and across a 45
+// degree table move; the shortcut leaves the covariance bit for bit the same.
+static void test_matches_the_float_filter(void)
 {
     KalmanFilter filter;
-    EveryStepFilter reference = {0.0f, 0.0f, KalmanFilter::kPaperMeasurementNoise, false};
+    FloatFilter reference = {0.0f, 0.0f, KalmanFilter::kPaperMeasurementNoise, false};
     long settledAt = -1;
-    for (long i = 0; i < 2L * kConvergeSamples; ++i) {
-        // A slow ramp with +-3 LSB of pattern noise around 1 g.
-        float input = kOneG + 0.01f * (float)i + (float)((i * 5) % 7 - 3);
-        float expected = reference.update(input);
-        float actual = filter.update(input);
-        TEST_ASSERT_TRUE(memcmp(&expected, &actual, sizeof actual) == 0);
+    for (long i = 0; i < 4L * kConvergeSamples; ++i) {
+        // A slow ramp with +-3 LSB of pattern noise around 1 g, then the move.
+        float move = i >= 2L * kConvergeSamples ? -11600.0f : 0.0f;
+        float input = kOneG + 0.01f * (float)i + (float)((i * 5) % 7 - 3) + move;
+        int16_t raw = (int16_t)(input + 0.5f);
+        TEST_ASSERT_FLOAT_WITHIN(kFloatFilterTolerance, reference.update((float)raw), filter.updateInteger(raw));
         if (settledAt < 0 && filter.gainSettled())
             settledAt = i;
     }
@@ -151,6 +158,50 @@ static void test_settled_gain_gives_the_same_estimates(void)
     TEST_ASSERT_TRUE(settledAt > 0);
     float covariance = filter.errorCovariance();
     TEST_ASSERT_TRUE(memcmp(&reference.covariance, &covariance, sizeof covariance) == 0);
+}
+
+// The estimate's 2^-15 and two float ulps between 32 and 64: a 25th of the
+// 0.001 degC an IMU frame prints.
+static const float kTemperatureTolerance = 1.0f / 32768.0f + 2.0f / 262144.0f;
+
+// The same at the temperature filter's scale: the LSM9DS0's 1/8 degC steps,
+// from 9 to 48 degC and back, as a field test's ramps.
+static void test_matches_the_float_filter_on_temperatures(void)
+{
+    KalmanFilter filter;
+    FloatFilter reference = {0.0f, 0.0f, KalmanFilter::kPaperMeasurementNoise, false};
+    for (long i = 0; i < 4L * kConvergeSamples; ++i) {
+        long eighths = i < 2L * kConvergeSamples ? i / 32 : (4L * kConvergeSamples - i) / 32;
+        float temperatureC = 9.0f + (float)eighths / 8.0f;
+        TEST_ASSERT_FLOAT_WITHIN(kTemperatureTolerance, reference.update(temperatureC), filter.update(temperatureC));
+    }
+}
+
+// Whole numbers in float and as integers are one measurement.
+static void test_integer_and_float_updates_agree(void)
+{
+    KalmanFilter asFloat;
+    KalmanFilter asInteger;
+    for (int16_t i = 0; i < 2000; ++i) {
+        int16_t raw = (int16_t)(-1700 + (i * 37L) % 101);
+        float expected = asFloat.update((float)raw);
+        float actual = asInteger.updateInteger(raw);
+        TEST_ASSERT_TRUE(memcmp(&expected, &actual, sizeof actual) == 0);
+    }
+}
+
+// Outside an int16's range a measurement counts as the range's end, so the
+// fixed-point difference cannot overflow.
+static void test_measurements_are_held_to_the_int16_range(void)
+{
+    KalmanFilter filter;
+    TEST_ASSERT_FLOAT_WITHIN(0.0f, -32768.0f, filter.update(-1e9f));
+    for (int i = 0; i < 100; ++i)
+        filter.update(1e9f);
+    float estimate = filter.estimate();
+    TEST_ASSERT_TRUE(estimate > -32768.0f && estimate <= 32767.0f);
+    KalmanFilter high;
+    TEST_ASSERT_FLOAT_WITHIN(0.0f, 32767.0f, high.update(40000.0f));
 }
 
 static void test_decimator_passes_every_nth(void)
@@ -206,7 +257,10 @@ int runUnityTests(void)
     RUN_TEST(test_step_response_time_constant);
     RUN_TEST(test_one_g_holds_within_half_lsb);
     RUN_TEST(test_one_lsb_step_at_one_g);
-    RUN_TEST(test_settled_gain_gives_the_same_estimates);
+    RUN_TEST(test_matches_the_float_filter);
+    RUN_TEST(test_matches_the_float_filter_on_temperatures);
+    RUN_TEST(test_integer_and_float_updates_agree);
+    RUN_TEST(test_measurements_are_held_to_the_int16_range);
     RUN_TEST(test_decimator_passes_every_nth);
     RUN_TEST(test_decimator_factor_one_and_zero);
     RUN_TEST(test_decimator_factor_change_restarts);

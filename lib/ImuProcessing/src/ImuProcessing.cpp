@@ -35,9 +35,10 @@ IMU_PROCESSING_NOINLINE bool ImuProcessing::process(const int16_t* raw, const fl
     for (uint8_t channel = 0; channel <= IMU_AXES; ++channel) {
         bool isAxis = channel < IMU_AXES;
         KalmanFilter& filter = isAxis ? accelFilters_[channel] : temperatureFilter_;
-        // int16 -> float is exact: raw samples need no float copy (stack).
-        float input = !isAxis ? temperatureC : raw ? (float)raw[channel] : accelLsb[channel];
-        (isAxis ? out.filtered[channel] : out.temperatureC) = filter.update(input);
+        float estimate = !isAxis ? filter.update(temperatureC)
+                         : raw   ? filter.updateInteger(raw[channel])
+                                 : filter.update(accelLsb[channel]);
+        (isAxis ? out.filtered[channel] : out.temperatureC) = estimate;
     }
     out.set = trend_.update(out.temperatureC);
     if (!counting || !decimator_.push()) {
