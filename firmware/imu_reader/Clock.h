@@ -1,7 +1,7 @@
 // The IMU reader's millisecond clock, on Timer1 instead of Arduino's
 // millis(). Timer0's overflow interrupt, which advances millis(), woke the
-// CPU every 1.024 ms: ~980 wake-ups a second, the largest share of the
-// reader's awake time once the TWI and the UART slept. Timer1 interrupts
+// CPU every 1.024 ms: ~980 wake-ups a second, and with the loop pass each
+// one made, about a tenth of the reader's awake time. Timer1 interrupts
 // once every TICK_MS and its counter gives the milliseconds in between, so
 // the time read is exact, where millis() lags by up to 1 ms and now and then
 // steps by 2. begin() stops Timer0's interrupt: from then on Arduino's
