@@ -25,8 +25,8 @@ bool ImuProcessing::updateUnrounded(const float accelLsb[IMU_AXES], float temper
     return process(0, accelLsb, temperatureC, coefficients, out, counting);
 }
 
-// One call of KalmanFilter::update for the four channels, and out of line:
-// written as one call per channel, avr-gcc 5.4 (-Os -flto) inlined a copy of
+// One loop over the four channels' filters, and out of line: written as
+// one call per channel, avr-gcc 5.4 (-Os -flto) inlined a copy of
 // the filter per call into loop(), which cost the Nano 406 B of flash and
 // 15 B of stack more than this.
 IMU_PROCESSING_NOINLINE bool ImuProcessing::process(const int16_t* raw, const float* accelLsb, float temperatureC,
