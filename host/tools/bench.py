@@ -201,9 +201,6 @@ OTHER_STAGE = "other: loop and main, with what LTO inlined into them, and the re
 # sensor connects; lib/Kalman), as it is for nearly all of a long run.
 PROFILE_START_S = 60.0
 PROFILE_SECONDS = 10.0
-# Each 10 ms sample gets fresh noise of the model's `noise` term, as a real
-# sensor gives: a constant input makes the filters' arithmetic cheaper than it
-# ever is (soft float's shortcuts for zero).
 
 
 def without_parameters(name: str) -> str:
@@ -231,11 +228,14 @@ def imu_stage(names: tuple[str, ...]) -> str:
 def imu_profile(model: Model) -> None:
     """The twin's sampling profiler on the IMU streaming at 100 Hz with the
     default decimation, its sensor level and noisy, grouped into stages."""
+    # Each 10 ms sample gets fresh noise of the model's `noise` term, as a real
+    # sensor gives: a constant input makes the filters' arithmetic cheaper
+    # than it ever is (soft float's shortcuts for zero).
     noise = np.random.default_rng(1)
     sigma_lsb = list(model.terms["noise"]["sigma_lsb"].values())
     *steady_axes, temperature_raw = STEADY_SENSOR
 
-    def sample_until(seconds: float) -> None:
+    def sample_until(board: Board, seconds: float) -> None:
         for step in range(round(board.seconds / simulate.STEP_S), round(seconds / simulate.STEP_S)):
             axes = np.add(steady_axes, noise.normal(0.0, sigma_lsb)).round().astype(int)
             board.set_lsm9ds0(*axes.tolist(), temperature_raw)
@@ -243,10 +243,10 @@ def imu_profile(model: Model) -> None:
 
     with Board.imu_reader() as board:
         board.attach_lsm9ds0()
-        sample_until(PROFILE_START_S)
+        sample_until(board, PROFILE_START_S)
         awake_before, asleep_before = board.cycle_counts()
         board.start_profile()
-        sample_until(PROFILE_START_S + PROFILE_SECONDS)
+        sample_until(board, PROFILE_START_S + PROFILE_SECONDS)
         profile = board.profile()
         awake, asleep = board.cycle_counts()
         awake, asleep = awake - awake_before, asleep - asleep_before
