@@ -49,6 +49,7 @@ int run(size_t count, const uint8_t* reset, unsigned decimation, float hysteresi
         ImuOutput out;
         bool due = update(processing, i, coefficients, out);
         if (!due) {
+            processing.readFiltered(out);
             ImuProcessing::compensate(coefficients, out);
         }
         for (uint8_t axis = 0; axis < IMU_AXES; ++axis) {

@@ -74,6 +74,7 @@ static void test_first_sample_seeds_every_channel(void)
     const int16_t raw[IMU_AXES] = {-1700, 400, -16384};
     ImuOutput out;
     TEST_ASSERT_FALSE(processing.update(raw, 40, coefficients, out));
+    processing.readFiltered(out);
     TEST_ASSERT_FLOAT_WITHIN(0.0f, -1700.0f, out.filtered[0]);
     TEST_ASSERT_FLOAT_WITHIN(0.0f, 400.0f, out.filtered[1]);
     TEST_ASSERT_FLOAT_WITHIN(0.0f, -16384.0f, out.filtered[2]);
@@ -109,6 +110,7 @@ static void test_not_counting_filters_without_frames(void)
     for (uint8_t i = 0; i < 25; ++i) {
         TEST_ASSERT_FALSE(processing.update(i == 0 ? raw : other, 0, coefficients, out, false));
     }
+    processing.readFiltered(out);
     TEST_ASSERT_TRUE(out.filtered[0] > 100.0f && out.filtered[0] < 110.0f);
     // Counting again starts from where the count was: a frame after ten.
     for (uint8_t i = 1; i < IMU_DEFAULT_DECIMATION; ++i) {
@@ -130,6 +132,7 @@ static void test_reset_reseeds_restarts_count_and_keeps_trend(void)
     TEST_ASSERT_EQUAL_UINT8((uint8_t)CompSet::Cooling, (uint8_t)processing.currentSet());
     processing.reset();
     TEST_ASSERT_FALSE(processing.update(moved, 0, coefficients, out));
+    processing.readFiltered(out);
     TEST_ASSERT_FLOAT_WITHIN(0.0f, 5000.0f, out.filtered[0]);
     TEST_ASSERT_FLOAT_WITHIN(0.0f, -5000.0f, out.filtered[1]);
     TEST_ASSERT_FLOAT_WITHIN(0.0f, 21.0f, out.temperatureC);
@@ -202,6 +205,9 @@ static void test_matches_the_firmware_code_it_replaced(void)
         }
         ImuOutput out;
         TEST_ASSERT_EQUAL(expectedDue, processing.update(raw, temperatureRaw, coefficients, out, streaming));
+        if (!expectedDue) {
+            processing.readFiltered(out);
+        }
         assertSameOutput(expected, out, expectedDue);
         switches += expected.set != previous;
         previous = expected.set;
@@ -228,7 +234,22 @@ static void test_unrounded_equals_raw_on_integer_inputs(void)
         ImuOutput out;
         bool due = processing.update(raw, temperatureRaw, coefficients, expected);
         TEST_ASSERT_EQUAL(due, unrounded.updateUnrounded(accel, temperatureC, coefficients, out));
+        processing.readFiltered(expected);
+        unrounded.readFiltered(out);
         assertSameOutput(expected, out, due);
+    }
+}
+
+// Each of the LSM9DS0's 12-bit temperatures seeds the filter with exactly
+// temperatureRawToC's value, though update() feeds it in fixed point.
+static void test_every_sensor_temperature_seeds_exactly(void)
+{
+    const int16_t raw[IMU_AXES] = {0, 0, 0};
+    for (int16_t temperatureRaw = -2048; temperatureRaw < 2048; ++temperatureRaw) {
+        ImuOutput out;
+        processing.reset();
+        processing.update(raw, temperatureRaw, coefficients, out);
+        assertSameFloat(temperatureRawToC(temperatureRaw), out.temperatureC);
     }
 }
 
@@ -237,11 +258,13 @@ static void test_unrounded_takes_fractions(void)
     const float accel[IMU_AXES] = {-1700.25f, 0.5f, 16000.125f};
     ImuOutput out;
     unrounded.updateUnrounded(accel, 24.3f, coefficients, out);
+    unrounded.readFiltered(out);
     TEST_ASSERT_FLOAT_WITHIN(0.0f, -1700.25f, out.filtered[0]);
     // The filter holds 2^-15 degC (lib/Kalman): 24.3 to within half of that.
     TEST_ASSERT_FLOAT_WITHIN(1.0f / 65536.0f, 24.3f, out.temperatureC);
     const float next[IMU_AXES] = {-1699.75f, 0.5f, 16000.125f};
     unrounded.updateUnrounded(next, 24.3f, coefficients, out);
+    unrounded.readFiltered(out);
     // The second sample gets a gain of about 1/2 (test_kalman).
     TEST_ASSERT_FLOAT_WITHIN(0.001f, -1700.0f, out.filtered[0]);
     ImuProcessing::compensate(coefficients, out);
@@ -258,6 +281,7 @@ int runUnityTests(void)
     RUN_TEST(test_decimation_and_hysteresis_settings);
     RUN_TEST(test_matches_the_firmware_code_it_replaced);
     RUN_TEST(test_unrounded_equals_raw_on_integer_inputs);
+    RUN_TEST(test_every_sensor_temperature_seeds_exactly);
     RUN_TEST(test_unrounded_takes_fractions);
     return UNITY_END();
 }

@@ -149,7 +149,8 @@ static void test_matches_the_float_filter(void)
         float move = i >= 2L * kConvergeSamples ? -11600.0f : 0.0f;
         float input = kOneG + 0.01f * (float)i + (float)((i * 5) % 7 - 3) + move;
         int16_t raw = (int16_t)(input + 0.5f);
-        TEST_ASSERT_FLOAT_WITHIN(kFloatFilterTolerance, reference.update((float)raw), filter.updateInteger(raw));
+        filter.updateFixed((int32_t)raw * KalmanFilter::FIXED_ONE);
+        TEST_ASSERT_FLOAT_WITHIN(kFloatFilterTolerance, reference.update((float)raw), filter.estimate());
         if (settledAt < 0 && filter.gainSettled())
             settledAt = i;
     }
@@ -177,15 +178,18 @@ static void test_matches_the_float_filter_on_temperatures(void)
     }
 }
 
-// Whole numbers in float and as integers are one measurement.
-static void test_integer_and_float_updates_agree(void)
+// A measurement in float and in fixed point is one measurement.
+static void test_fixed_and_float_updates_agree(void)
 {
     KalmanFilter asFloat;
-    KalmanFilter asInteger;
+    KalmanFilter asFixed;
     for (int16_t i = 0; i < 2000; ++i) {
         int16_t raw = (int16_t)(-1700 + (i * 37L) % 101);
-        float expected = asFloat.update((float)raw);
-        float actual = asInteger.updateInteger(raw);
+        // Whole numbers, then eighths (the LSM9DS0's temperature steps).
+        int32_t fixed = i < 1000 ? (int32_t)raw * KalmanFilter::FIXED_ONE : (int32_t)raw * (KalmanFilter::FIXED_ONE / 8);
+        float expected = asFloat.update(i < 1000 ? (float)raw : (float)raw / 8.0f);
+        asFixed.updateFixed(fixed);
+        float actual = asFixed.estimate();
         TEST_ASSERT_TRUE(memcmp(&expected, &actual, sizeof actual) == 0);
     }
 }
@@ -259,7 +263,7 @@ int runUnityTests(void)
     RUN_TEST(test_one_lsb_step_at_one_g);
     RUN_TEST(test_matches_the_float_filter);
     RUN_TEST(test_matches_the_float_filter_on_temperatures);
-    RUN_TEST(test_integer_and_float_updates_agree);
+    RUN_TEST(test_fixed_and_float_updates_agree);
     RUN_TEST(test_measurements_are_held_to_the_int16_range);
     RUN_TEST(test_decimator_passes_every_nth);
     RUN_TEST(test_decimator_factor_one_and_zero);

@@ -13,39 +13,62 @@ ImuProcessing::ImuProcessing(uint8_t decimation, float hysteresisC)
 {
 }
 
-bool ImuProcessing::update(const int16_t raw[IMU_AXES], int16_t temperatureRaw, const Coefficients& coefficients,
-                           ImuOutput& out, bool counting)
+namespace {
+
+// temperatureRawToC(raw) * KalmanFilter::FIXED_ONE, exactly: raw / 8 + 21
+// degC is a whole number of 2^-15 degC (test_imu_processing checks the two
+// paths agree bit for bit).
+int32_t temperatureRawToFixed(int16_t raw)
 {
-    return process(raw, 0, temperatureRawToC(temperatureRaw), coefficients, out, counting);
+    return (int32_t)raw * (int32_t)(KalmanFilter::FIXED_ONE / Lsm9ds0::TEMP_LSB_PER_C) +
+           (int32_t)(Lsm9ds0::PAPER_TEMP_OFFSET_C * KalmanFilter::FIXED_ONE);
 }
 
-bool ImuProcessing::updateUnrounded(const float accelLsb[IMU_AXES], float temperatureC,
-                                    const Coefficients& coefficients, ImuOutput& out, bool counting)
-{
-    return process(0, accelLsb, temperatureC, coefficients, out, counting);
-}
+}  // namespace
 
 // One loop over the four channels' filters, and out of line: written as
 // one call per channel, avr-gcc 5.4 (-Os -flto) inlined a copy of
 // the filter per call into loop(), which cost the Nano 406 B of flash and
 // 15 B of stack more than this.
-IMU_PROCESSING_NOINLINE bool ImuProcessing::process(const int16_t* raw, const float* accelLsb, float temperatureC,
-                                                    const Coefficients& coefficients, ImuOutput& out, bool counting)
+IMU_PROCESSING_NOINLINE bool ImuProcessing::update(const int16_t raw[IMU_AXES], int16_t temperatureRaw,
+                                                   const Coefficients& coefficients, ImuOutput& out, bool counting)
 {
     for (uint8_t channel = 0; channel <= IMU_AXES; ++channel) {
         bool isAxis = channel < IMU_AXES;
         KalmanFilter& filter = isAxis ? accelFilters_[channel] : temperatureFilter_;
-        float estimate = !isAxis ? filter.update(temperatureC)
-                         : raw   ? filter.updateInteger(raw[channel])
-                                 : filter.update(accelLsb[channel]);
-        (isAxis ? out.filtered[channel] : out.temperatureC) = estimate;
+        filter.updateFixed(isAxis ? (int32_t)raw[channel] * KalmanFilter::FIXED_ONE
+                                  : temperatureRawToFixed(temperatureRaw));
     }
+    return finish(coefficients, out, counting);
+}
+
+bool ImuProcessing::updateUnrounded(const float accelLsb[IMU_AXES], float temperatureC,
+                                    const Coefficients& coefficients, ImuOutput& out, bool counting)
+{
+    for (uint8_t axis = 0; axis < IMU_AXES; ++axis) {
+        accelFilters_[axis].update(accelLsb[axis]);
+    }
+    temperatureFilter_.update(temperatureC);
+    return finish(coefficients, out, counting);
+}
+
+bool ImuProcessing::finish(const Coefficients& coefficients, ImuOutput& out, bool counting)
+{
+    out.temperatureC = temperatureFilter_.estimate();
     out.set = trend_.update(out.temperatureC);
     if (!counting || !decimator_.push()) {
         return false;
     }
+    readFiltered(out);
     compensate(coefficients, out);
     return true;
+}
+
+void ImuProcessing::readFiltered(ImuOutput& out) const
+{
+    for (uint8_t axis = 0; axis < IMU_AXES; ++axis) {
+        out.filtered[axis] = accelFilters_[axis].estimate();
+    }
 }
 
 void ImuProcessing::compensate(const Coefficients& coefficients, ImuOutput& out)

@@ -7,9 +7,11 @@ const float KalmanFilter::kPaperMeasurementNoise = 0.01f;
 
 namespace {
 
-// A measurement unit in the estimate's high word is 2^15 (ldexpf scales
-// exactly, and in the AVR's library at half the cost of a multiplication).
+// A measurement unit in the estimate's high word is FIXED_ONE = 2^15 (ldexpf
+// scales exactly, and in the AVR's library at half the cost of a
+// multiplication).
 const uint8_t HIGH_FRACTION_BITS = 15;
+static_assert(KalmanFilter::FIXED_ONE == (int32_t)1 << HIGH_FRACTION_BITS, "FIXED_ONE is the high word's unit");
 const float GAIN_TO_FRACTION = 4294967296.0f;
 const float MEASUREMENT_MIN = -32768.0f;
 const float MEASUREMENT_MAX = 32767.0f;
@@ -60,16 +62,11 @@ float KalmanFilter::update(float measurement)
     } else if (measurement > MEASUREMENT_MAX) {
         measurement = MEASUREMENT_MAX;
     }
-    return updateHigh((int32_t)lrintf(ldexpf(measurement, HIGH_FRACTION_BITS)));
+    updateFixed((int32_t)lrintf(ldexpf(measurement, HIGH_FRACTION_BITS)));
+    return estimate();
 }
 
-float KalmanFilter::updateInteger(int16_t measurement)
-{
-    // A multiplication: shifting a negative value left is undefined in C++11.
-    return updateHigh((int32_t)measurement * ((int32_t)1 << HIGH_FRACTION_BITS));
-}
-
-float KalmanFilter::updateHigh(int32_t measurement)
+void KalmanFilter::updateFixed(int32_t measurement)
 {
     if (!seeded_) {
         Words seed;
@@ -77,7 +74,7 @@ float KalmanFilter::updateHigh(int32_t measurement)
         seed.half.low = 0;
         estimate_ = seed.all;
         seeded_ = true;
-        return estimate();
+        return;
     }
     if (!gainSettled_) {
         float predicted = covariance_ + processNoise_;
@@ -94,7 +91,6 @@ float KalmanFilter::updateHigh(int32_t measurement)
     uint32_t magnitude = difference < 0 ? (uint32_t)0 - (uint32_t)difference : (uint32_t)difference;
     int64_t correction = (int64_t)((uint64_t)magnitude * gainFraction_);
     estimate_ = difference < 0 ? estimate_ - correction : estimate_ + correction;
-    return estimate();
 }
 
 float KalmanFilter::estimate() const

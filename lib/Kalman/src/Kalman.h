@@ -27,14 +27,18 @@ class KalmanFilter {
 public:
     static const float kPaperProcessNoise;     // Q
     static const float kPaperMeasurementNoise; // R
+    // A measurement unit in updateFixed()'s input.
+    static const int32_t FIXED_ONE = 32768;
 
     KalmanFilter(float processNoise = kPaperProcessNoise,
                  float measurementNoise = kPaperMeasurementNoise);
 
     // Feeds one measurement and returns the new estimate.
     float update(float measurement);
-    // The same for a whole number, e.g. a raw sample, with no float to convert.
-    float updateInteger(int16_t measurement);
+    // Feeds measurement / FIXED_ONE, which must lie within an int16's range,
+    // with no float to convert either way: for a caller that reads estimate()
+    // less often than it updates, e.g. once per frame.
+    void updateFixed(int32_t measurement);
 
     // Forgets the state: the next measurement seeds the filter again.
     void reset();
@@ -46,9 +50,6 @@ public:
     bool gainSettled() const { return gainSettled_; }
 
 private:
-    // measurement in units * 2^15.
-    float updateHigh(int32_t measurement);
-
     float processNoise_;
     float measurementNoise_;
     // measurement units * 2^47: the high 32 bits are units * 2^15.
