@@ -186,12 +186,19 @@ static void test_fixed_and_float_updates_agree(void)
     for (int16_t i = 0; i < 2000; ++i) {
         int16_t raw = (int16_t)(-1700 + (i * 37L) % 101);
         // Whole numbers, then eighths (the LSM9DS0's temperature steps).
-        int32_t fixed = i < 1000 ? (int32_t)raw * KalmanFilter::FIXED_ONE : (int32_t)raw * (KalmanFilter::FIXED_ONE / 8);
+        int32_t fixed = i < 1000 ? KalmanFilter::fixedFromWhole(raw) : (int32_t)raw * (KalmanFilter::FIXED_ONE / 8);
         float expected = asFloat.update(i < 1000 ? (float)raw : (float)raw / 8.0f);
         asFixed.updateFixed(fixed);
         float actual = asFixed.estimate();
         TEST_ASSERT_TRUE(memcmp(&expected, &actual, sizeof actual) == 0);
     }
+}
+
+static void test_fixed_from_whole_at_the_int16_ends(void)
+{
+    TEST_ASSERT_EQUAL_INT32(-32768L * 32768L, KalmanFilter::fixedFromWhole(-32768));
+    TEST_ASSERT_EQUAL_INT32(32767L * 32768L, KalmanFilter::fixedFromWhole(32767));
+    TEST_ASSERT_EQUAL_INT32(-32768L, KalmanFilter::fixedFromWhole(-1));
 }
 
 // Outside an int16's range a measurement counts as the range's end, so the
@@ -264,6 +271,7 @@ int runUnityTests(void)
     RUN_TEST(test_matches_the_float_filter);
     RUN_TEST(test_matches_the_float_filter_on_temperatures);
     RUN_TEST(test_fixed_and_float_updates_agree);
+    RUN_TEST(test_fixed_from_whole_at_the_int16_ends);
     RUN_TEST(test_measurements_are_held_to_the_int16_range);
     RUN_TEST(test_decimator_passes_every_nth);
     RUN_TEST(test_decimator_factor_one_and_zero);

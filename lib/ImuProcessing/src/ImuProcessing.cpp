@@ -16,12 +16,11 @@ ImuProcessing::ImuProcessing(uint8_t decimation, float hysteresisC)
 namespace {
 
 // temperatureRawToC(raw) * KalmanFilter::FIXED_ONE, exactly: raw / 8 + 21
-// degC is a whole number of 2^-15 degC (test_imu_processing checks the two
-// paths agree bit for bit).
+// degC is a whole number of 2^-15 degC, and the shift divides by
+// TEMP_LSB_PER_C (test_every_sensor_temperature_seeds_exactly checks both).
 int32_t temperatureRawToFixed(int16_t raw)
 {
-    return (int32_t)raw * (int32_t)(KalmanFilter::FIXED_ONE / Lsm9ds0::TEMP_LSB_PER_C) +
-           (int32_t)(Lsm9ds0::PAPER_TEMP_OFFSET_C * KalmanFilter::FIXED_ONE);
+    return (KalmanFilter::fixedFromWhole(raw) >> 3) + (int32_t)(Lsm9ds0::PAPER_TEMP_OFFSET_C * KalmanFilter::FIXED_ONE);
 }
 
 }  // namespace
@@ -36,7 +35,7 @@ IMU_PROCESSING_NOINLINE bool ImuProcessing::update(const int16_t raw[IMU_AXES], 
     for (uint8_t channel = 0; channel <= IMU_AXES; ++channel) {
         bool isAxis = channel < IMU_AXES;
         KalmanFilter& filter = isAxis ? accelFilters_[channel] : temperatureFilter_;
-        filter.updateFixed(isAxis ? (int32_t)raw[channel] * KalmanFilter::FIXED_ONE
+        filter.updateFixed(isAxis ? KalmanFilter::fixedFromWhole(raw[channel])
                                   : temperatureRawToFixed(temperatureRaw));
     }
     return finish(coefficients, out, counting);
