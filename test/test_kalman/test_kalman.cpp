@@ -1,3 +1,4 @@
+#include <math.h>
 #include <string.h>
 #include <unity.h>
 
@@ -18,6 +19,11 @@ static const int kConvergeSamples = 5000;
 static const float kOneG = 16393.0f;
 
 void setUp(void) {}
+
+static void assertSameFloat(float expected, float actual)
+{
+    TEST_ASSERT_TRUE(memcmp(&expected, &actual, sizeof actual) == 0);
+}
 void tearDown(void) {}
 
 static void converge(KalmanFilter &filter, float value)
@@ -194,6 +200,32 @@ static void test_fixed_and_float_updates_agree(void)
     }
 }
 
+// The estimate's 32-bit halves carry and borrow as one int64 would: the
+// filter against that sum, with the filter's own gains, bit for bit, over
+// corrections of both signs and a table move's large ones.
+static void test_halves_add_as_one_64_bit_estimate(void)
+{
+    KalmanFilter filter;
+    int64_t reference = 0;
+    for (long i = 0; i < 3000; ++i) {
+        int16_t raw = (int16_t)(-1700 + (i * 37L) % 101 + (i >= 2000 ? 23000 : 0));
+        int32_t measurement = KalmanFilter::fixedFromWhole(raw);
+        int32_t rounded = (int32_t)(reference >> 32) + (int32_t)((uint32_t)reference >> 31);
+        filter.updateFixed(measurement);
+        if (i == 0) {
+            reference = (int64_t)measurement * 4294967296LL;
+        } else {
+            float gain = filter.lastGain();
+            uint64_t fraction = gain < 1.0f ? (uint32_t)(gain * 4294967296.0f) : 0xFFFFFFFFull;
+            int64_t difference = (int64_t)measurement - rounded;
+            int64_t correction = (int64_t)((uint64_t)(difference < 0 ? -difference : difference) * fraction);
+            reference += difference < 0 ? -correction : correction;
+        }
+        rounded = (int32_t)(reference >> 32) + (int32_t)((uint32_t)reference >> 31);
+        assertSameFloat(ldexpf((float)rounded, -15), filter.estimate());
+    }
+}
+
 static void test_fixed_from_whole_at_the_int16_ends(void)
 {
     TEST_ASSERT_EQUAL_INT32(-32768L * 32768L, KalmanFilter::fixedFromWhole(-32768));
@@ -272,6 +304,7 @@ int runUnityTests(void)
     RUN_TEST(test_matches_the_float_filter_on_temperatures);
     RUN_TEST(test_fixed_and_float_updates_agree);
     RUN_TEST(test_fixed_from_whole_at_the_int16_ends);
+    RUN_TEST(test_halves_add_as_one_64_bit_estimate);
     RUN_TEST(test_measurements_are_held_to_the_int16_range);
     RUN_TEST(test_decimator_passes_every_nth);
     RUN_TEST(test_decimator_factor_one_and_zero);

@@ -16,25 +16,17 @@ const float GAIN_TO_FRACTION = 4294967296.0f;
 const float MEASUREMENT_MIN = -32768.0f;
 const float MEASUREMENT_MAX = 32767.0f;
 
-// The estimate's two 32-bit halves. Splitting an int64 by shifts would be a
-// bit-by-bit loop in avr-gcc's library; both targets, the AVR and the host,
-// are little-endian, as checked here.
-static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__, "the halves of Words assume a little-endian target");
-union Words {
-    int64_t all;
+// The two 32-bit halves of a 64-bit product. Splitting it by shifts would
+// be a bit-by-bit loop in avr-gcc's library; both targets, the AVR and the
+// host, are little-endian, as checked here.
+static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__, "the halves of Product assume a little-endian target");
+union Product {
+    uint64_t all;
     struct {
         uint32_t low;
-        int32_t high;
+        uint32_t high;
     } half;
 };
-
-// The estimate to the nearest 2^-15 of a unit.
-int32_t roundedHigh(int64_t estimate)
-{
-    Words words;
-    words.all = estimate;
-    return words.half.high + (int32_t)(words.half.low >> 31);
-}
 
 }  // namespace
 
@@ -46,7 +38,8 @@ KalmanFilter::KalmanFilter(float processNoise, float measurementNoise)
 
 void KalmanFilter::reset()
 {
-    estimate_ = 0;
+    estimateHigh_ = 0;
+    estimateLow_ = 0;
     covariance_ = measurementNoise_;
     gain_ = 1.0f;
     gainFraction_ = 0;
@@ -69,10 +62,8 @@ float KalmanFilter::update(float measurement)
 void KalmanFilter::updateFixed(int32_t measurement)
 {
     if (!seeded_) {
-        Words seed;
-        seed.half.high = measurement;
-        seed.half.low = 0;
-        estimate_ = seed.all;
+        estimateHigh_ = measurement;
+        estimateLow_ = 0;
         seeded_ = true;
         return;
     }
@@ -86,16 +77,33 @@ void KalmanFilter::updateFixed(int32_t measurement)
         gainFraction_ = gain_ < 1.0f ? (uint32_t)(gain_ * GAIN_TO_FRACTION) : UINT32_MAX;
     }
     // Measurement and estimate both within an int16's range: the difference
-    // fits 31 bits, and times a gain below 1 (32 fractional bits) 63.
-    int32_t difference = measurement - roundedHigh(estimate_);
+    // fits 31 bits, and times a gain below 1 (32 fractional bits) 63. The
+    // estimate's two halves take the correction as one 64-bit number would,
+    // in 32-bit steps avr-gcc does inline rather than in its int64 library.
+    int32_t difference = measurement - roundedEstimate();
     uint32_t magnitude = difference < 0 ? (uint32_t)0 - (uint32_t)difference : (uint32_t)difference;
-    int64_t correction = (int64_t)((uint64_t)magnitude * gainFraction_);
-    estimate_ = difference < 0 ? estimate_ - correction : estimate_ + correction;
+    Product correction;
+    correction.all = (uint64_t)magnitude * gainFraction_;
+    uint32_t low = estimateLow_;
+    uint32_t high = (uint32_t)estimateHigh_;
+    if (difference < 0) {
+        estimateLow_ = low - correction.half.low;
+        high -= correction.half.high + (estimateLow_ > low ? 1u : 0u);
+    } else {
+        estimateLow_ = low + correction.half.low;
+        high += correction.half.high + (estimateLow_ < low ? 1u : 0u);
+    }
+    estimateHigh_ = (int32_t)high;
+}
+
+int32_t KalmanFilter::roundedEstimate() const
+{
+    return estimateHigh_ + (int32_t)(estimateLow_ >> 31);
 }
 
 float KalmanFilter::estimate() const
 {
-    return ldexpf((float)roundedHigh(estimate_), -HIGH_FRACTION_BITS);
+    return ldexpf((float)roundedEstimate(), -HIGH_FRACTION_BITS);
 }
 
 Decimator::Decimator(uint8_t factor) : factor_(1), count_(0)

@@ -57,8 +57,13 @@ public:
 private:
     float processNoise_;
     float measurementNoise_;
-    // measurement units * 2^47: the high 32 bits are units * 2^15.
-    int64_t estimate_;
+    // The estimate to the nearest 2^-15 of a unit, in those.
+    int32_t roundedEstimate() const;
+
+    // The estimate in measurement units * 2^47, as two halves: the high one
+    // is units * FIXED_ONE, the low one its fraction.
+    int32_t estimateHigh_;
+    uint32_t estimateLow_;
     float covariance_;
     float gain_;
     uint32_t gainFraction_;  // gain_ * 2^32
