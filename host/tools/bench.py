@@ -187,7 +187,7 @@ def speed_and_awake(model: Model) -> None:
 # that belongs to a stage. Vector numbers are the ATmega328P's.
 IMU_STAGES = (
     ("I2C: the TWI master and its ISR, the LSM9DS0 reads", r"SleepingTwi::|Lsm9ds0Accel::|__vector_24$"),
-    ("Kalman filters and compensation (ImuProcessing::process)",
+    ("Kalman filters and compensation (lib/ImuProcessing)",
      r"ImuProcessing::|KalmanFilter::|surfaceCorrection|TrendDetector::"),
     ("frame formatting and printing: FrameWriter, float to text, CRC",
      r"FrameWriter::|SerialLink::|dtostr|dtoa_prf|crc16Xmodem"),
@@ -267,7 +267,7 @@ def imu_profile(model: Model) -> None:
     print("  top functions: " + ", ".join(f"{without_parameters(name)} {100 * samples / kept:.1f} %"
                                            for name, samples in profile.by_function(symbols).most_common(6)))
     print("  (the profiler sees functions, not source lines: code LTO inlined counts as its caller's, e.g. the "
-          "Kalman filters and compensation as ImuProcessing::process's and the sample path as loop's; soft float "
+          "Kalman filters as ImuProcessing::update's and the sample path as loop's; soft float "
           "and division routines count as their caller's, and in the stages so do millis and micros)")
 
 
