@@ -49,8 +49,13 @@ for mcu in "$@"; do
     run_ctest_tree "simavr ${mcu}" "$build/$mcu" "unity-${mcu}.xml"
 done
 
-echo "== host: pytest"
-"$venv/bin/python" -m pytest host/tests --junitxml="$results/pytest.xml" || failed_steps=$((failed_steps + 1))
+# On every core (pytest-xdist); a worker that finishes early takes tests
+# from a busy one's queue, so the discovery tests' long twin runs spread.
+# PYTEST_WORKERS=0 runs them in this process, one after another.
+pytest_workers=${PYTEST_WORKERS:-auto}
+echo "== host: pytest (workers: ${pytest_workers})"
+"$venv/bin/python" -m pytest host/tests -n "$pytest_workers" --dist worksteal --junitxml="$results/pytest.xml" ||
+    failed_steps=$((failed_steps + 1))
 
 # Each libFuzzer target for a bounded time; a crash or sanitizer report fails
 # the step, and each target counts as one test.
