@@ -268,7 +268,7 @@ def imu_profile(model: Model) -> None:
                                            for name, samples in profile.by_function(symbols).most_common(6)))
     print("  (the profiler sees functions, not source lines: code LTO inlined counts as its caller's, e.g. the "
           "Kalman filters as ImuProcessing::update's and the sample path as loop's; soft float "
-          "and division routines count as their caller's, and in the stages so do millis and micros)")
+          "and division routines count as their caller's, and in the stages so do Clock's reads)")
 
 
 STACK_HEADROOM_TARGET_B = 300

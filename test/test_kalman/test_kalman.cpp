@@ -19,12 +19,12 @@ static const int kConvergeSamples = 5000;
 static const float kOneG = 16393.0f;
 
 void setUp(void) {}
+void tearDown(void) {}
 
 static void assertSameFloat(float expected, float actual)
 {
     TEST_ASSERT_TRUE(memcmp(&expected, &actual, sizeof actual) == 0);
 }
-void tearDown(void) {}
 
 static void converge(KalmanFilter &filter, float value)
 {
@@ -195,8 +195,7 @@ static void test_fixed_and_float_updates_agree(void)
         int32_t fixed = i < 1000 ? KalmanFilter::fixedFromWhole(raw) : (int32_t)raw * (KalmanFilter::FIXED_ONE / 8);
         float expected = asFloat.update(i < 1000 ? (float)raw : (float)raw / 8.0f);
         asFixed.updateFixed(fixed);
-        float actual = asFixed.estimate();
-        TEST_ASSERT_TRUE(memcmp(&expected, &actual, sizeof actual) == 0);
+        assertSameFloat(expected, asFixed.estimate());
     }
 }
 
@@ -207,10 +206,11 @@ static void test_halves_add_as_one_64_bit_estimate(void)
 {
     KalmanFilter filter;
     int64_t reference = 0;
+    // reference to the nearest 2^-15, as the filter's difference takes it.
+    int32_t rounded = 0;
     for (long i = 0; i < 3000; ++i) {
         int16_t raw = (int16_t)(-1700 + (i * 37L) % 101 + (i >= 2000 ? 23000 : 0));
         int32_t measurement = KalmanFilter::fixedFromWhole(raw);
-        int32_t rounded = (int32_t)(reference >> 32) + (int32_t)((uint32_t)reference >> 31);
         filter.updateFixed(measurement);
         if (i == 0) {
             reference = (int64_t)measurement * 4294967296LL;
