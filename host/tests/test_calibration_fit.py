@@ -111,9 +111,12 @@ def nominal(angle_deg: float) -> tuple[float, float]:
     return x, 0.5 * x
 
 
-def write_run_log(path, angle_deg: float, temperatures, sets, drift=TRUE, blank_every: int = 0) -> None:
+def write_run_log(path, angle_deg: float, temperatures, sets, drift=TRUE, blank_every: int = 0,
+                  chamber=None) -> None:
     """A run.csv of a position: the chamber running, filters settled, both
-    axes carrying `drift` on top of offsets of 300 and -400 LSB."""
+    axes carrying `drift` on top of offsets of 300 and -400 LSB. `chamber`,
+    one (phase, setpoint_c, inner_c) a row, writes the chamber's columns;
+    without it the phase follows the set and they stay empty."""
     x, y = nominal(angle_deg)
     path.parent.mkdir(parents=True, exist_ok=True)
     with open(path, "w", newline="") as stream:
@@ -127,6 +130,10 @@ def write_run_log(path, angle_deg: float, temperatures, sets, drift=TRUE, blank_
                        imu_temp_c=f"{temperature:.3f}", incl_x_deg=f"{angle_deg:.2f}", incl_y_deg="0.00",
                        since_move_s=f"{200 + index / 10:.2f}", ax_filt=f"{ax:.2f}", ay_filt=f"{ay:.2f}",
                        comp_set=set_name)
+            if chamber is not None:
+                phase, setpoint, inner = chamber[index]
+                row.update(phase=phase, setpoint_c=f"{setpoint:.2f}" if phase != "R" else "",
+                           chamber_c=f"{inner:.2f}")
             if blank_every and index % blank_every == 0:
                 row["ax_filt"] = ""
             writer.writerow(row)
@@ -153,6 +160,33 @@ def test_residuals_are_taken_against_each_positions_25c_reading(tmp_path):
         # The 25 degC reading is a line through +-1.5 degC of a curved drift:
         # p20 * 1.5^2 = 0.23 LSB off at most, plus the cells' 0.01 LSB.
         assert np.max(np.abs(warming.residual[axis] - expected)) < 0.3, axis
+
+
+def test_rows_before_the_chamber_first_reaches_its_setpoint_are_not_fitted(tmp_path):
+    # Two programs in one log, as `simulate campaign` writes them: each first
+    # pulls the face down from where it was (the lab, then a rest) at full
+    # drive, while the program's warming half waits at -10 degC and the
+    # cooling die puts the rows in the C set.
+    temperatures, sets = cycle()
+    staircase = [("W" if set_name == "W" else "C", t, t) for t, set_name in zip(temperatures, sets)]
+    def program(from_c: float):
+        pulldown = np.linspace(from_c, -9.5, 300)
+        return [("W", -10.0, inner) for inner in pulldown], list(pulldown), ["C"] * len(pulldown)
+    first, first_t, first_sets = program(22.0)
+    second, second_t, second_sets = program(5.0)
+    rest = [("R", 0.0, -5.0)] * 50
+    chamber = first + staircase + rest + second + staircase
+    write_run_log(tmp_path / "0" / "run.csv", 0.0,
+                  [*first_t, *temperatures, *[-5.0] * len(rest), *second_t, *temperatures],
+                  [*first_sets, *sets, *["C"] * len(rest), *second_sets, *sets], chamber=chamber)
+    campaign = load(tmp_path)
+    # Each program keeps its rows from the first within 1 degC of -10 degC on:
+    # the pulldown's last rows (-9 .. -9.5 degC) and the staircase.
+    arrived = int(np.count_nonzero(np.linspace(22.0, -9.5, 300) <= -9.0))
+    arrived_second = int(np.count_nonzero(np.linspace(5.0, -9.5, 300) <= -9.0))
+    assert 0 < arrived < arrived_second < 20
+    assert len(campaign.sets["W"].temperature_c) == 2 * sets.count("W")
+    assert len(campaign.sets["C"].temperature_c) == 2 * sets.count("C") + arrived + arrived_second
 
 
 @pytest.mark.slow

@@ -12,9 +12,11 @@ set of each position has its own reference: the paper's f(25, a) is ~0 for
 both sets (Tables 2, 3), which only per-set references give.
 
 Rows are used only where the data mean what the fit assumes: the chamber
-program running (phase W or C, when the log has the chamber), and the
-filters settled after a table move (``since_move_s`` at least
-``settle_s``; logs without that column lose their first ``settle_s``).
+program running (phase W or C, when the log has the chamber) from the moment
+its inner face first reaches the setpoint (within the band lib/Program's
+waiting steps use), and the filters settled after a table move
+(``since_move_s`` at least ``settle_s``; logs without that column lose their
+first ``settle_s``).
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from ..runlog import RunLogError, read_run_log
+from ..scenarios import REACHED_BAND_C
 
 REFERENCE_C = 25.0
 # Wide enough for a 2 degC staircase step's rows on both sides of 25 degC.
@@ -79,11 +82,33 @@ def _number(cell: str) -> float:
     return float(cell) if cell else math.nan
 
 
-def _settled(rows: list[dict[str, str]], settle_s: float) -> list[dict[str, str]]:
+def _settled(rows: list[dict[str, str]], settle_s: float, start_s: float) -> list[dict[str, str]]:
+    """Rows at least settle_s after the table's move, or after start_s in a
+    log that does not say when the table moved."""
     if rows and rows[0].get("since_move_s", "") != "":
         return [row for row in rows if _number(row["since_move_s"]) >= settle_s]
-    start = _number(rows[0]["time_s"]) if rows else 0.0
-    return [row for row in rows if _number(row["time_s"]) - start >= settle_s]
+    return [row for row in rows if _number(row["time_s"]) - start_s >= settle_s]
+
+
+def _staircase(rows: list[dict[str, str]]) -> list[dict[str, str]]:
+    """The rows of each program run (phase W or C) from the first one whose
+    inner face is within REACHED_BAND_C of its setpoint. Before that the
+    chamber is still coming at full drive from where the program found it
+    (the lab, a rest): the paper's "temperature stabilization" ahead of its
+    measuring steps (section 3.1), whose fast cooling would otherwise fill
+    the cooling set (docs/calibration.md)."""
+    if not any(row["chamber_c"] for row in rows):
+        return [row for row in rows if row["phase"] in _RUNNING_PHASES]
+    kept: list[dict[str, str]] = []
+    arrived = False
+    for row in rows:
+        if row["phase"] not in _RUNNING_PHASES:
+            arrived = False
+            continue
+        arrived = arrived or abs(_number(row["chamber_c"]) - _number(row["setpoint_c"])) <= REACHED_BAND_C
+        if arrived:
+            kept.append(row)
+    return kept
 
 
 def _positions(path: Path, rows: list[dict[str, str]]) -> dict[str, list[dict[str, str]]]:
@@ -141,8 +166,8 @@ def load(folder: Path, settle_s: float | None = None) -> Campaign:
         for label, position_rows in _positions(path, rows).items():
             index = len(positions)
             positions.append(label)
-            used = [row for row in _settled(position_rows, settle_s)
-                    if not has_chamber or row["phase"] in _RUNNING_PHASES]
+            used = _settled(_staircase(position_rows) if has_chamber else position_rows, settle_s,
+                            start_s=_number(position_rows[0]["time_s"]))
             rates = _temperature_rates(used)
             for set_name, set_parts in parts.items():
                 cells = [(row["imu_temp_c"], row["ax_filt"], row["ay_filt"], rate)
