@@ -14,7 +14,7 @@ from importlib import resources
 import numpy as np
 import pytest
 
-from thermotilt.calibration.compare import compare, read_fit, reference_surfaces
+from thermotilt.calibration.compare import compare, format_comparison, read_fit, reference_surfaces
 from thermotilt.calibration.dataset import CalibrationDataError, SetData, load
 from thermotilt.calibration.fit import fit_surface
 from thermotilt.calibration.paper import PRINTING_ERRORS, TABLES
@@ -301,6 +301,12 @@ def test_compare_against_the_model_that_made_the_data_finds_no_gap(tmp_path):
     # Against the paper, whose X surface differs from TRUE in its terms in a.
     paper = {c.key: c for c in compare(read_fit(fit_dir), "paper")}
     assert paper["WX"].rms_lsb > 1.0 and paper["WX"].half_width_from == "paper"
+    # The scatter beside Tables 2-3's RMSE; a model gives none to set it against.
+    fitted = json.loads((fit_dir / "coefficients.json").read_text())["fits"]
+    assert paper["CY"].fit_rmse_lsb == fitted["CY"]["rmse_lsb"] and paper["CY"].reference_rmse_lsb == 10.03
+    assert comparisons["CY"].reference_rmse_lsb is None
+    assert f"CY {fitted['CY']['rmse_lsb']:.2f} / 10.03 (" in format_comparison(list(paper.values()), "paper")
+    assert "Tables 2-3" not in format_comparison(list(comparisons.values()), str(model))
 
 
 def test_compare_uses_the_consistent_reading_of_table_2s_misprints():

@@ -37,6 +37,8 @@ class SurfaceComparison:
     max_lsb: float
     coefficient_sigmas: dict[str, float]  # difference / 95 % half-width
     half_width_from: str  # "paper" or "fit"
+    fit_rmse_lsb: float
+    reference_rmse_lsb: float | None  # the paper's (Tables 2-3); a model states none
 
 
 @dataclass(frozen=True)
@@ -47,6 +49,7 @@ class FittedSurface:
     hac_half_widths: dict[str, float]
     temperature_range_c: tuple[float, float]
     acceleration_range_lsb: tuple[float, float]
+    rmse_lsb: float
 
 
 def calibrated_domain(fit: FittedSurface) -> tuple[float, float]:
@@ -73,6 +76,7 @@ def _fitted_surface(fit: dict) -> FittedSurface:
         hac_half_widths={term: (high - low) / 2 for term, (low, high) in hac.items()},
         temperature_range_c=_pair(fit["temperature_range_c"]),
         acceleration_range_lsb=_pair(fit["acceleration_range_lsb"]),
+        rmse_lsb=float(fit["rmse_lsb"]),
     )
 
 
@@ -127,9 +131,10 @@ def compare(fits: dict[str, FittedSurface], reference: str) -> list[SurfaceCompa
         half = widths[key] if widths is not None else fit.hac_half_widths
         sigmas = {term: (getattr(fitted, term) - getattr(surfaces[key], term)) / half[term]
                   if half[term] > 0 else float("inf") for term in TERMS}
+        published = TABLES[(key[1], key[0])].rmse if reference == "paper" else None
         comparisons.append(SurfaceComparison(key, domain, float(np.sqrt(np.mean(difference**2))),
                                              float(np.max(np.abs(difference))), sigmas,
-                                             "paper" if widths is not None else "fit"))
+                                             "paper" if widths is not None else "fit", fit.rmse_lsb, published))
     if not comparisons:
         raise CalibrationDataError("the fit has no X or Y surface to compare")
     return comparisons
@@ -144,4 +149,9 @@ def format_comparison(comparisons: list[SurfaceComparison], reference: str) -> s
         span = "{:.1f}..{:.1f}".format(*comparison.temperature_range_c)
         lines.append(f"  {comparison.key:<4}{span:>14}{comparison.rms_lsb:>10.2f}{comparison.max_lsb:>10.2f}   "
                      f"{sigmas} (half-widths: {comparison.half_width_from})")
+    published = [c for c in comparisons if c.reference_rmse_lsb is not None]
+    if published:
+        lines.append("the scatter the surfaces leave: the fit's RMSE / Tables 2-3's, LSB")
+        lines.append("  " + "   ".join(f"{c.key} {c.fit_rmse_lsb:.2f} / {c.reference_rmse_lsb:.2f} "
+                                     f"({c.fit_rmse_lsb / c.reference_rmse_lsb:.2f}x)" for c in published))
     return "\n".join(lines)
