@@ -1,8 +1,12 @@
-"""The calibration chain on the twin: a small campaign with the default
-model, fitted, recovers the model's drift surfaces (issue 8's "done when")."""
+"""The calibration chain on the twin: `make demo`'s campaign (nine of the
+paper's positions, each through the -10 -> 45 -> -10 degC staircase),
+fitted with plain OLS, recovers the model's drift surfaces (issue 8's "done
+when") and leaves the scatter of the paper's fits (issue 7's)."""
 
+import importlib.util
 import json
 from importlib import resources
+from pathlib import Path
 
 import pytest
 
@@ -11,20 +15,25 @@ from thermotilt.calibration.compare import compare, read_fit
 
 pytestmark = pytest.mark.twin
 
-# Three levels of each axis (-45, 0, +45 deg) share the 0 deg position.
-POSITIONS = "0,X+45,X-45,Y+45,Y-45"
-# Timed 8 s holds: the staircase then covers about 14..36 degC around the
-# 22 degC lab, enough to cross 25 degC in both sets, in ~1/10 of the demo's time.
-PROGRAM = ["--hold-seconds", "8", "--hold-start", "T", "--rest-seconds", "0"]
+# The paper's factor for "of the order of": what issue 7 asks of a twin
+# campaign subset's RMSE against Tables 2-3.
+PAPER_FACTOR = 2.0
+
+
+def demo_settings():
+    spec = importlib.util.spec_from_file_location("demo", Path(__file__).parents[1] / "tools" / "demo.py")
+    demo = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(demo)
+    return demo.POSITIONS, demo.HOLD_SECONDS
 
 
 @pytest.fixture(scope="module")
 def fitted(tmp_path_factory):
     folder = tmp_path_factory.mktemp("twin-calibration")
-    assert cli.main(["campaign", "--twin", "--positions", POSITIONS, "--jobs", "2",
-                     "--out", str(folder / "campaign"), *PROGRAM]) == 0
-    assert cli.main(["fit", str(folder / "campaign"), "--out", str(folder / "fit"),
-                     "--settle-seconds", "5"]) == 0
+    positions, hold_s = demo_settings()
+    assert cli.main(["campaign", "--twin", "--positions", positions, "--hold-seconds", str(hold_s),
+                     "--rest-seconds", "0", "--jobs", "2", "--out", str(folder / "campaign")]) == 0
+    assert cli.main(["fit", str(folder / "campaign"), "--out", str(folder / "fit")]) == 0
     return folder / "fit"
 
 
@@ -36,9 +45,20 @@ def test_a_twin_campaign_recovers_the_models_surfaces(fitted):
     for comparison in comparisons:
         rmse = document["fits"][comparison.key]["rmse_lsb"]
         low, high = comparison.temperature_range_c
-        assert low < 25.0 < high, comparison.key
+        # Each set spans the staircase to within 3 degC of both ends: the
+        # face's settled error (255/350 degC at most), the die's 1 degC
+        # offset, and the change of trend the set's switch waits for.
+        assert low < -7.0 and high > 42.0, comparison.key
         # The surface is an average over thousands of rows: were it further
         # from the truth than those rows scatter around it (the fit's RMSE),
         # the fit, not the sensor, would be the calibration's largest error.
         assert comparison.rms_lsb < rmse, (comparison.key, comparison.rms_lsb, rmse)
 
+
+@pytest.mark.slow
+def test_a_twin_campaign_leaves_the_scatter_of_tables_2_and_3(fitted):
+    comparisons = compare(read_fit(fitted), "paper")
+    assert {c.key for c in comparisons} == {"WX", "CX", "WY", "CY"}
+    for comparison in comparisons:
+        ratio = comparison.fit_rmse_lsb / comparison.reference_rmse_lsb
+        assert 1 / PAPER_FACTOR < ratio < PAPER_FACTOR, (comparison.key, comparison.fit_rmse_lsb)
