@@ -182,9 +182,10 @@ def staircase():
     return warming + warming[-2::-1]
 
 
-def emulated_campaign(model, seed, out_dir):
-    """The paper's 37 positions, each through the staircase with 60 s holds,
-    written as one run log the calibration reads like a twin campaign's.
+def emulated_campaign(model, seed, out_dir, positions=None):
+    """The paper's 37 positions (or the labels in `positions`), each through
+    the staircase with 60 s holds, written as one run log the calibration
+    reads like a twin campaign's.
     Noise is left out: after the 10 s filter it is 17.4 * sqrt(1e-3 / 2) =
     0.39 LSB (docs/physics-model.md), and at this emulation's 4 Hz it would
     come out three times that."""
@@ -196,7 +197,9 @@ def emulated_campaign(model, seed, out_dir):
     lines = [",".join(COLUMNS)]
     column = {name: index for index, name in enumerate(COLUMNS)}
     time_s = 0.0
-    for _, x, y in campaign_positions():
+    for label, x, y in campaign_positions():
+        if positions is not None and label not in positions:
+            continue
         chamber = CALIBRATION_MIN_C
         temperature, ax, ay, sets = [], [], [], []
         for setpoint in staircase():

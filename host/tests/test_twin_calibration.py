@@ -57,6 +57,11 @@ def test_a_twin_campaign_recovers_the_models_surfaces(fitted):
 
 @pytest.mark.slow
 def test_a_twin_campaign_leaves_the_scatter_of_tables_2_and_3(fitted):
+    # Nine positions are nine draws of drift_repeatability's slopes: seed 1's
+    # nine give 0.76-1.55x; with the filter emulated 26 of 40 seeds' nine keep
+    # all four within the factor (README). A change to how the model draws
+    # can fail this with a worse draw rather than a worse model: check the
+    # 37 positions' fit (test_scatter.py) before loosening anything.
     comparisons = compare(read_fit(fitted), "paper")
     assert {c.key for c in comparisons} == {"WX", "CX", "WY", "CY"}
     for comparison in comparisons:
