@@ -187,6 +187,7 @@ def test_rows_before_the_chamber_first_reaches_its_setpoint_are_not_fitted(tmp_p
     assert 0 < arrived < arrived_second < 20
     assert len(campaign.sets["W"].temperature_c) == 2 * sets.count("W")
     assert len(campaign.sets["C"].temperature_c) == 2 * sets.count("C") + arrived + arrived_second
+    assert campaign.stabilizing_rows == 2 * 300 - arrived - arrived_second
 
 
 @pytest.mark.slow

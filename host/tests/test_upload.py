@@ -57,7 +57,7 @@ def write_fit(out_dir: Path, surfaces=FITTED) -> Path:
     fits = [SurfaceFit(s, a, 1000, surface, tuple((v, v) for v in surface), tuple((v, v) for v in surface),
                        10, 1.0, 0.9, 0.9, 1.0, (-10.0, 45.0), (-16000.0, 16000.0))
             for (s, a), surface in surfaces.items()]
-    write_outputs(fits, SimpleNamespace(positions=["0", "X+30", "X-30"], skipped_rows=0), out_dir)
+    write_outputs(fits, SimpleNamespace(positions=["0", "X+30", "X-30"], skipped_rows=0, stabilizing_rows=0), out_dir)
     return out_dir
 
 

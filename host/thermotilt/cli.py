@@ -457,6 +457,9 @@ def _command_fit(args: argparse.Namespace) -> int:
         raise UsageError(f"cannot write {out_dir}: {error.strerror or error}") from None
     print(f"{len(campaign.positions)} positions, {sum(fit.points for fit in fits)} points"
           + (f" ({campaign.skipped_rows} rows with empty cells skipped)" if campaign.skipped_rows else ""))
+    if campaign.stabilizing_rows:
+        print(f"{campaign.stabilizing_rows} rows left out: the chamber had not yet reached its "
+              f"program's setpoint (docs/calibration.md)")
     print(format_table(fits))
     print("bounds: Newey-West (HAC) 95 % within each position; coefficients.json also has the "
           "OLS bounds, which ignore the rows' autocorrelation")

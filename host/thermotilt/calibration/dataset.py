@@ -66,6 +66,7 @@ class Campaign:
     positions: tuple[str, ...]  # "file (x .. deg, y .. deg)", one per position
     sets: dict[str, SetData]  # "W", "C"
     skipped_rows: int  # rows with an empty or unreadable cell
+    stabilizing_rows: int = 0  # program rows before the chamber first reached its setpoint
 
 
 def run_logs(folder: Path) -> list[Path]:
@@ -154,7 +155,7 @@ def load(folder: Path, settle_s: float | None = None) -> Campaign:
     settle_s = DEFAULT_SETTLE_S if settle_s is None else settle_s
     positions: list[str] = []
     parts: dict[str, list[tuple[int, np.ndarray, np.ndarray]]] = {"W": [], "C": []}
-    skipped = 0
+    skipped = stabilizing = 0
     for path in run_logs(folder):
         try:
             rows = read_run_log(str(path))
@@ -166,8 +167,10 @@ def load(folder: Path, settle_s: float | None = None) -> Campaign:
         for label, position_rows in _positions(path, rows).items():
             index = len(positions)
             positions.append(label)
-            used = _settled(_staircase(position_rows) if has_chamber else position_rows, settle_s,
-                            start_s=_number(position_rows[0]["time_s"]))
+            staircase = _staircase(position_rows) if has_chamber else position_rows
+            if has_chamber:
+                stabilizing += sum(row["phase"] in _RUNNING_PHASES for row in position_rows) - len(staircase)
+            used = _settled(staircase, settle_s, start_s=_number(position_rows[0]["time_s"]))
             rates = _temperature_rates(used)
             for set_name, set_parts in parts.items():
                 cells = [(row["imu_temp_c"], row["ax_filt"], row["ay_filt"], rate)
@@ -195,4 +198,4 @@ def load(folder: Path, settle_s: float | None = None) -> Campaign:
             position=np.concatenate([np.full(len(part[1]), part[0]) for part in set_parts]),
             rate_c_per_s=data[:, 3],
         )
-    return Campaign(tuple(positions), sets, skipped)
+    return Campaign(tuple(positions), sets, skipped, stabilizing)

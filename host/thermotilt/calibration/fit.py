@@ -196,6 +196,7 @@ def write_outputs(fits: list[SurfaceFit], campaign: Campaign, out_dir: Path) -> 
     document = {
         "positions": list(campaign.positions),
         "skipped_rows": campaign.skipped_rows,
+        "stabilizing_rows": campaign.stabilizing_rows,
         "bounds": {
             "ols_95": "ordinary least squares: assumes independent rows, too narrow for filtered logs",
             "hac_95": "Newey-West within each position, lag window hac_lags_rows (statsmodels hac-panel)",
