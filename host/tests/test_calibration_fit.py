@@ -169,6 +169,7 @@ def test_rows_before_the_chamber_first_reaches_its_setpoint_are_not_fitted(tmp_p
     # cooling die puts the rows in the C set.
     temperatures, sets = cycle()
     staircase = [("W" if set_name == "W" else "C", t, t) for t, set_name in zip(temperatures, sets)]
+
     def program(from_c: float):
         pulldown = np.linspace(from_c, -9.5, 300)
         return [("W", -10.0, inner) for inner in pulldown], list(pulldown), ["C"] * len(pulldown)
