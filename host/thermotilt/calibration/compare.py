@@ -131,7 +131,7 @@ def compare(fits: dict[str, FittedSurface], reference: str) -> list[SurfaceCompa
         half = widths[key] if widths is not None else fit.hac_half_widths
         sigmas = {term: (getattr(fitted, term) - getattr(surfaces[key], term)) / half[term]
                   if half[term] > 0 else float("inf") for term in TERMS}
-        published = TABLES[(key[1], key[0])].rmse if reference == "paper" else None
+        published = TABLES[(key[1], key[0])].rmse if widths is not None else None
         comparisons.append(SurfaceComparison(key, domain, float(np.sqrt(np.mean(difference**2))),
                                              float(np.max(np.abs(difference))), sigmas,
                                              "paper" if widths is not None else "fit", fit.rmse_lsb, published))

@@ -91,25 +91,30 @@ def _settled(rows: list[dict[str, str]], settle_s: float, start_s: float) -> lis
     return [row for row in rows if _number(row["time_s"]) - start_s >= settle_s]
 
 
-def _staircase(rows: list[dict[str, str]]) -> list[dict[str, str]]:
+def _staircase(rows: list[dict[str, str]]) -> tuple[list[dict[str, str]], int]:
     """The rows of each program run (phase W or C) from the first one whose
-    inner face is within REACHED_BAND_C of its setpoint. Before that the
-    chamber is still coming at full drive from where the program found it
-    (the lab, a rest): the paper's "temperature stabilization" ahead of its
-    measuring steps (section 3.1), whose fast cooling would otherwise fill
-    the cooling set (docs/calibration.md)."""
-    if not any(row["chamber_c"] for row in rows):
-        return [row for row in rows if row["phase"] in _RUNNING_PHASES]
+    inner face is within REACHED_BAND_C of its setpoint, and how many
+    program rows came before. Before that the chamber is still coming at
+    full drive from where the program found it (the lab, a rest): the
+    paper's "temperature stabilization" ahead of its measuring steps
+    (section 3.1), whose fast cooling would otherwise fill the cooling set
+    (docs/calibration.md). A log without the inner face's temperature keeps
+    every program row."""
+    knows_face = any(row["chamber_c"] for row in rows)
     kept: list[dict[str, str]] = []
+    stabilizing = 0
     arrived = False
     for row in rows:
         if row["phase"] not in _RUNNING_PHASES:
             arrived = False
             continue
-        arrived = arrived or abs(_number(row["chamber_c"]) - _number(row["setpoint_c"])) <= REACHED_BAND_C
+        arrived = arrived or not knows_face or (
+            abs(_number(row["chamber_c"]) - _number(row["setpoint_c"])) <= REACHED_BAND_C)
         if arrived:
             kept.append(row)
-    return kept
+        else:
+            stabilizing += 1
+    return kept, stabilizing
 
 
 def _positions(path: Path, rows: list[dict[str, str]]) -> dict[str, list[dict[str, str]]]:
@@ -167,9 +172,10 @@ def load(folder: Path, settle_s: float | None = None) -> Campaign:
         for label, position_rows in _positions(path, rows).items():
             index = len(positions)
             positions.append(label)
-            staircase = _staircase(position_rows) if has_chamber else position_rows
+            staircase = position_rows
             if has_chamber:
-                stabilizing += sum(row["phase"] in _RUNNING_PHASES for row in position_rows) - len(staircase)
+                staircase, before_setpoint = _staircase(position_rows)
+                stabilizing += before_setpoint
             used = _settled(staircase, settle_s, start_s=_number(position_rows[0]["time_s"]))
             rates = _temperature_rates(used)
             for set_name, set_parts in parts.items():
