@@ -232,10 +232,13 @@ def test_the_fit_command_writes_coefficients_block_and_header(tmp_path):
          "no settled rows of the C set"),
         (lambda folder: write_run_log(folder / "warm.csv", 0.0, *cycle_without_25c()),
          "never crosses 25 degC"),
+        (lambda folder: write_run_log(folder / "stuck.csv", 0.0, *cycle(),
+                                      chamber=[("W", -10.0, 20.0)] * 1200),
+         "never came within 1 degC of its program's setpoint"),
         (lambda folder: (folder.mkdir(), (folder / "bad.csv").write_text("time_s,ax\n1,2\n")),
          "the header is not run.csv's"),
     ],
-    ids=["empty", "one-set", "no-25c", "not-a-run-log"],
+    ids=["empty", "one-set", "no-25c", "never-reached", "not-a-run-log"],
 )
 def test_bad_campaign_folders_are_one_line(tmp_path, make, message):
     folder = tmp_path / "campaign"

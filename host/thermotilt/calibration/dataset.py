@@ -175,6 +175,9 @@ def load(folder: Path, settle_s: float | None = None) -> Campaign:
             staircase = position_rows
             if has_chamber:
                 staircase, before_setpoint = _staircase(position_rows)
+                if before_setpoint and not staircase:
+                    raise CalibrationDataError(f"{label}: the chamber's inner face never came within "
+                                               f"{REACHED_BAND_C:g} degC of its program's setpoint")
                 stabilizing += before_setpoint
             used = _settled(staircase, settle_s, start_s=_number(position_rows[0]["time_s"]))
             rates = _temperature_rates(used)
