@@ -24,7 +24,7 @@ add_executable(avr_run sim/avr_run.c)
 target_compile_options(avr_run PRIVATE ${PROJECT_WARNINGS})
 target_link_libraries(avr_run PRIVATE sim_board)
 
-# Loaded by host/thermotilt/twin.py through ctypes.
+# Loaded by host/thermotilt/twin/boards.py through ctypes.
 add_library(thermotilt_twin SHARED sim/twin.c)
 target_compile_options(thermotilt_twin PRIVATE ${PROJECT_WARNINGS})
 target_link_libraries(thermotilt_twin PRIVATE sim_board)

@@ -3,8 +3,8 @@ with its thermistors set, a program to start, and frame picking."""
 
 import math
 
-from thermotilt.protocol import build_frame
-from thermotilt.twin import Board
+from thermotilt.wire.protocol import build_frame
+from thermotilt.twin.boards import Board
 
 
 def divider_millivolts(celsius: float) -> float:

@@ -34,8 +34,8 @@ from thermotilt.physics import (
     PerAxis,
     Sensor,
 )
-from thermotilt.protocol import FRAMES, FrameReader, build_frame, format_value, parse_line
-from thermotilt.runlog import ALL_COLUMNS, COLUMNS, RunLogError, read_run_log
+from thermotilt.wire.protocol import FRAMES, FrameReader, build_frame, format_value, parse_line
+from thermotilt.run.log import ALL_COLUMNS, COLUMNS, RunLogError, read_run_log
 
 from test_log import imu_frame, rows_of, wait_for, wait_until_opened
 

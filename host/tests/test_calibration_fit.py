@@ -18,8 +18,9 @@ from thermotilt.calibration.compare import compare, format_comparison, read_fit,
 from thermotilt.calibration.dataset import CalibrationDataError, SetData, load
 from thermotilt.calibration.fit import fit_surface
 from thermotilt.calibration.paper import PRINTING_ERRORS, TABLES
-from thermotilt.coefficients import BLOCK_SIZE, PAPER_DEFAULTS, TERMS, Surface, decode_block
-from thermotilt.runlog import COLUMNS
+from thermotilt.wire.coefficients import BLOCK_SIZE, decode_block
+from thermotilt.surfaces import PAPER_DEFAULTS, COEFFICIENT_NAMES, Surface
+from thermotilt.run.log import COLUMNS
 
 # A drift surface that is zero at 25 degC for every acceleration, as the
 # residuals against a 25 degC reading are: Table 2's warming X temperature
@@ -263,7 +264,7 @@ def test_the_papers_tables_are_the_firmwares_defaults():
         if axis not in ("X", "Y"):
             continue
         surface = PAPER_DEFAULTS.surfaces[(set_name, axis)]
-        for term in TERMS:
+        for term in COEFFICIENT_NAMES:
             assert getattr(surface, term) == pytest.approx(published.coefficients[term].value, rel=1e-6)
     printed = TABLES[("X", "C")].coefficients["p01"]
     assert not printed.lower <= printed.value <= printed.upper

@@ -11,8 +11,8 @@ import pytest
 
 from thermotilt import cli
 from thermotilt.calibration.campaign import select_positions
-from thermotilt.runlog import read_run_log
-from thermotilt.scenarios import campaign_positions
+from thermotilt.run.log import read_run_log
+from thermotilt.twin.scenarios import campaign_positions
 
 from test_log import wait_for
 from twin_helpers import pty_twin
@@ -208,7 +208,7 @@ def test_boards_campaign_without_a_board_is_one_line(tmp_path):
 @pytest.mark.twin
 def test_one_job_reports_progress_while_a_position_runs(tmp_path):
     from thermotilt.calibration.campaign import PARTIAL_DIR, TwinCampaign, TwinSetup
-    from thermotilt.scenarios import ScenarioOptions
+    from thermotilt.twin.scenarios import ScenarioOptions
 
     out = tmp_path / "campaign"
     program = ScenarioOptions(hold_s=1, rest_s=0, hold_start="T")

@@ -17,7 +17,7 @@ from thermotilt.calibration.campaign import (
     run_twin_position_shipped,
     select_positions,
 )
-from thermotilt.scenarios import ScenarioOptions
+from thermotilt.twin.scenarios import ScenarioOptions
 
 from test_campaign import SHORT, THERMOTILT, campaign_file, interrupt_once_a_position_is_done, statuses
 

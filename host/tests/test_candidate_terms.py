@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from thermotilt.coefficients import PAPER_DEFAULTS
+from thermotilt.surfaces import PAPER_DEFAULTS
 from thermotilt.physics import DECLARATIONS, TERMS, Model, ModelError, Sensor
 from thermotilt.physics.terms import REGISTRY, SENSOR_STAGES, SensorContext
 

@@ -2,8 +2,9 @@ import pytest
 
 from thermotilt import __version__
 from thermotilt.cli import main
-from thermotilt.coefficients import PAPER_DEFAULTS, decode_block, encode_block
-from thermotilt.protocol import PROTOCOL_VERSION, build_frame
+from thermotilt.surfaces import PAPER_DEFAULTS
+from thermotilt.wire.coefficients import decode_block, encode_block
+from thermotilt.wire.protocol import PROTOCOL_VERSION, build_frame
 
 from test_bad_input import assert_one_line_error
 from test_bad_input import thermotilt as run

@@ -3,21 +3,17 @@ import struct
 
 import pytest
 
-from thermotilt.coefficients import (
-    AXES,
+from thermotilt.surfaces import AXES, PAPER_DEFAULTS, SETS, Surface, table_from_values
+from thermotilt.wire.coefficients import (
     BLOCK_SIZE,
-    PAPER_DEFAULTS,
-    SETS,
     CoefficientBlockError,
-    Surface,
     crc16_xmodem,
     decode_block,
     encode_block,
     setcoe_frames,
     table_from_coe_frames,
-    table_from_values,
 )
-from thermotilt.protocol import MAX_LINE, FrameReader, build_frame, parse_line
+from thermotilt.wire.protocol import MAX_LINE, FrameReader, build_frame, parse_line
 
 
 def bitwise_crc16_xmodem(data):

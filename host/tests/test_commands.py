@@ -1,4 +1,4 @@
-"""thermotilt.commands.CommandClient against the real imu_reader image in the
+"""thermotilt.wire.client.CommandClient against the real imu_reader image in the
 twin (directly, and through its pseudo-terminal with pyserial) and against a
 scripted port for what the twin cannot stage.
 
@@ -12,10 +12,10 @@ import threading
 import pytest
 import serial
 
-from thermotilt.coefficients import AXES, PAPER_DEFAULTS, SETS, TERMS
-from thermotilt.commands import CommandClient, CommandRefused, CommandTimeout
-from thermotilt.protocol import FrameReader, build_frame, parse_line
-from thermotilt.twin import Board
+from thermotilt.surfaces import AXES, PAPER_DEFAULTS, SETS, COEFFICIENT_NAMES
+from thermotilt.wire.client import CommandClient, CommandRefused, CommandTimeout
+from thermotilt.wire.protocol import FrameReader, build_frame, parse_line
+from thermotilt.twin.boards import Board
 
 from firmware_helpers import of_type
 
@@ -62,7 +62,7 @@ def test_fifty_getcoe_through_the_client_are_all_answered(imu):
         (coe,) = answer.data
         assert (coe["set"], coe["axis"]) == (set_, axis)
         paper = PAPER_DEFAULTS.surface(set_, axis)
-        assert tuple(coe[term] for term in TERMS) == pytest.approx(tuple(paper), rel=1e-4, abs=1e-12)
+        assert tuple(coe[term] for term in COEFFICIENT_NAMES) == pytest.approx(tuple(paper), rel=1e-4, abs=1e-12)
     assert len(imu.written) == COMMANDS
     assert client.reader.malformed == 0 and client.reader.gaps == 0
     # The board kept streaming meanwhile, and those frames were passed on.

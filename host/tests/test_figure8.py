@@ -12,10 +12,10 @@ import sys
 
 import pytest
 
-from thermotilt import figures
-from thermotilt.protocol import FrameReader
-from thermotilt.runlog import read_run_log
-from thermotilt.scenarios import FIG8_AMBIENT_C, PAPER_HOLD_S
+from thermotilt.twin import figures
+from thermotilt.wire.protocol import FrameReader
+from thermotilt.run.log import read_run_log
+from thermotilt.twin.scenarios import FIG8_AMBIENT_C, PAPER_HOLD_S
 
 THERMOTILT = [sys.executable, "-m", "thermotilt"]
 CONTROLLERS = ("float", "rounded-error")

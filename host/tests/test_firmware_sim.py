@@ -16,8 +16,8 @@ from pathlib import Path
 
 import pytest
 
-from thermotilt.coefficients import PAPER_DEFAULTS
-from thermotilt.protocol import PROTOCOL_VERSION, FrameReader, build_frame
+from thermotilt.surfaces import PAPER_DEFAULTS
+from thermotilt.wire.protocol import PROTOCOL_VERSION, FrameReader, build_frame
 
 from firmware_helpers import divider_millivolts, of_type
 

@@ -1,5 +1,5 @@
 """The IMU reader's defences, in the twin (the real imu_reader.elf in simavr
-through thermotilt.twin): coefficient blocks in EEPROM it must not trust,
+through thermotilt.twin.boards): coefficient blocks in EEPROM it must not trust,
 SETCOE surfaces whose output no IMU frame can carry, a first temperature
 sample taken before the sensor refreshed it, commands with a field
 appended, and RESET, a reset through the watchdog that is not a fault.
@@ -17,17 +17,12 @@ from pathlib import Path
 
 import pytest
 
-from thermotilt.coefficients import (
-    PAPER_DEFAULTS,
-    TERMS,
-    crc16_xmodem,
-    encode_block,
-    table_from_values,
-)
+from thermotilt.surfaces import PAPER_DEFAULTS, COEFFICIENT_NAMES, table_from_values
+from thermotilt.wire.coefficients import crc16_xmodem, encode_block
 from thermotilt.physics import Model, Sensor
-from thermotilt.protocol import MAX_LINE, Frame, FrameReader, build_frame, parse_line
-from thermotilt.simulate import STEP_S
-from thermotilt.twin import Board, firmware_elf
+from thermotilt.wire.protocol import MAX_LINE, Frame, FrameReader, build_frame, parse_line
+from thermotilt.twin.simulate import STEP_S
+from thermotilt.twin.boards import Board, firmware_elf
 
 from firmware_helpers import of_type
 
@@ -68,7 +63,7 @@ def answers(board: Board, reader: FrameReader, commands: list[str], seconds: flo
 
 
 def surface_values(frame: Frame) -> tuple[float, ...]:
-    return tuple(frame[term] for term in TERMS)
+    return tuple(frame[term] for term in COEFFICIENT_NAMES)
 
 
 # ---- coefficient block in EEPROM ----------------------------------------

@@ -13,8 +13,8 @@ import time
 import pytest
 
 from thermotilt.cli import main
-from thermotilt.protocol import build_frame
-from thermotilt.runlog import COLUMNS, read_run_log
+from thermotilt.wire.protocol import build_frame
+from thermotilt.run.log import COLUMNS, read_run_log
 
 
 def imu_frame(seq, t_ms, ax=-1650):

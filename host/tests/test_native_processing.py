@@ -37,12 +37,13 @@ from decimal import ROUND_HALF_UP, Decimal
 import numpy as np
 import pytest
 
-from thermotilt import native, simulate
-from thermotilt.coefficients import PAPER_DEFAULTS, CoefficientTable, Surface
+from thermotilt import native
+from thermotilt.twin import simulate
+from thermotilt.surfaces import PAPER_DEFAULTS, CoefficientTable, Surface
 from thermotilt.physics import Model
-from thermotilt.protocol import FRAMES, FrameReader, build_frame
-from thermotilt.scenarios import ScenarioOptions, build
-from thermotilt.twin import Board
+from thermotilt.wire.protocol import FRAMES, FrameReader, build_frame
+from thermotilt.twin.scenarios import ScenarioOptions, build
+from thermotilt.twin.boards import Board
 
 STEP_S = simulate.STEP_S
 DECIMATION = 10

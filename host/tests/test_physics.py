@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from thermotilt import native
-from thermotilt.coefficients import PAPER_DEFAULTS
+from thermotilt.surfaces import PAPER_DEFAULTS
 from thermotilt.physics import docs
 from thermotilt.physics.terms import REGISTRY
 from thermotilt.physics import (

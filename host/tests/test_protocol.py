@@ -5,8 +5,8 @@ from pathlib import Path
 
 import pytest
 
-from thermotilt import protocol, protocol_spec
-from thermotilt.protocol import (
+from thermotilt.wire import protocol, protocol_spec
+from thermotilt.wire.protocol import (
     FRAMES,
     FrameReader,
     MalformedFrame,

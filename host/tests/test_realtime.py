@@ -8,7 +8,7 @@ import time
 import pytest
 
 from thermotilt.cli import main
-from thermotilt.simulate import STEP_S, WallClockPacer
+from thermotilt.twin.simulate import STEP_S, WallClockPacer
 
 from test_bad_input import assert_one_line_error
 from test_bad_input import thermotilt as run

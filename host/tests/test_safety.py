@@ -11,11 +11,11 @@ from pathlib import Path
 
 import pytest
 
-from thermotilt import simulate
+from thermotilt.twin import simulate
 from thermotilt.physics import Model, parse_fault
-from thermotilt.protocol import FrameReader, build_frame
-from thermotilt.scenarios import Command, Scenario, TablePosition
-from thermotilt.twin import Board, Drive
+from thermotilt.wire.protocol import FrameReader, build_frame
+from thermotilt.twin.scenarios import Command, Scenario, TablePosition
+from thermotilt.twin.boards import Board, Drive
 
 from firmware_helpers import chamber, of_type, start_program
 

@@ -17,11 +17,11 @@ from scipy.signal import lfilter
 from thermotilt.calibration.dataset import load as load_campaign
 from thermotilt.calibration.fit import fit_surface
 from thermotilt.calibration.paper import FIELD_RMS_LSB, TABLES
-from thermotilt.coefficients import PAPER_DEFAULTS
+from thermotilt.surfaces import PAPER_DEFAULTS
 from thermotilt.physics import Model, Sensor
 from thermotilt.physics.terms.sensor import FLICKER_TIME_CONSTANTS_S, FLICKER_VARIANCE_PER_FLOOR
-from thermotilt.runlog import COLUMNS, read_run_log
-from thermotilt.scenarios import (
+from thermotilt.run.log import COLUMNS, read_run_log
+from thermotilt.twin.scenarios import (
     CALIBRATION_MAX_C,
     CALIBRATION_MIN_C,
     PAPER_HOLD_S,

@@ -4,8 +4,8 @@ ambient profiles (no simulation runs here)."""
 import pytest
 
 from thermotilt.physics import Model
-from thermotilt.protocol import build_frame, parse_line
-from thermotilt.scenarios import (
+from thermotilt.wire.protocol import build_frame, parse_line
+from thermotilt.twin.scenarios import (
     FIELD_SENSOR_OFFSET_C,
     ScenarioError,
     ScenarioOptions,

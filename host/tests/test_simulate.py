@@ -17,12 +17,13 @@ from pathlib import Path
 import pytest
 import serial
 
-from thermotilt import figures, physics, twin
-from thermotilt import simulate as simulate_module
-from thermotilt.coefficients import PAPER_DEFAULTS
-from thermotilt.protocol import FrameReader, build_frame
-from thermotilt.runlog import ALL_COLUMNS, read_run_log
-from thermotilt.scenarios import ScenarioOptions, build
+from thermotilt.twin import figures, boards as twin
+from thermotilt import physics
+from thermotilt.twin import simulate as simulate_module
+from thermotilt.surfaces import PAPER_DEFAULTS
+from thermotilt.wire.protocol import FrameReader, build_frame
+from thermotilt.run.log import ALL_COLUMNS, read_run_log
+from thermotilt.twin.scenarios import ScenarioOptions, build
 
 from twin_helpers import pty_twin
 

@@ -10,9 +10,9 @@ import sys
 import pytest
 
 from thermotilt.physics import Model
-from thermotilt.protocol import FrameReader, build_frame
-from thermotilt.runlog import read_run_log
-from thermotilt.twin import Board
+from thermotilt.wire.protocol import FrameReader, build_frame
+from thermotilt.run.log import read_run_log
+from thermotilt.twin.boards import Board
 
 from firmware_helpers import of_type
 

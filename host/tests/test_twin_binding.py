@@ -1,4 +1,4 @@
-"""Both firmware images driven through thermotilt.twin (ctypes over
+"""Both firmware images driven through thermotilt.twin.boards (ctypes over
 build/native/libthermotilt_twin.so, built by `make build`).
 
 Expected values come from the parts and the paper, not from the twin: the
@@ -15,9 +15,10 @@ import numpy as np
 import pytest
 import serial
 
-from thermotilt.coefficients import PAPER_DEFAULTS, encode_block, table_from_values
-from thermotilt.protocol import FrameReader, build_frame
-from thermotilt.twin import Board, Drive, TwinError, build_dir, firmware_elf
+from thermotilt.surfaces import PAPER_DEFAULTS, table_from_values
+from thermotilt.wire.coefficients import encode_block
+from thermotilt.wire.protocol import FrameReader, build_frame
+from thermotilt.twin.boards import Board, Drive, TwinError, build_dir, firmware_elf
 
 from firmware_helpers import chamber, divider_millivolts, of_type, start_program
 

@@ -4,10 +4,10 @@ only; how fast anything runs is `make bench`'s to print, not a test's."""
 
 import pytest
 
-from thermotilt import simulate
+from thermotilt.twin import simulate
 from thermotilt.physics import Model
-from thermotilt.scenarios import ScenarioOptions, build
-from thermotilt.twin import Board, FirmwareSymbols, is_runtime_routine
+from thermotilt.twin.scenarios import ScenarioOptions, build
+from thermotilt.twin.boards import Board, FirmwareSymbols, is_runtime_routine
 
 from firmware_helpers import chamber
 

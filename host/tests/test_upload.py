@@ -20,18 +20,19 @@ from types import SimpleNamespace
 import pytest
 import serial
 
-from thermotilt import simulate
+from thermotilt.twin import simulate
 from thermotilt.calibration.fit import SurfaceFit, write_outputs
 from thermotilt.cli import main
 from thermotilt.calibration.upload import UploadError, printed_equal, read_table, upload_table
-from thermotilt.coefficients import AXES, BLOCK_SIZE, SETS, TERMS, Surface, decode_block, encode_block
-from thermotilt.commands import CommandClient
-from thermotilt.protocol import build_frame, parse_line
+from thermotilt.surfaces import AXES, SETS, COEFFICIENT_NAMES, Surface
+from thermotilt.wire.coefficients import BLOCK_SIZE, decode_block, encode_block
+from thermotilt.wire.client import CommandClient
+from thermotilt.wire.protocol import build_frame, parse_line
 from thermotilt.physics import Model
-from thermotilt.runlog import read_run_log
-from thermotilt.scenarios import ScenarioOptions, build
-from thermotilt.simulate import SimulationError
-from thermotilt.twin import Board
+from thermotilt.run.log import read_run_log
+from thermotilt.twin.scenarios import ScenarioOptions, build
+from thermotilt.twin.simulate import SimulationError
+from thermotilt.twin.boards import Board
 
 from firmware_helpers import of_type
 from twin_helpers import pty_twin
@@ -78,7 +79,7 @@ def surfaces_of(client: CommandClient) -> dict:
     for s in SETS:
         for a in AXES:
             (coe,) = of_type(client.command("GETCOE", [s, a]).data, "COE")
-            read[(s, a)] = tuple(coe[term] for term in TERMS)
+            read[(s, a)] = tuple(coe[term] for term in COEFFICIENT_NAMES)
     return read
 
 

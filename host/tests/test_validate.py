@@ -12,8 +12,8 @@ import pytest
 
 from thermotilt import cli
 from thermotilt.calibration.validate import AxisResult, Validation, format_validation, load_coefficients, validate
-from thermotilt.coefficients import PAPER_DEFAULTS
-from thermotilt.runlog import COLUMNS, read_run_log
+from thermotilt.surfaces import PAPER_DEFAULTS
+from thermotilt.run.log import COLUMNS, read_run_log
 
 THERMOTILT = [sys.executable, "-m", "thermotilt"]
 WARMING_X = PAPER_DEFAULTS.surface("W", "X")

@@ -18,16 +18,10 @@ from typing import IO, TYPE_CHECKING, NoReturn, Sequence, TypeVar
 from tqdm import tqdm
 
 from . import __version__
-from .coefficients import (
-    BLOCK_SIZE,
-    PAPER_DEFAULTS,
-    CoefficientBlockError,
-    decode_block,
-    encode_block,
-    setcoe_frames,
-)
-from .protocol import PROTOCOL_VERSION, FrameReader
-from .scenarios import CONTROLLERS, DEFAULT_HOLD_START, HOLD_STARTS
+from .wire.coefficients import BLOCK_SIZE, CoefficientBlockError, decode_block, encode_block, setcoe_frames
+from .surfaces import PAPER_DEFAULTS
+from .wire.protocol import PROTOCOL_VERSION, FrameReader
+from .twin.scenarios import CONTROLLERS, DEFAULT_HOLD_START, HOLD_STARTS
 
 if TYPE_CHECKING:
     from .calibration.campaign import CampaignOutcome, PositionRecord
@@ -164,11 +158,11 @@ def _command_coefficients(args: argparse.Namespace) -> int:
 
 
 def _command_simulate(args: argparse.Namespace) -> int:
-    from . import simulate
+    from .twin import simulate
     from .physics import Model, ModelError, parse_fault
-    from .runlog import RunLogError, read_run_log
-    from .scenarios import ScenarioError, ScenarioOptions, build
-    from .twin import TwinError
+    from .run.log import RunLogError, read_run_log
+    from .twin.scenarios import ScenarioError, ScenarioOptions, build
+    from .twin.boards import TwinError
 
     try:
         model = Model.load(args.model)
@@ -235,7 +229,7 @@ def _eeprom_block(path: str) -> bytes:
     """The --eeprom file: a coefficient block (coefficients.bin) or the whole
     EEPROM a twin run saved (imu_reader_eeprom.bin). What it holds is the
     firmware's to judge at boot, as with a real EEPROM."""
-    from .simulate import IMU_EEPROM_BYTES, IMU_EEPROM_FILE
+    from .twin.simulate import IMU_EEPROM_BYTES, IMU_EEPROM_FILE
 
     data = b""
     for chunk in _input_chunks(path):
@@ -266,7 +260,7 @@ def announced_ports(lines: Iterable[str], boards: int = 2) -> dict[str, str]:
 
 def _print_figures(scenario_name: str, rows: list[dict[str, str]]) -> None:
     """The paper's numbers for the scenarios that have them."""
-    from .figures import drift_figures, fig8_figures, fig8_table, holds
+    from .twin.figures import drift_figures, fig8_figures, fig8_table, holds
 
     if scenario_name == "fig8":
         figures = fig8_figures(rows)
@@ -287,8 +281,8 @@ def _print_figures(scenario_name: str, rows: list[dict[str, str]]) -> None:
 
 
 def _command_log(args: argparse.Namespace) -> int:
-    from .logger import INTERRUPTED, LogError, log_boards
-    from .runlog import format_number
+    from .wire.logger import INTERRUPTED, LogError, log_boards
+    from .run.log import format_number
 
     try:
         result = log_boards(
@@ -326,7 +320,7 @@ def _command_campaign(args: argparse.Namespace) -> int:
         connect_cluster,
         select_positions,
     )
-    from .scenarios import ScenarioOptions
+    from .twin.scenarios import ScenarioOptions
 
     boards = args.imu_port is not None or args.chamber_port is not None
     if args.twin == boards or (boards and not (args.imu_port and args.chamber_port)):

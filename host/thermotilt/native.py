@@ -56,8 +56,8 @@ from typing import Any
 
 import numpy as np
 
-from .coefficients import CoefficientTable
-from .twin import INT16_RANGE, TEMPERATURE_RAW_RANGE, build_dir
+from .surfaces import CoefficientTable
+from .twin.boards import INT16_RANGE, TEMPERATURE_RAW_RANGE, build_dir
 
 WARMING = 0
 COOLING = 1

@@ -44,17 +44,23 @@ from pathlib import Path
 
 import numpy as np
 
-from thermotilt import simulate
+from thermotilt.twin import simulate
 from thermotilt.calibration.dataset import Campaign, SetData, load
 from thermotilt.calibration.families import compare_families
 from thermotilt.calibration.fit import fit_surface
 from thermotilt.calibration.paper import FIELD_RMS_LSB, TABLES
 from thermotilt.calibration.validate import validate
-from thermotilt.protocol import build_frame
-from thermotilt.twin import (DEFAULT_FREQUENCY_HZ, Board, FirmwareSymbols, build_dir, firmware_elf,
-                             is_runtime_routine)
+from thermotilt.wire.protocol import build_frame
+from thermotilt.twin.boards import (
+    DEFAULT_FREQUENCY_HZ,
+    Board,
+    FirmwareSymbols,
+    build_dir,
+    firmware_elf,
+    is_runtime_routine,
+)
 from thermotilt.physics import Chamber, Model, Sensor
-from thermotilt.scenarios import ScenarioOptions, build
+from thermotilt.twin.scenarios import ScenarioOptions, build
 
 COUPLED_TARGET_X_REAL_TIME = 50.0
 CAMPAIGN_TARGET_MINUTES = 30.0

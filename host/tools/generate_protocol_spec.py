@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Generate host/thermotilt/protocol_spec.py from lib/Protocol/src/ProtocolFrames.def.
+"""Generate host/thermotilt/wire/protocol_spec.py from lib/Protocol/src/ProtocolFrames.def.
 
 The .def file is the one definition of the serial protocol (frames, ERR codes
 and their detail tokens); the firmware
@@ -15,7 +15,7 @@ from pathlib import Path
 
 HOST_DIR = Path(__file__).resolve().parents[1]
 DEFINITION = HOST_DIR.parent / "lib" / "Protocol" / "src" / "ProtocolFrames.def"
-MODULE = HOST_DIR / "thermotilt" / "protocol_spec.py"
+MODULE = HOST_DIR / "thermotilt" / "wire" / "protocol_spec.py"
 
 _DEFINE = re.compile(r"^#define THERMOTILT_PROTOCOL_(\w+) (\d+)$", re.MULTILINE)
 _FRAME = re.compile(r'^THERMOTILT_FRAME\((\w+), (BOARD|HOST), "([^"]*)"\)$', re.MULTILINE)

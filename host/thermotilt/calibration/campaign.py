@@ -35,8 +35,8 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from ..protocol import FrameReader
-from ..scenarios import (
+from ..wire.protocol import FrameReader
+from ..twin.scenarios import (
     CALIBRATION_MAX_C,
     CALIBRATION_MIN_C,
     PAPER_STEP_C,
@@ -253,8 +253,8 @@ def run_twin_position(setup: TwinSetup, position: Position, out_dir: Path,
     """One position in the twin, in this process; puts the simulated seconds
     into ``progress_queue`` as they pass (a whole position's by its end) and
     stops when ``stop_event`` is set."""
-    from .. import simulate
-    from ..twin import TwinError
+    from ..twin import simulate
+    from ..twin.boards import TwinError
 
     record = PositionRecord(position.label, position.incl_x_deg, position.incl_y_deg,
                             seed=setup.position_seed(position), started_utc=_utc_now())
@@ -441,7 +441,7 @@ def _worker_failed(position: Position, error: Exception) -> PositionRecord:
 def twin_build_problem() -> str | None:
     """Why this machine cannot run the twin (the build missing or older than
     the host), or None; each Dask worker is asked before a campaign."""
-    from ..twin import Board, TwinError
+    from ..twin.boards import Board, TwinError
 
     try:
         for board in (Board.imu_reader, Board.thermal_chamber):
@@ -635,7 +635,7 @@ class BoardsCampaign(_Campaign):
 
 def _board_version(client: Any, port: str) -> str:
     """VERSION until the board, maybe still in its bootloader, answers."""
-    from ..commands import CommandTimeout
+    from ..wire.client import CommandTimeout
 
     deadline = time.monotonic() + BOOT_WAIT_S
     while True:
@@ -656,11 +656,11 @@ def run_boards_position(setup: BoardsSetup, position: Position, out_dir: Path) -
     and log both boards until it ends."""
     import serial
 
-    from ..commands import CommandClient, CommandError
-    from ..logger import INTERRUPTED as LOG_INTERRUPTED
-    from ..logger import LogError, ProgramWatch, log_boards
-    from ..protocol import SequenceCounter
-    from ..scenarios import chamber_program
+    from ..wire.client import CommandClient, CommandError
+    from ..wire.logger import INTERRUPTED as LOG_INTERRUPTED
+    from ..wire.logger import LogError, ProgramWatch, log_boards
+    from ..wire.protocol import SequenceCounter
+    from ..twin.scenarios import chamber_program
 
     record = PositionRecord(position.label, position.incl_x_deg, position.incl_y_deg, started_utc=_utc_now())
     partial = _fresh_partial(out_dir, position.label)
@@ -715,7 +715,7 @@ def _stop_chamber(chamber: Any) -> None:
     """Best effort: the chamber's own heartbeat stops it anyway."""
     import serial
 
-    from ..protocol import build_frame
+    from ..wire.protocol import build_frame
 
     if chamber is None:
         return

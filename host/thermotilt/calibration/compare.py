@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..coefficients import TERMS, Surface
+from ..surfaces import COEFFICIENT_NAMES, Surface
 from ..physics import Model, ModelError
 from ..physics.terms.sensor import coefficient_table_of
 from .dataset import CalibrationDataError, REFERENCE_C
@@ -70,9 +70,9 @@ def _pair(values) -> tuple[float, float]:
 
 def _fitted_surface(fit: dict) -> FittedSurface:
     coefficients = fit["coefficients"]
-    hac = {term: _pair(coefficients[term]["hac_95"]) for term in TERMS}
+    hac = {term: _pair(coefficients[term]["hac_95"]) for term in COEFFICIENT_NAMES}
     return FittedSurface(
-        surface=Surface(*(float(coefficients[term]["value"]) for term in TERMS)),
+        surface=Surface(*(float(coefficients[term]["value"]) for term in COEFFICIENT_NAMES)),
         hac_half_widths={term: (high - low) / 2 for term, (low, high) in hac.items()},
         temperature_range_c=_pair(fit["temperature_range_c"]),
         acceleration_range_lsb=_pair(fit["acceleration_range_lsb"]),
@@ -106,8 +106,8 @@ def reference_surfaces(reference: str) -> tuple[dict[str, Surface], dict[str, di
                 return PRINTING_ERRORS.get((axis, set_name, term, name), printed)
 
             key = f"{set_name}{axis}"
-            surfaces[key] = Surface(*(part(term, "value") for term in TERMS))
-            widths[key] = {term: (part(term, "upper") - part(term, "lower")) / 2 for term in TERMS}
+            surfaces[key] = Surface(*(part(term, "value") for term in COEFFICIENT_NAMES))
+            widths[key] = {term: (part(term, "upper") - part(term, "lower")) / 2 for term in COEFFICIENT_NAMES}
         return surfaces, widths
     try:
         model = Model.load(reference)
@@ -130,7 +130,7 @@ def compare(fits: dict[str, FittedSurface], reference: str) -> list[SurfaceCompa
         difference = _relative(fitted, temperature, acceleration) - _relative(surfaces[key], temperature, acceleration)
         half = widths[key] if widths is not None else fit.hac_half_widths
         sigmas = {term: (getattr(fitted, term) - getattr(surfaces[key], term)) / half[term]
-                  if half[term] > 0 else float("inf") for term in TERMS}
+                  if half[term] > 0 else float("inf") for term in COEFFICIENT_NAMES}
         published = TABLES[(key[1], key[0])].rmse if widths is not None else None
         comparisons.append(SurfaceComparison(key, domain, float(np.sqrt(np.mean(difference**2))),
                                              float(np.max(np.abs(difference))), sigmas,

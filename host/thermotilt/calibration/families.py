@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import statsmodels.api as sm
 
-from ..coefficients import SETS
+from ..surfaces import SETS
 from .dataset import Campaign, CalibrationDataError
 from .fit import design
 

@@ -20,7 +20,8 @@ import numpy as np
 import statsmodels.api as sm
 from statsmodels.tsa.stattools import acf
 
-from ..coefficients import AXES, SETS, TERMS, CoefficientTable, Surface, ZERO_SURFACE, encode_block
+from ..surfaces import AXES, SETS, COEFFICIENT_NAMES, CoefficientTable, Surface, ZERO_SURFACE
+from ..wire.coefficients import encode_block
 from .dataset import FIT_AXES, Campaign, CalibrationDataError, SetData
 
 # Powers of (T, a) for p00, p10, p01, p20, p11, p02.
@@ -31,7 +32,7 @@ _POWERS = ((0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2))
 _TEMPERATURE_SCALE = 10.0
 _ACCELERATION_SCALE = 1e4
 _RATE_SCALE = 60.0  # degC/s to degC/min
-MIN_POINTS = 7 * len(TERMS)
+MIN_POINTS = 7 * len(COEFFICIENT_NAMES)
 # A quadratic in the acceleration needs three distinct levels of it.
 MIN_POSITIONS = 3
 CONFIDENCE = 0.95
@@ -103,7 +104,7 @@ def fit_surface(data: SetData, set_name: str, axis: str) -> SurfaceFit:
     columns = design(temperature, acceleration)
     # The scaled design is well conditioned, so its 6 x 6 normal matrix
     # shows a missing direction as well as the tall matrix itself, faster.
-    if np.linalg.matrix_rank(columns.T @ columns) < len(TERMS):
+    if np.linalg.matrix_rank(columns.T @ columns) < len(COEFFICIENT_NAMES):
         raise CalibrationDataError(
             f"{set_name} set, {axis} axis: temperature and acceleration do not vary enough for "
             "six coefficients (the fit needs several temperatures at several inclinations)"
@@ -157,7 +158,7 @@ def _fit_json(fit: SurfaceFit) -> dict:
         "points": fit.points,
         "coefficients": {
             term: {"value": value, "ols_95": list(ols), "hac_95": list(hac)}
-            for term, value, ols, hac in zip(TERMS, fit.surface, fit.ols_bounds, fit.hac_bounds, strict=True)
+            for term, value, ols, hac in zip(COEFFICIENT_NAMES, fit.surface, fit.ols_bounds, fit.hac_bounds, strict=True)
         },
         "hac_lags_rows": fit.hac_lags,
         "sse": fit.sse,
@@ -218,7 +219,7 @@ def format_table(fits: list[SurfaceFit]) -> str:
         pair = [fit for fit in fits if fit.axis == axis]
         lines.append(f"{axis} axis" + "".join(f"  | {('warming' if f.set_name == 'W' else 'cooling'):<44}"
                                                for f in pair))
-        for index, term in enumerate(TERMS):
+        for index, term in enumerate(COEFFICIENT_NAMES):
             cells = "".join(
                 f"  | {f.surface[index]:>11.4g} (HAC {f.hac_bounds[index][0]:.4g}, {f.hac_bounds[index][1]:.4g})"
                 .ljust(47) for f in pair

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Mapping
 
-from ..coefficients import TERMS
+from ..surfaces import COEFFICIENT_NAMES
 
 
 @dataclass(frozen=True)
@@ -38,7 +38,7 @@ class PublishedFit:
 
 def _fit(terms: list[tuple[float, float, float]], sse: float, r2: float, adjusted: float,
          rmse: float) -> PublishedFit:
-    coefficients = {name: Coefficient(*values) for name, values in zip(TERMS, terms, strict=True)}
+    coefficients = {name: Coefficient(*values) for name, values in zip(COEFFICIENT_NAMES, terms, strict=True)}
     return PublishedFit(MappingProxyType(coefficients), sse, r2, adjusted, rmse)
 
 

@@ -35,9 +35,9 @@ from typing import Any, Iterable
 
 import serial
 
-from ..coefficients import AXES, SETS, TERMS, ZERO_SURFACE, CoefficientTable, Surface
-from ..commands import CommandClient, CommandRefused, CommandTimeout
-from ..protocol import PROTOCOL_VERSION, Frame
+from ..surfaces import AXES, SETS, COEFFICIENT_NAMES, ZERO_SURFACE, CoefficientTable, Surface
+from ..wire.client import CommandClient, CommandRefused, CommandTimeout
+from ..wire.protocol import PROTOCOL_VERSION, Frame
 from .compare import read_fit
 from .dataset import CalibrationDataError
 
@@ -93,7 +93,7 @@ def read_table(fit_dir: Path) -> CoefficientTable:
             raise UploadError(f"{path}: unknown surface {key!r} (expected a set W or C and an axis X, Y or Z, e.g. WX)")
         surfaces[(key[:1], key[1:])] = fit.surface
     for (set_name, axis), surface in surfaces.items():
-        for term, value in zip(TERMS, surface, strict=True):
+        for term, value in zip(COEFFICIENT_NAMES, surface, strict=True):
             if not math.isfinite(value) or abs(value) > FLOAT32_MAX:
                 raise UploadError(f"{path}: {set_name}{axis} {term} = {value:g}, which the firmware's float32 "
                                   "cannot hold")
@@ -110,7 +110,7 @@ def printed_equal(sent: float, printed: float, digits: int = COE_SIGNIFICANT_DIG
 
 
 def first_mismatch(sent: Surface, printed: Surface) -> str | None:
-    for term, want, got in zip(TERMS, sent, printed, strict=True):
+    for term, want, got in zip(COEFFICIENT_NAMES, sent, printed, strict=True):
         if not printed_equal(want, got):
             return f"{term} = {got:.4e}, sent {want:.9g}"
     return None
@@ -224,7 +224,7 @@ class _Session:
                and (frame["set"], frame["axis"]) == (set_name, axis)]
         if not coe:
             raise UploadError(f"{what}: {self.name} answered without its COE frame{consequence}")
-        printed = Surface(*(coe[-1][term] for term in TERMS))
+        printed = Surface(*(coe[-1][term] for term in COEFFICIENT_NAMES))
         mismatch = first_mismatch(sent, printed)
         if mismatch is not None:
             raise UploadError(f"{what} read back {mismatch}{consequence}")
@@ -271,7 +271,7 @@ class _Session:
 
 
 def format_result(result: UploadResult) -> str:
-    columns = "".join(f"{term:>12}" for term in TERMS)
+    columns = "".join(f"{term:>12}" for term in COEFFICIENT_NAMES)
     lines = [f"imu_reader {result.firmware_version} on {result.port}: read back equal to what was sent at "
              f"COE's {COE_SIGNIFICANT_DIGITS} significant digits",
              f"  set axis{columns}  read back  after reset"]

@@ -31,8 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..coefficients import AXES, PAPER_DEFAULTS, ZERO_SURFACE, CoefficientTable
-from ..runlog import RunLogError, read_run_log
+from ..surfaces import AXES, PAPER_DEFAULTS, ZERO_SURFACE, CoefficientTable
+from ..run.log import RunLogError, read_run_log
 from .compare import CALIBRATED_C, read_fit
 from .dataset import FIT_AXES, REFERENCE_BAND_C, REFERENCE_C, CalibrationDataError, reading_at_25
 

@@ -34,7 +34,7 @@ from .. import native
 from ..physics import Model, Sensor
 from ..physics.document import with_values
 from ..physics.terms.lag import first_order
-from ..runlog import COLUMNS, format_number, read_run_columns
+from ..run.log import COLUMNS, format_number, read_run_columns
 from .candidates import BY_NAME, CANDIDATES, Candidate
 from .replay import (
     CHAMBER_CHANNELS,

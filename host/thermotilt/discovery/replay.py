@@ -34,7 +34,7 @@ from ..physics import Chamber, Model, Sensor
 from ..physics.sensor import registered_temperature_c
 from ..physics.document import plain
 from ..physics.terms import REGISTRY, SensorTerm
-from ..runlog import RunLogError, read_run_columns
+from ..run.log import RunLogError, read_run_columns
 
 # Channel -> the run.csv column it is measured in.
 CHANNEL_COLUMNS: Mapping[str, str] = {

@@ -21,7 +21,7 @@ from .search import gap_rms
 
 def scenario_of(measured_dir: Path):
     """The scenario and seed MEASURED's summary.json says it was run with."""
-    from ..scenarios import ScenarioError, ScenarioOptions, build
+    from ..twin.scenarios import ScenarioError, ScenarioOptions, build
 
     path = measured_dir / "summary.json"
     if not path.is_file():
@@ -51,8 +51,8 @@ def twin_gap(measured_dir: Path, measured: Measured, models: Mapping[str, Model]
     """Per channel, the RMS of MEASURED minus the twin's run with each model
     (keyed as `models`: "before", "after"), over the rows discovery compares,
     the twin's values taken at MEASURED's times."""
-    from .. import simulate
-    from ..twin import TwinError
+    from ..twin import simulate
+    from ..twin.boards import TwinError
 
     say = progress or (lambda message: None)
     scenario, seed, faults = scenario_of(measured_dir)

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Any
 
-from ..coefficients import AXES, SETS
+from ..surfaces import AXES, SETS
 
 
 class ModelError(ValueError):

@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 from scipy.signal import lfilter
 
-from ...coefficients import AXES, PAPER_DEFAULTS, SETS, CoefficientTable, Surface
+from ...surfaces import AXES, PAPER_DEFAULTS, SETS, CoefficientTable, Surface
 from ..parameters import Bounds, Parameter, PerAxis, Surfaces
 from . import SensorContext, SensorTerm, Section, hardware, register
 from .lag import first_order

@@ -14,7 +14,7 @@ import math
 from dataclasses import dataclass
 from typing import IO, Any, Mapping
 
-from .protocol import FRAMES, Frame
+from ..wire.protocol import FRAMES, Frame
 
 COLUMNS: tuple[str, ...] = (
     "time_s",

@@ -20,11 +20,11 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import BinaryIO, Callable
 
-from .physics import Chamber, Fault, Model, Sensor, SensorSample
-from .protocol import Frame, FrameReader, SequenceCounter, build_frame
-from .runlog import ChamberState, RunLogWriter, format_number
+from ..physics import Chamber, Fault, Model, Sensor, SensorSample
+from ..wire.protocol import Frame, FrameReader, SequenceCounter, build_frame
+from ..run.log import ChamberState, RunLogWriter, format_number
 from .scenarios import Scenario
-from .twin import Board, Drive
+from .boards import Board, Drive
 
 STEP_S = 0.01
 INNER_THERMISTOR_CHANNEL = 0

@@ -1,7 +1,7 @@
 """What the twin runs: the paper's experiments as timelines of ambient
 temperature, tilt-table positions and chamber commands.
 
-A scenario is data (times, angles, command frames); ``thermotilt.simulate``
+A scenario is data (times, angles, command frames); ``thermotilt.twin.simulate``
 plays it against the firmware and the physics model. The chamber program is
 sent exactly as the host would send it to the real Mega (SETPRG, START).
 """
@@ -14,7 +14,7 @@ from typing import Callable
 
 import numpy as np
 
-from .native import PAPER_PROPORTIONAL_GAIN
+from ..native import PAPER_PROPORTIONAL_GAIN
 
 # The firmware prints its version and reads its thermistors first; commands
 # are sent once it runs, as a host would after opening the port.

@@ -20,7 +20,7 @@ from typing import Any, Iterator, Mapping
 import serial
 
 from .protocol import Frame, FrameReader, SequenceCounter, build_frame
-from .runlog import ChamberState, RunLogWriter
+from ..run.log import ChamberState, RunLogWriter
 
 # Long enough for a 10 Hz stream to fill a read; short enough to watch both ports.
 READ_TIMEOUT_S = 0.05
