@@ -23,6 +23,7 @@ from hypothesis import given, reject, settings
 from hypothesis import strategies as st
 
 from thermotilt import cli
+from thermotilt.wire import coefficients as wire_coefficients
 from thermotilt.physics import (
     CONSTANT_PARAMETERS,
     FAULT_NAMES,
@@ -392,7 +393,7 @@ def test_ctrl_c_anywhere_else_is_one_line(monkeypatch, capsys):
     def interrupted(table):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(cli, "setcoe_frames", interrupted)
+    monkeypatch.setattr(wire_coefficients, "setcoe_frames", interrupted)
     assert cli.main(["coefficients"]) == 130
     assert capsys.readouterr().err == "thermotilt: interrupted\n"
 

@@ -98,8 +98,10 @@ def test_ctrl_c_while_a_position_is_reported_waits_for_the_report(monkeypatch, c
     import os
     import signal
 
-    from thermotilt import cli
+    from tqdm import tqdm
+
     from thermotilt.calibration.campaign import DONE, PositionRecord
+    from thermotilt.calibration.cli import report_position
 
     written = []
 
@@ -107,9 +109,9 @@ def test_ctrl_c_while_a_position_is_reported_waits_for_the_report(monkeypatch, c
         written.append(line)
         os.kill(os.getpid(), signal.SIGINT)
 
-    monkeypatch.setattr(cli.tqdm, "write", write_then_ctrl_c)
+    monkeypatch.setattr(tqdm, "write", write_then_ctrl_c)
     record = PositionRecord("X+30", 30.0, 0.0, status=DONE, wall_seconds=61.0, reported_errors=["ERR RESET"])
     with pytest.raises(KeyboardInterrupt):
-        cli._report_position(record)
+        report_position(record)
     assert written == ["X+30: done in 61 s", "X+30: reported ERR RESET"]
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler

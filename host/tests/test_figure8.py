@@ -15,7 +15,8 @@ import pytest
 from thermotilt.twin import figures
 from thermotilt.wire.protocol import FrameReader
 from thermotilt.run.log import read_run_log
-from thermotilt.twin.scenarios import FIG8_AMBIENT_C, PAPER_HOLD_S
+from thermotilt.twin.scenarios import FIG8_AMBIENT_C
+from thermotilt.program import PAPER_HOLD_S
 
 THERMOTILT = [sys.executable, "-m", "thermotilt"]
 CONTROLLERS = ("float", "rounded-error")

@@ -27,7 +27,8 @@ from thermotilt.surfaces import AXES, PAPER_DEFAULTS, SETS, Surface
 from thermotilt.physics import Model
 from thermotilt.physics.sensor import Sensor
 from thermotilt.physics.terms.sensor import INT16_MAX, INT16_MIN, OPERATING_C, SURFACE_TERM_BOUNDS, _surface
-from thermotilt.twin.scenarios import CALIBRATION_MAX_C, CALIBRATION_MIN_C, program_steps
+from thermotilt.twin.scenarios import program_steps
+from thermotilt.program import CALIBRATION_MAX_C, CALIBRATION_MIN_C
 
 pytestmark = pytest.mark.twin
 

@@ -21,15 +21,8 @@ from thermotilt.surfaces import PAPER_DEFAULTS
 from thermotilt.physics import Model, Sensor
 from thermotilt.physics.terms.sensor import FLICKER_TIME_CONSTANTS_S, FLICKER_VARIANCE_PER_FLOOR
 from thermotilt.run.log import COLUMNS, read_run_log
-from thermotilt.twin.scenarios import (
-    CALIBRATION_MAX_C,
-    CALIBRATION_MIN_C,
-    PAPER_HOLD_S,
-    PAPER_STEP_C,
-    ScenarioOptions,
-    build,
-    campaign_positions,
-)
+from thermotilt.twin.scenarios import ScenarioOptions, build, campaign_positions
+from thermotilt.program import CALIBRATION_MAX_C, CALIBRATION_MIN_C, PAPER_HOLD_S, PAPER_STEP_C
 
 from test_physics import SCATTER_OFF, SENSOR_EFFECTS_OFF
 

@@ -12,7 +12,6 @@ significant digits, the 148-byte block) and from the fit written here.
 import json
 import os
 import struct
-import subprocess
 import sys
 from pathlib import Path
 from types import SimpleNamespace

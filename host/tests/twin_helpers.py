@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from thermotilt.cli import announced_ports
+from thermotilt.twin.cli import announced_ports
 
 THERMOTILT = [sys.executable, "-m", "thermotilt"]
 

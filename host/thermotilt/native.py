@@ -56,6 +56,7 @@ from typing import Any
 
 import numpy as np
 
+from .program import PAPER_PROPORTIONAL_GAIN
 from .surfaces import CoefficientTable
 from .twin.boards import INT16_RANGE, TEMPERATURE_RAW_RANGE, build_dir
 
@@ -284,7 +285,6 @@ def imu_process_unrounded(
 
 
 DRIVE_OFF, DRIVE_HEAT, DRIVE_COOL = 0, 1, 2  # lib/ChamberControl's Direction
-PAPER_PROPORTIONAL_GAIN = 350.0  # ChamberController::kPaperProportionalGain
 
 
 def chamber_drive(setpoint_c: Any, measured_c: Any, dt_s: float, proportional_gain: float = PAPER_PROPORTIONAL_GAIN,

@@ -21,7 +21,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-from thermotilt.cli import announced_ports
+from thermotilt.twin.cli import announced_ports
 
 THERMOTILT = [sys.executable, "-m", "thermotilt"]
 # Section 3.2's positions the issue asks for at least: 0, +-15, +-30, +-45 on X, +-30 on Y.

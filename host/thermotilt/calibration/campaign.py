@@ -36,15 +36,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ..wire.protocol import FrameReader
-from ..twin.scenarios import (
-    CALIBRATION_MAX_C,
-    CALIBRATION_MIN_C,
-    PAPER_STEP_C,
-    ScenarioError,
-    ScenarioOptions,
-    campaign_positions,
-    cycle,
-)
+from ..twin.scenarios import ScenarioError, ScenarioOptions, campaign_positions, cycle
+from ..program import CALIBRATION_MAX_C, CALIBRATION_MIN_C, PAPER_STEP_C
 
 if TYPE_CHECKING:
     from distributed import Client

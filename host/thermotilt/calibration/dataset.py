@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from ..run.log import RunLogError, read_run_log
-from ..twin.scenarios import REACHED_BAND_C
+from ..program import REACHED_BAND_C
 
 REFERENCE_C = 25.0
 # Wide enough for a 2 degC staircase step's rows on both sides of 25 degC.

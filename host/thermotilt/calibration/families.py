@@ -13,8 +13,10 @@ RMSE is within RECOMMEND_WITHIN of the best family's in both sets.
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import statsmodels.api as sm
@@ -128,3 +130,11 @@ def format_families(scores: list[FamilyScore]) -> str:
                      f"{EXTRAPOLATION_RATIO:g}x worse than it fits: the campaign has too few inclinations on "
                      f"{axis} for a quadratic in its acceleration; add positions on {axis}")
     return "\n".join(lines)
+
+
+def write_families(scores: list[FamilyScore], out_dir: Path) -> Path:
+    """families.json: the recommendation and every score."""
+    path = out_dir / "families.json"
+    document = {"recommended": recommend(scores), "scores": [vars(score) for score in scores]}
+    path.write_text(json.dumps(document, indent=2) + "\n")
+    return path

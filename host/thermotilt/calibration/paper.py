@@ -94,3 +94,12 @@ FIELD_RMS_LSB: Mapping[tuple[str, str], tuple[float, float]] = MappingProxyType(
 })
 # Which set's surfaces compensated each field test (section 4.3).
 FIELD_TEST_SET: Mapping[str, str] = MappingProxyType({"field-warming": "W", "field-cooling": "C"})
+
+
+def field_rms_lsb(scenario: str | None) -> dict[tuple[str, str], tuple[float, float]] | None:
+    """Section 4.3's RMS (before, after) by (set, axis) for a twin run of
+    that field test, or None for any other run."""
+    if scenario not in FIELD_TEST_SET:
+        return None
+    return {(FIELD_TEST_SET[scenario], axis): FIELD_RMS_LSB[(scenario, axis)]
+            for axis in ("X", "Y") if (scenario, axis) in FIELD_RMS_LSB}

@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from ..surfaces import AXES, PAPER_DEFAULTS, ZERO_SURFACE, CoefficientTable
+from ..run.folder import RunFolder, RunFolderError
 from ..run.log import RunLogError, read_run_log
 from .compare import CALIBRATED_C, read_fit
 from .dataset import FIT_AXES, REFERENCE_BAND_C, REFERENCE_C, CalibrationDataError, reading_at_25
@@ -114,15 +115,11 @@ def load_coefficients(source: str) -> Coefficients:
     return Coefficients(CoefficientTable(surfaces), domain, source)
 
 
-def run_log_of(run: Path) -> Path:
-    return run / "run.csv" if run.is_dir() else run
-
-
 def validate(run: Path, coefficients: Coefficients | None = None) -> Validation:
-    path = run_log_of(run)
     try:
+        path = RunFolder.of(run).log
         rows = read_run_log(str(path))
-    except RunLogError as error:
+    except (RunFolderError, RunLogError) as error:
         raise CalibrationDataError(str(error)) from None
     usable = [row for row in rows if all(row[column] != "" for column in _NEEDED)
               and row["comp_set"] in SETS]
@@ -197,7 +194,7 @@ def format_validation(validation: Validation, paper: dict[tuple[str, str], tuple
     lines = [f"{validation.run}: {validation.rows} rows, IMU temperature {low:.1f}..{high:.1f} degC"
              + (f" ({validation.skipped_rows} rows with empty cells skipped)" if validation.skipped_rows else ""),
              f"after = {validation.after_from}",
-             f"RMS about the 25 degC reading, LSB:",
+             "RMS about the 25 degC reading, LSB:",
              f"{'set':<8}{'axis':<6}{'rows':>8}{'before':>10}{'after':>10}"
              + (f"{'paper before':>14}{'paper after':>13}" if paper else "")]
     for result in validation.results:

@@ -235,3 +235,24 @@ def _markdown(result: dict[str, Any]) -> str:
                          f"{100 * test['gap_reduction']:.0f} % |")
     return "\n".join(lines) + "\n"
 
+
+
+def summary_lines(result: dict) -> list[str]:
+    """What ``thermotilt discover`` prints of a discovery.json."""
+    lines = [f"verdict: {result['verdict']}"]
+    for effect in result["effects"]:
+        ((parameter, value),) = effect["parameters"].items()
+        low, high = effect["interval_95"][parameter]
+        lines.append(f"  {effect['name']} on {effect['channel']}: {parameter} = {value:.4g} {effect['unit']} "
+                     f"(95 % {low:.4g} .. {high:.4g}), adjusted p {effect['adjusted_p']:.2g}, "
+                     f"gap -{100 * effect['gap_reduction']:.0f} %")
+    for group in result["ambiguous"]:
+        lines.append(f"  ambiguous on {group['channel']}: {', '.join(group['names'])}; "
+                     f"to separate them: {group['experiment']}")
+    if result["not_testable"]:
+        lines.append(f"  not testable here: {', '.join(result['not_testable'])}")
+    for channel, gap in result["gap"].items():
+        twin_text = f"; twin {gap['twin']['before']:.3f} -> {gap['twin']['after']:.3f}" if "twin" in gap else ""
+        lines.append(f"  gap {channel}: {gap['replay']['before']:.3f} -> {gap['replay']['after']:.3f} "
+                     f"{gap['unit']} RMS{twin_text}")
+    return lines

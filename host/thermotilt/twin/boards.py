@@ -57,7 +57,7 @@ def build_dir() -> Path:
     override = os.environ.get("THERMOTILT_BUILD_DIR")
     if override:
         return Path(override)
-    return Path(__file__).resolve().parents[2] / "build"
+    return Path(__file__).resolve().parents[3] / "build"
 
 
 def firmware_elf(name: str) -> Path:

@@ -194,3 +194,24 @@ def drift_figures(rows: list[dict[str, str]], settled_fraction: float = 0.5) -> 
             "compensated_span_lsb": round(float(np.nanmax(compensated) - np.nanmin(compensated)), 1),
         }
     return figures
+
+
+def paper_figure_lines(scenario_name: str, rows: list[dict[str, str]]) -> list[str]:
+    """The paper's numbers for the scenarios that have them, as lines to print."""
+    lines: list[str] = []
+    if scenario_name == "fig8":
+        figures = fig8_figures(rows)
+        for hold in figures["holds"]:
+            lines.append(f"hold {hold['setpoint_c']:g} degC: settled {hold['settled_c']:.2f}, "
+                         f"offset (programmed - measured) {hold['offset_c']:+.2f} degC")
+        for step in figures["steps"]:
+            lines.append(f"step {step['from_c']:g} -> {step['to_c']:g} degC: {step['completion_s']:.1f} s, "
+                         f"overshoot {step['overshoot_c']:.2f} degC")
+        lines.extend(fig8_table(figures))
+    # Holds shorter than the settling window give no drift to measure.
+    elif scenario_name == "cycle" and holds(rows):
+        figures = drift_figures(rows)
+        for axis in ("x", "y"):
+            lines.append(f"{axis.upper()}: raw drift {figures[axis]['raw_span_lsb']:.0f} LSB, "
+                         f"compensated {figures[axis]['compensated_span_lsb']:.0f} LSB")
+    return lines

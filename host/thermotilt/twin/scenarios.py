@@ -14,7 +14,18 @@ from typing import Callable
 
 import numpy as np
 
-from ..native import PAPER_PROPORTIONAL_GAIN
+from ..program import (
+    CALIBRATION_MAX_C,
+    CALIBRATION_MIN_C,
+    CONTROLLERS,
+    DEFAULT_CONTROLLER,
+    DEFAULT_HOLD_START,
+    DEFAULT_REST_S,
+    HOLD_STARTS,
+    PAPER_HOLD_S,
+    PAPER_STEP_C,
+    REACHED_BAND_C,
+)
 
 # The firmware prints its version and reads its thermistors first; commands
 # are sent once it runs, as a host would after opening the port.
@@ -22,21 +33,7 @@ PROGRAM_SENT_S = 1.0
 CONTROL_SENT_S = 1.25
 PROGRAM_STARTED_S = 1.5
 
-# SETPRG's hold_start (lib/Program): T timed, F the first step of each cycle
-# waits for its setpoint, A every step does (the paper's rule, the default).
-HOLD_STARTS = ("T", "F", "A")
-DEFAULT_HOLD_START = "A"
-# --controller: the SETCTL a scenario sends before START; "float" sends none
-# and runs the firmware's default, the paper's P law in float.
-CONTROLLERS = {"float": None, "rounded-error": ("PR", PAPER_PROPORTIONAL_GAIN, 0.0)}
 
-# Figure 8 and section 3.2: steps of 2 degC held for one minute.
-PAPER_STEP_C = 2.0
-PAPER_HOLD_S = 60
-# Rest with the Peltier off after a cycle (the firmware's default).
-DEFAULT_REST_S = 1200
-CALIBRATION_MIN_C = -10.0
-CALIBRATION_MAX_C = 45.0
 
 # Ambient temperatures. Figure 8's 16..22 degC run must cross the outside
 # temperature between its 18 and 20 degC steps (the paper's overshoot), so
@@ -44,8 +41,6 @@ CALIBRATION_MAX_C = 45.0
 FIG8_AMBIENT_C = 19.0
 LAB_AMBIENT_C = 22.0
 
-# A waiting step's hold starts within this of its setpoint (lib/Program).
-REACHED_BAND_C = 1.0
 # How long the waits take in the twin's default chamber, measured in a
 # -10..45 degC cycle with every step waiting (seed 7, 22 degC ambient, 60 s
 # holds, the chamber of 54e87d3): the first step took 495 s to come from 22 to
@@ -115,7 +110,7 @@ class ScenarioOptions:
     ambient_c: float | None = None
     duration_s: float | None = None
     hold_start: str = DEFAULT_HOLD_START
-    controller: str = "float"
+    controller: str = DEFAULT_CONTROLLER
 
 
 def program_steps(start_c: float | np.ndarray, max_c: float | np.ndarray,

@@ -1,0 +1,311 @@
+"""The calibration's commands: ``campaign`` (every tilt position through the
+chamber's staircase, in the twin or on real boards), ``fit``, ``compare``,
+``validate`` and ``upload`` (docs/calibration.md)."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import sys
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from ..options import (
+    UsageError,
+    add_model_options,
+    add_program_options,
+    existing_folder,
+    existing_run,
+    interrupted,
+    settle_seconds,
+    within,
+)
+
+if TYPE_CHECKING:
+    from .campaign import CampaignOutcome, PositionRecord
+
+
+def add_commands(commands: argparse._SubParsersAction) -> None:
+    campaign = commands.add_parser(
+        "campaign", help="the paper's calibration: every tilt position through a -10..45..-10 degC cycle"
+    )
+    campaign.add_argument("--out", required=True, help="campaign folder: one run folder per position "
+                          "and campaign.json")
+    campaign.add_argument("--twin", action="store_true", help="run it in the digital twin")
+    campaign.add_argument("--positions", default="all",
+                          help="all (default, the paper's 37) or labels, e.g. 0,X+15,X-15,Y+30")
+    campaign.add_argument("--jobs", type=within(int, 1, 256), default=os.cpu_count() or 1,
+                          help="twin positions run at once (default: the CPU count)")
+    campaign.add_argument("--scheduler", metavar="ADDRESS",
+                          help="run the twin positions on the Dask cluster of this scheduler, "
+                               "e.g. tcp://HOST:8786, instead of --jobs local processes")
+    campaign.add_argument("--imu-port", help="real boards: the IMU reader's serial port")
+    campaign.add_argument("--chamber-port", help="real boards: the thermal chamber's serial port")
+    campaign.add_argument("--baud", type=int, default=115200, help="real boards' line speed (default 115200)")
+    campaign.add_argument("--heartbeat-seconds", type=within(int, 0, 3600), default=60,
+                          help="real boards: the chamber stops itself after this long without a frame "
+                               "from the host (default 60; 0 turns it off)")
+    campaign.add_argument("--resume", action="store_true",
+                          help="finish an interrupted campaign in --out, keeping its finished positions")
+    campaign.add_argument("--force", action="store_true", help="start --out again from nothing")
+    add_model_options(campaign)
+    add_program_options(campaign)
+    campaign.set_defaults(run=_campaign)
+
+    fit = commands.add_parser(
+        "fit", help="fit the paper's drift surfaces to a campaign's run logs, with statistics"
+    )
+    fit.add_argument("campaign", type=existing_folder,
+                     help="folder of run logs (*/run.csv, *.csv); positions by their incl_x/y_deg")
+    fit.add_argument("--out", required=True, help="folder for coefficients.json, .bin and .h")
+    fit.add_argument("--settle-seconds", type=settle_seconds,
+                     help="skip rows this soon after a table move (default 120)")
+    fit.add_argument("--axes", nargs="+", choices=("X", "Y"), default=["X", "Y"],
+                     help="axes to fit (default X Y); the others stay uncorrected")
+    fit.add_argument("--compare-families", action="store_true",
+                     help="also score poly11, poly22 (the paper's), poly22+rate and poly33 by "
+                          "leave-one-position-out CV RMSE and BIC; writes families.json")
+    fit.set_defaults(run=_fit)
+
+    compare = commands.add_parser(
+        "compare", help="a fit beside the paper's Tables 2-3 or a model's surfaces: surface and coefficient differences"
+    )
+    compare.add_argument("fit_dir", type=existing_folder, help="a folder written by thermotilt fit")
+    compare.add_argument("--reference", default="paper",
+                         help="paper (default) or a model file (TOML) whose drift surfaces to compare with")
+    compare.set_defaults(run=_compare)
+
+    validate = commands.add_parser(
+        "validate", help="the paper's field check: RMS about the 25 degC reading before and after compensation"
+    )
+    validate.add_argument("run_path", metavar="RUN", type=existing_run,
+                          help="a run folder or run.csv (e.g. simulate field-warming, or a real log)")
+    validate.add_argument("--coefficients", metavar="FIT_DIR",
+                          help="compensate here with a fit's surfaces (a folder from thermotilt fit) or "
+                               "'paper'; default: the firmware's own compensated output")
+    validate.add_argument("--out", help="folder for report.md and its figures (default RUN/validation)")
+    validate.set_defaults(run=_validate)
+
+    upload = commands.add_parser(
+        "upload", help="write a fit's surfaces into the IMU reader: SETCOE, read back, SAVECOE, reset, check"
+    )
+    upload.add_argument("fit_dir", help="a folder written by thermotilt fit (its coefficients.json)")
+    upload.add_argument("--port", required=True, help="the IMU reader's serial port (or the twin's --pty port)")
+    upload.add_argument("--baud", type=within(int, 1), default=115200, help="line speed (default 115200)")
+    upload.add_argument("--no-save", action="store_true",
+                        help="upload to RAM only (coef_source U): no SAVECOE, no reset")
+    upload.set_defaults(run=_upload)
+
+
+def _campaign(args: argparse.Namespace) -> int:
+    from contextlib import ExitStack
+
+    from tqdm import tqdm
+
+    from ..twin.scenarios import ScenarioOptions
+    from .campaign import (
+        BoardsCampaign,
+        BoardsSetup,
+        CampaignError,
+        Position,
+        TwinCampaign,
+        TwinSetup,
+        connect_cluster,
+        select_positions,
+    )
+
+    boards = args.imu_port is not None or args.chamber_port is not None
+    if args.twin == boards or (boards and not (args.imu_port and args.chamber_port)):
+        raise UsageError("campaign needs --twin, or --imu-port and --chamber-port for real boards")
+    if boards and args.scheduler:
+        raise UsageError("--scheduler runs twin positions on a Dask cluster; it needs --twin")
+    program = ScenarioOptions(hold_s=args.hold_seconds, rest_s=args.rest_seconds, ambient_c=args.ambient,
+                              hold_start=args.hold_start, controller=args.controller)
+
+    def confirm(position: Position) -> bool:
+        prompt = (f"Set the tilt table to {position.label} (X {position.incl_x_deg:+g} deg, "
+                  f"Y {position.incl_y_deg:+g} deg), then press Enter (q stops): ")
+        try:
+            return input(prompt).strip().lower() not in ("q", "quit")
+        except EOFError:
+            print("\nno answer: standard input is closed")
+            return False
+
+    out_dir = Path(args.out)
+    with ExitStack() as resources:
+        try:
+            positions = select_positions(args.positions)
+            # Connected before campaign.json is written, so a wrong address leaves nothing to --resume.
+            cluster = resources.enter_context(connect_cluster(args.scheduler)) if args.scheduler else None
+            if boards:
+                campaign = BoardsCampaign(out_dir, positions, BoardsSetup(
+                    args.imu_port, args.chamber_port, program, confirm, baud=args.baud,
+                    heartbeat_s=args.heartbeat_seconds), resume=args.resume, force=args.force)
+            else:
+                campaign = TwinCampaign(out_dir, positions, TwinSetup(
+                    program, seed=args.seed, model_path=args.model, enable=tuple(args.enable),
+                    disable=tuple(args.disable)), resume=args.resume, force=args.force)
+        except CampaignError as error:
+            raise UsageError(str(error)) from None
+        done = len(campaign.positions) - len(campaign.todo)
+        where = f" on {args.imu_port} and {args.chamber_port}" if boards else ""
+        print(f"campaign of {len(campaign.positions)} positions{where} -> {out_dir}"
+              + (f" ({done} already done)" if done else "") + f": {len(campaign.todo)} to run", end="")
+        if boards:
+            print(flush=True)
+            return _finish_campaign(campaign.run(on_position=report_position), out_dir)
+        jobs = min(args.jobs, max(1, len(campaign.todo)))
+        if cluster is None:
+            running_on = f"{jobs} at a time"
+        else:
+            threads = sum(cluster.nthreads().values())
+            running_on = f"on the Dask cluster at {args.scheduler} ({threads} worker threads)"
+        print(f", {campaign.position_seconds:.0f} s simulated each at most, {running_on}", flush=True)
+        total = round(len(campaign.todo) * campaign.position_seconds)
+        with tqdm(total=total, unit="sim s", disable=None, file=sys.stderr) as bar:
+            outcome = campaign.run(jobs, progress=bar.update, on_position=report_position, cluster=cluster)
+        return _finish_campaign(outcome, out_dir)
+
+
+@contextmanager
+def _ctrl_c_after_block() -> Iterator[None]:
+    """Ctrl-C during the block is raised when it ends. tqdm.write turns a
+    KeyboardInterrupt that lands while it takes its lock into a
+    RuntimeError, a traceback instead of exit 130."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    pressed: list[int] = []
+    previous = signal.signal(signal.SIGINT, lambda signum, _frame: pressed.append(signum))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    if pressed:
+        raise KeyboardInterrupt
+
+
+def report_position(record: PositionRecord) -> None:
+    """A finished position's line, above the progress bar if one is running."""
+    from tqdm import tqdm
+
+    from .campaign import DONE
+
+    line = f"{record.label}: {record.status}"
+    if record.status == DONE:
+        line += f" in {record.wall_seconds:.0f} s"
+    if record.error:
+        line += f" ({record.error})"
+    with _ctrl_c_after_block():
+        tqdm.write(line, file=sys.stdout)
+        for error in record.reported_errors:
+            tqdm.write(f"{record.label}: reported {error}", file=sys.stdout)
+        sys.stdout.flush()
+
+
+def _finish_campaign(outcome: CampaignOutcome, out_dir: Path) -> int:
+    from .campaign import DONE, FAILED
+
+    if outcome.interrupted:
+        print("kept every finished position; add --resume to run the others")
+        return interrupted()
+    failed = [record for record in outcome.records if record.status == FAILED]
+    if failed:
+        raise UsageError(f"{len(failed)} position(s) failed: "
+                         + "; ".join(f"{record.label}: {record.error}" for record in failed)
+                         + "; fix it, then add --resume")
+    left = [record.label for record in outcome.records if record.status != DONE]
+    if left:
+        raise UsageError(f"stopped with {len(left)} position(s) to run ({', '.join(left)}); "
+                         "add --resume to run them")
+    print(f"all {len(outcome.records)} positions done; fit them with: thermotilt fit {out_dir} --out FIT_DIR")
+    return 0
+
+
+def _fit(args: argparse.Namespace) -> int:
+    from .dataset import CalibrationDataError, load
+    from .families import compare_families, format_families, write_families
+    from .fit import fit_campaign, format_table, write_outputs
+    from .report import write_fit_report
+
+    try:
+        campaign = load(Path(args.campaign), settle_s=args.settle_seconds)
+        fits = fit_campaign(campaign, tuple(args.axes))
+        families = compare_families(campaign, tuple(args.axes)) if args.compare_families else None
+    except CalibrationDataError as error:
+        raise UsageError(str(error)) from None
+    out_dir = Path(args.out)
+    try:
+        write_outputs(fits, campaign, out_dir)
+        if families is not None:
+            write_families(families, out_dir)
+        report = write_fit_report(out_dir, fits, campaign, format_families(families) if families else None)
+    except OSError as error:
+        raise UsageError(f"cannot write {out_dir}: {error.strerror or error}") from None
+    print(f"{len(campaign.positions)} positions, {sum(fit.points for fit in fits)} points"
+          + (f" ({campaign.skipped_rows} rows with empty cells skipped)" if campaign.skipped_rows else ""))
+    if campaign.stabilizing_rows:
+        print(f"{campaign.stabilizing_rows} rows left out: the chamber had not yet reached its "
+              f"program's setpoint (docs/calibration.md)")
+    print(format_table(fits))
+    print("bounds: Newey-West (HAC) 95 % within each position; coefficients.json also has the "
+          "OLS bounds, which ignore the rows' autocorrelation")
+    if families is not None:
+        print(format_families(families))
+    print(f"wrote {out_dir / 'coefficients.json'}, coefficients.bin (EEPROM block), coefficients.h, "
+          f"{report.name} with figures")
+    return 0
+
+
+def _compare(args: argparse.Namespace) -> int:
+    from .compare import compare, format_comparison, read_fit
+    from .dataset import CalibrationDataError
+
+    try:
+        comparisons = compare(read_fit(Path(args.fit_dir)), args.reference)
+    except CalibrationDataError as error:
+        raise UsageError(str(error)) from None
+    print(format_comparison(comparisons, args.reference))
+    return 0
+
+
+def _validate(args: argparse.Namespace) -> int:
+    from ..run.folder import RunFolder
+    from .dataset import CalibrationDataError
+    from .paper import field_rms_lsb
+    from .report import write_validation_report
+    from .validate import format_validation, load_coefficients, range_warnings, validate
+
+    run = RunFolder.of(args.run_path)
+    try:
+        coefficients = load_coefficients(args.coefficients) if args.coefficients else None
+        validation = validate(run.log, coefficients)
+    except CalibrationDataError as error:
+        raise UsageError(str(error)) from None
+    summary = run.summary() or {}
+    paper = field_rms_lsb(summary.get("scenario"))
+    print(format_validation(validation, paper))
+    for warning in range_warnings(validation):
+        print(f"warning: {warning}")
+    out_dir = Path(args.out) if args.out else run.path / "validation"
+    try:
+        report = write_validation_report(out_dir, validation, coefficients, paper)
+    except OSError as error:
+        raise UsageError(f"cannot write {out_dir}: {error.strerror or error}") from None
+    print(f"wrote {report}")
+    return 0
+
+
+def _upload(args: argparse.Namespace) -> int:
+    from .upload import UploadError, format_result, upload
+
+    try:
+        result = upload(Path(args.fit_dir), args.port, baud=args.baud, save=not args.no_save)
+    except UploadError as error:
+        raise UsageError(str(error)) from None
+    print(format_result(result))
+    return 0

@@ -1,0 +1,151 @@
+"""``thermotilt simulate``: a paper experiment in the digital twin, both
+firmware images in simavr against the physics model."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from collections.abc import Iterable
+from pathlib import Path
+
+from ..options import (
+    UsageError,
+    add_model_options,
+    add_program_options,
+    board_seconds,
+    inclination,
+    interrupted,
+    read_at_most,
+)
+
+def add_commands(commands: argparse._SubParsersAction) -> None:
+    simulate = commands.add_parser(
+        "simulate", help="run both firmware images in the digital twin against the physics model"
+    )
+    simulate.add_argument("scenario", help="fig8, cycle, campaign, field-warming, field-cooling, "
+                          "field-alternating or idle (both boards, no commands: for --pty)")
+    simulate.add_argument("--out", help="output folder (default runs/SCENARIO-DATE-TIME)")
+    simulate.add_argument("--force", action="store_true", help="overwrite an earlier run in --out")
+    add_model_options(simulate)
+    add_program_options(simulate)
+    simulate.add_argument("--incl-x", type=inclination, default=0.0, help="table angle on X, degrees")
+    simulate.add_argument("--incl-y", type=inclination, default=0.0, help="table angle on Y, degrees")
+    simulate.add_argument("--positions", help="campaign subset, e.g. 0,X+30,Y-15")
+    simulate.add_argument("--duration", type=board_seconds,
+                          help="field scenarios: compress the day's profile into this many seconds; "
+                               "idle: run this long (default 3600)")
+    simulate.add_argument("--fault", action="append", default=[], metavar="NAME[=RATE][@START[-END]]",
+                          help="inject a fault, e.g. inner_open@120-180 or imu_uart_corrupt=0.001")
+    simulate.add_argument("--pty", action="store_true",
+                          help="also expose each board's serial port as a pseudo-terminal "
+                               "(paced to the wall clock unless --realtime off)")
+    simulate.add_argument("--realtime", choices=("on", "off"),
+                          help="on: a simulated second takes a wall second, as on a board; "
+                               "off: as fast as the host can (default on with --pty, off without)")
+    simulate.add_argument("--eeprom", metavar="FILE",
+                          help="start the IMU with this 148-byte coefficient block in its EEPROM "
+                               "(coefficients.bin from thermotilt fit)")
+    simulate.set_defaults(run=_simulate)
+
+
+def announced_ports(lines: Iterable[str], boards: int = 2) -> dict[str, str]:
+    """The pseudo-terminals `simulate --pty` announces ("imu_reader:
+    /dev/pts/3") among its output lines, by board; EOFError when the lines
+    end first."""
+    ports = {}
+    for line in lines:
+        board, _, path = line.strip().partition(": ")
+        if path.startswith("/dev/"):
+            ports[board] = path
+            if len(ports) == boards:
+                return ports
+    raise EOFError("the twin ended before announcing its ports")
+
+
+def _eeprom_block(path: str) -> bytes:
+    """The --eeprom file: a coefficient block (coefficients.bin) or the whole
+    EEPROM a twin run saved (imu_reader_eeprom.bin). What it holds is the
+    firmware's to judge at boot, as with a real EEPROM."""
+    from ..wire.coefficients import BLOCK_SIZE
+    from .simulate import IMU_EEPROM_BYTES, IMU_EEPROM_FILE
+
+    data = read_at_most(path, IMU_EEPROM_BYTES)
+    if len(data) not in (BLOCK_SIZE, IMU_EEPROM_BYTES):
+        size = f"more than {IMU_EEPROM_BYTES}" if len(data) > IMU_EEPROM_BYTES else str(len(data))
+        raise UsageError(f"{path}: {size} bytes; --eeprom takes the {BLOCK_SIZE}-byte coefficient block "
+                         f"that thermotilt fit writes (coefficients.bin) or the {IMU_EEPROM_BYTES}-byte "
+                         f"EEPROM a run saved ({IMU_EEPROM_FILE})")
+    return data
+
+
+def _simulate(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from ..physics import Model, ModelError, parse_fault
+    from ..run.log import RunLogError, read_run_log
+    from . import simulate
+    from .boards import TwinError
+    from .figures import paper_figure_lines
+    from .scenarios import ScenarioError, ScenarioOptions, build
+
+    try:
+        model = Model.load(args.model)
+        changes = {name: True for name in args.enable} | {name: False for name in args.disable}
+        model = model.with_terms(changes).with_faults(parse_fault(text) for text in args.fault)
+        scenario = build(
+            args.scenario,
+            ScenarioOptions(
+                hold_s=args.hold_seconds,
+                rest_s=args.rest_seconds,
+                incl_x_deg=args.incl_x,
+                incl_y_deg=args.incl_y,
+                positions=tuple(args.positions.split(",")) if args.positions else None,
+                ambient_c=args.ambient,
+                duration_s=args.duration,
+                hold_start=args.hold_start,
+                controller=args.controller,
+            ),
+        )
+    except (ModelError, ScenarioError) as error:
+        raise UsageError(str(error)) from None
+    eeprom = _eeprom_block(args.eeprom) if args.eeprom else None
+    out_dir = Path(args.out or f"runs/{scenario.name}-{time.strftime('%Y%m%d-%H%M%S')}")
+    if os.path.exists(out_dir / "run.csv") and not args.force:
+        raise UsageError(f"{out_dir}/run.csv exists; choose another --out or add --force")
+
+    def announce_pty(board: str, path: str) -> None:
+        print(f"{board}: {path}", flush=True)
+
+    realtime = args.pty if args.realtime is None else args.realtime == "on"
+    in_real_time = " in real time" if realtime else ""
+    print(f"{scenario.description}: {scenario.duration_s:.0f} s simulated{in_real_time} -> {out_dir}", flush=True)
+    with tqdm(total=round(scenario.duration_s), unit="sim s", disable=None, file=sys.stderr) as bar:
+        try:
+            result = simulate.run(
+                scenario, model, out_dir, seed=args.seed, pty=args.pty, on_pty=announce_pty,
+                progress=lambda t: bar.update(round(t) - bar.n), eeprom=eeprom, realtime=realtime,
+            )
+        except (TwinError, simulate.SimulationError) as error:
+            raise UsageError(str(error)) from None
+        except OSError as error:
+            raise UsageError(f"cannot write {out_dir}: {error.strerror or error}") from None
+    summary = result.summary
+    print(f"rows: {summary['rows']}  simulated: {summary['sim_seconds']:.0f} s  "
+          f"wall: {summary['wall_seconds']:.1f} s  ({summary['speed_x_real_time']}x real time)")
+    for board, report in summary["boards"].items():
+        print(f"{board}: {report['frames']} frames, {report['rejected']} rejected, {report['cycles']} cycles")
+        for refusal in report["refused_commands"]:
+            print(f"{board} refused {refusal}")
+        for error in report["reported_errors"]:
+            print(f"{board} reported {error}")
+    if summary["interrupted"]:
+        return interrupted()
+    try:
+        rows = read_run_log(str(out_dir / "run.csv"))
+    except RunLogError as error:
+        raise UsageError(str(error)) from None
+    for line in paper_figure_lines(scenario.name, rows):
+        print(line)
+    return 0
