@@ -21,28 +21,26 @@ first ``settle_s``).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from ..run.log import RunLogError, read_run_log
 from ..program import REACHED_BAND_C
+from ..run import SETTLE_S
+from ..run.folder import LOG_FILE
+from ..run.log import RunLogError, format_number, read_run_columns
+from ..run.positions import settled, staircase
 
 REFERENCE_C = 25.0
 # Wide enough for a 2 degC staircase step's rows on both sides of 25 degC.
 REFERENCE_BAND_C = 1.5
 # Enough rows to draw the reference line through.
 MIN_REFERENCE_ROWS = 10
-# After a table move without RESEED the Kalman filter needs ~90 s to forget
-# a 45 deg step (docs/run-log.md); with RESEED it is settled within a second.
-DEFAULT_SETTLE_S = 120.0
 # dT/dt is the temperature's change over +-RATE_HALF_WINDOW_S: the IMU
 # reports it in 1/16 degC-ish steps, so a shorter window shows the steps.
 RATE_HALF_WINDOW_S = 5.0
 FIT_AXES = ("X", "Y")
-_RUNNING_PHASES = {"W", "C"}
 
 
 class CalibrationDataError(ValueError):
@@ -79,56 +77,6 @@ def run_logs(folder: Path) -> list[Path]:
     return logs
 
 
-def _number(cell: str) -> float:
-    return float(cell) if cell else math.nan
-
-
-def _settled(rows: list[dict[str, str]], settle_s: float, start_s: float) -> list[dict[str, str]]:
-    """Rows at least settle_s after the table's move, or after start_s in a
-    log that does not say when the table moved."""
-    if rows and rows[0].get("since_move_s", "") != "":
-        return [row for row in rows if _number(row["since_move_s"]) >= settle_s]
-    return [row for row in rows if _number(row["time_s"]) - start_s >= settle_s]
-
-
-def _staircase(rows: list[dict[str, str]]) -> tuple[list[dict[str, str]], int]:
-    """The rows of each program run (phase W or C) from the first one whose
-    inner face is within REACHED_BAND_C of its setpoint, and how many
-    program rows came before. Before that the chamber is still coming at
-    full drive from where the program found it (the lab, a rest): the
-    paper's "temperature stabilization" ahead of its measuring steps
-    (section 3.1), whose fast cooling would otherwise fill the cooling set
-    (docs/calibration.md). A log without the inner face's temperature keeps
-    every program row."""
-    knows_face = any(row["chamber_c"] for row in rows)
-    kept: list[dict[str, str]] = []
-    stabilizing = 0
-    arrived = False
-    for row in rows:
-        if row["phase"] not in _RUNNING_PHASES:
-            arrived = False
-            continue
-        arrived = arrived or not knows_face or (
-            abs(_number(row["chamber_c"]) - _number(row["setpoint_c"])) <= REACHED_BAND_C)
-        if arrived:
-            kept.append(row)
-        else:
-            stabilizing += 1
-    return kept, stabilizing
-
-
-def _positions(path: Path, rows: list[dict[str, str]]) -> dict[str, list[dict[str, str]]]:
-    """A run log's rows by tilt position (its incl_x_deg, incl_y_deg cells),
-    in order; a campaign run holds several, a logged run one."""
-    name = path.parent.name if path.name == "run.csv" else path.stem
-    groups: dict[str, list[dict[str, str]]] = {}
-    for row in rows:
-        x, y = row["incl_x_deg"], row["incl_y_deg"]
-        angles = f"x {x} deg, y {y} deg" if x or y else "angles unknown"
-        groups.setdefault(f"{name} ({angles})", []).append(row)
-    return groups
-
-
 def reading_at_25(temperature: np.ndarray, values: np.ndarray) -> float | None:
     """The straight line through the rows within REFERENCE_BAND_C of 25 degC,
     read at 25 degC; None with too few such rows."""
@@ -139,56 +87,80 @@ def reading_at_25(temperature: np.ndarray, values: np.ndarray) -> float | None:
     return float(intercept)
 
 
-def _temperature_rates(rows: list[dict[str, str]]) -> list[str]:
-    """Each row's dT/dt over +-RATE_HALF_WINDOW_S of its position's rows, as
-    text like the other cells ("" where the temperature or time is empty)."""
-    cells = [(_number(row["time_s"]), _number(row["imu_temp_c"])) for row in rows]
-    known = np.array([cell for cell in cells if not math.isnan(cell[0] + cell[1])])
-    if len(known) < 2 or np.any(np.diff(known[:, 0]) <= 0):
-        return [""] * len(rows)
-    times, temperatures = known[:, 0], known[:, 1]
+def _temperature_rates(time_s: np.ndarray, temperature_c: np.ndarray) -> np.ndarray:
+    """Each row's dT/dt over +-RATE_HALF_WINDOW_S of the rows given (NaN
+    where the time or temperature is unknown, and everywhere when the
+    known times do not increase)."""
+    rates = np.full(len(time_s), np.nan)
+    known = np.isfinite(time_s) & np.isfinite(temperature_c)
+    times, temperatures = time_s[known], temperature_c[known]
+    if len(times) < 2 or np.any(np.diff(times) <= 0):
+        return rates
     early = np.interp(times - RATE_HALF_WINDOW_S, times, temperatures)
     late = np.interp(times + RATE_HALF_WINDOW_S, times, temperatures)
     spans = np.minimum(times + RATE_HALF_WINDOW_S, times[-1]) - np.maximum(times - RATE_HALF_WINDOW_S, times[0])
-    rate = iter((late - early) / spans)
-    return [repr(float(next(rate))) if not math.isnan(time + temperature) else "" for time, temperature in cells]
+    rates[known] = (late - early) / spans
+    return rates
+
+
+def _position_groups(name: str, incl_x_deg: np.ndarray, incl_y_deg: np.ndarray) -> dict[str, np.ndarray]:
+    """A run log's rows by tilt position (its incl_x_deg, incl_y_deg), in
+    order of appearance; a campaign run holds several, a logged run one."""
+    # Angles are within +-90 deg: the marker stands for an empty cell.
+    unknown = 1e9
+    angles = np.column_stack([np.nan_to_num(incl_x_deg, nan=unknown), np.nan_to_num(incl_y_deg, nan=unknown)])
+    pairs, first, which = np.unique(angles, axis=0, return_index=True, return_inverse=True)
+    groups = {}
+    for pair in np.argsort(first):
+        x, y = (format_number(None if value == unknown else value, 2) for value in pairs[pair])
+        label = f"x {x} deg, y {y} deg" if x or y else "angles unknown"
+        groups[f"{name} ({label})"] = np.flatnonzero(which.ravel() == pair)
+    return groups
 
 
 def load(folder: Path, settle_s: float | None = None) -> Campaign:
     """Every position's residuals per set; CalibrationDataError when a
     position cannot give them."""
-    settle_s = DEFAULT_SETTLE_S if settle_s is None else settle_s
+    settle_s = SETTLE_S if settle_s is None else settle_s
     positions: list[str] = []
     parts: dict[str, list[tuple[int, np.ndarray, np.ndarray]]] = {"W": [], "C": []}
     skipped = stabilizing = 0
     for path in run_logs(folder):
         try:
-            rows = read_run_log(str(path))
+            log = read_run_columns(str(path))
         except RunLogError as error:
             raise CalibrationDataError(str(error)) from None
-        if not rows:
+        if log.rows == 0:
             raise CalibrationDataError(f"{path}: no rows")
-        has_chamber = any(row["phase"] for row in rows)
-        for label, position_rows in _positions(path, rows).items():
+        numbers, texts = log.numbers, log.texts
+        has_chamber = bool((texts["phase"] != "").any())
+        name = path.parent.name if path.name == LOG_FILE else path.stem
+        for label, rows in _position_groups(name, numbers["incl_x_deg"], numbers["incl_y_deg"]).items():
             index = len(positions)
             positions.append(label)
-            staircase = position_rows
+            time_s = numbers["time_s"][rows]
+            mounting = np.zeros(len(rows), dtype=int)
+            used = settled(time_s, mounting, numbers["since_move_s"][rows], settle_s)
             if has_chamber:
-                staircase, before_setpoint = _staircase(position_rows)
-                if before_setpoint and not staircase:
+                kept, before_setpoint = staircase(texts["phase"][rows], numbers["chamber_c"][rows],
+                                                  numbers["setpoint_c"][rows], mounting)
+                if before_setpoint.any() and not kept.any():
                     raise CalibrationDataError(f"{label}: the chamber's inner face never came within "
                                                f"{REACHED_BAND_C:g} degC of its program's setpoint")
-                stabilizing += before_setpoint
-            used = _settled(staircase, settle_s, start_s=_number(position_rows[0]["time_s"]))
-            rates = _temperature_rates(used)
+                stabilizing += int(np.count_nonzero(before_setpoint))
+                used &= kept
+            used_rows = rows[used]
+            columns = np.column_stack([
+                numbers["imu_temp_c"][used_rows], numbers["ax_filt"][used_rows], numbers["ay_filt"][used_rows],
+                _temperature_rates(numbers["time_s"][used_rows], numbers["imu_temp_c"][used_rows]),
+            ])
+            comp_set = texts["comp_set"][used_rows]
             for set_name, set_parts in parts.items():
-                cells = [(row["imu_temp_c"], row["ax_filt"], row["ay_filt"], rate)
-                         for row, rate in zip(used, rates) if row["comp_set"] == set_name]
-                complete = [cell for cell in cells if all(cell)]
-                skipped += len(cells) - len(complete)
-                if not complete:
+                cells = columns[comp_set == set_name]
+                data = cells[np.isfinite(cells).all(axis=1)]
+                skipped += len(cells) - len(data)
+                if not len(data):
                     raise CalibrationDataError(f"{label}: no settled rows of the {set_name} set")
-                data = np.array(complete, dtype=float)
                 references = [reading_at_25(data[:, 0], data[:, column]) for column in (1, 2)]
                 if None in references:
                     raise CalibrationDataError(

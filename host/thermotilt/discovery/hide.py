@@ -21,7 +21,6 @@ the random terms add to the firmware's output.
 
 from __future__ import annotations
 
-import csv
 import json
 import math
 from collections.abc import Callable, Mapping
@@ -34,11 +33,12 @@ from .. import native
 from ..physics import Model, Sensor
 from ..physics.document import with_values
 from ..physics.terms.lag import first_order
-from ..run.log import COLUMNS, format_number, read_run_columns
+from ..run import SETTLE_S
+from ..run.folder import RunFolder
+from ..run.log import RunLogWriter, format_number, read_run_columns
 from .candidates import BY_NAME, CANDIDATES, Candidate
 from .replay import (
     CHAMBER_CHANNELS,
-    DEFAULT_SETTLE_S,
     FIRMWARE_OUTPUTS,
     SAMPLE_PERIOD_S,
     DiscoveryDataError,
@@ -51,7 +51,6 @@ from .replay import (
     load_measured,
     reading_offsets_c,
     replay,
-    run_csv_of,
     settled_rows,
 )
 from .search import gap_rms
@@ -161,7 +160,7 @@ def _frames_measured(inputs: Measured, processed: Mapping[str, np.ndarray], fram
     values = _channel_values(processed, frames)
     values.update(inner=reading_c, outer=outer_c)
     mounting = inputs.mounting[row]
-    settled = settled_rows(time_s, mounting, DEFAULT_SETTLE_S)
+    settled = settled_rows(time_s, mounting, np.full(len(time_s), np.nan))
     used = {channel: settled.copy() for channel in values}
     used.update(inner=chamber_rows(time_s, status), outer=chamber_rows(time_s, status))
     for channel in inputs.skipped_channels:
@@ -332,7 +331,7 @@ def hide_effect(
 
 def _write_run(path: Path, inputs_path: Path, processed: Mapping[str, np.ndarray],
                frames: np.ndarray, chamber_c: np.ndarray, outer_c: np.ndarray) -> None:
-    columns = read_run_columns(str(run_csv_of(inputs_path)))
+    columns = read_run_columns(str(RunFolder.of(inputs_path).log))
     input_time = columns.numbers["time_s"]
     known = np.isfinite(input_time)
     input_rows = np.flatnonzero(known)
@@ -357,8 +356,7 @@ def _write_run(path: Path, inputs_path: Path, processed: Mapping[str, np.ndarray
         return format_number(float(columns.numbers[column][row]), 3)
 
     with open(path, "w", newline="", encoding="utf-8") as stream:
-        writer = csv.writer(stream, lineterminator="\n")
-        writer.writerow(COLUMNS)
+        writer = RunLogWriter(stream, with_truth=False, flush_each_row=False)
         for index, sample in enumerate(frames.tolist()):
             row = int(nearest[index])
             values = {column: cell(column, row) for column in _CHAMBER_COLUMNS}
@@ -382,8 +380,7 @@ def _write_run(path: Path, inputs_path: Path, processed: Mapping[str, np.ndarray
                 coef_source="D",
                 imu_seq=str(index % 65536),
             )
-            writer.writerow([values.get(column, "") for column in COLUMNS])
-
+            writer.write_row(values)
 
 
 def staircase_inputs(
@@ -395,7 +392,7 @@ def staircase_inputs(
     hold_s: float = 40.0,
     chamber_time_constant_s: float = 8.0,
     ramp_c_per_s: float = 0.3,
-    settle_s: float = DEFAULT_SETTLE_S,
+    settle_s: float = SETTLE_S,
 ) -> Path:
     """A run.csv of inputs only (time, chamber temperature, table angles),
     for tests and benchmarks where the twin's minutes per run do not fit: at
@@ -422,11 +419,10 @@ def staircase_inputs(
                 time_s += period_s
     path.parent.mkdir(parents=True, exist_ok=True)
     with open(path, "w", newline="", encoding="utf-8") as stream:
-        writer = csv.writer(stream, lineterminator="\n")
-        writer.writerow(COLUMNS)
+        writer = RunLogWriter(stream, with_truth=False, flush_each_row=False)
         for time_s, setpoint, chamber, incl_x, incl_y, since_move in rows:
             values = {"time_s": f"{time_s:.3f}", "ambient_c": "22.000", "setpoint_c": f"{setpoint:.3f}",
                       "chamber_c": f"{chamber:.3f}", "incl_x_deg": f"{incl_x:.3f}",
                       "incl_y_deg": f"{incl_y:.3f}", "since_move_s": f"{since_move:.3f}"}
-            writer.writerow([values.get(column, "") for column in COLUMNS])
+            writer.write_row(values)
     return path

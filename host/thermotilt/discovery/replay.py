@@ -34,7 +34,10 @@ from ..physics import Chamber, Model, Sensor
 from ..physics.sensor import registered_temperature_c
 from ..physics.document import plain
 from ..physics.terms import REGISTRY, SensorTerm
+from ..run import SETTLE_S
+from ..run.folder import RunFolder, RunFolderError
 from ..run.log import RunLogError, read_run_columns
+from ..run import positions
 
 # Channel -> the run.csv column it is measured in.
 CHANNEL_COLUMNS: Mapping[str, str] = {
@@ -71,11 +74,6 @@ SAMPLE_PERIOD_S = 0.01
 FACE_RATE_HALF_WINDOW_S = 1.0
 # How often the replay steps the model's sensor (sensor_steps).
 SENSOR_STEP_S = 0.2
-# The firmware's Kalman filters seed on their first sample and take ~1/gain
-# samples to forget it; the replay seeds at the log's first row and at every
-# table move, where the real filters may have run for long before, so rows
-# this close to either are left out (as `thermotilt fit` does).
-DEFAULT_SETTLE_S = 120.0
 # Four thermistor time constants (chamber_rows).
 CHAMBER_SETTLE_S = 10.0
 
@@ -114,20 +112,12 @@ class Measured:
         return tuple(channel for channel in CHANNELS if channel in self.used)
 
 
-def run_csv_of(path: Path) -> Path:
-    """MEASURED is a run folder (with run.csv) or a run.csv itself."""
-    if path.is_dir():
-        path = path / "run.csv"
-    if not path.is_file():
-        raise DiscoveryDataError(f"{path}: no run log (a run folder with run.csv, or a run.csv)")
-    return path
-
-
-def settled_rows(time_s: np.ndarray, mounting: np.ndarray, settle_s: float) -> np.ndarray:
-    """The rows at least settle_s after the run's start and after their
-    mounting's first row (mounting never decreases)."""
-    first_of_mounting = time_s[np.searchsorted(mounting, mounting)]
-    return (time_s - first_of_mounting >= settle_s) & (time_s - time_s[0] >= settle_s)
+def settled_rows(time_s: np.ndarray, mounting: np.ndarray, since_move_s: np.ndarray,
+                 settle_s: float = SETTLE_S) -> np.ndarray:
+    """The rows settled after a table move (run.positions) and at least
+    settle_s after the run's first row: the replay seeds its filters there,
+    where the real ones may have run for long before."""
+    return positions.settled(time_s, mounting, since_move_s, settle_s) & (time_s - time_s[0] >= settle_s)
 
 
 def chamber_rows(time_s: np.ndarray, status: np.ndarray) -> np.ndarray:
@@ -138,13 +128,13 @@ def chamber_rows(time_s: np.ndarray, status: np.ndarray) -> np.ndarray:
     return status & (time_s - time_s[0] >= CHAMBER_SETTLE_S)
 
 
-def load_measured(path: Path, settle_s: float = DEFAULT_SETTLE_S, inputs_only: bool = False) -> Measured:
+def load_measured(path: Path, settle_s: float = SETTLE_S, inputs_only: bool = False) -> Measured:
     """A run's inputs and channels; inputs_only: a run that only drives a
     replay (thermotilt hide-effect's) and need not have any channel."""
-    csv_path = run_csv_of(path)
     try:
+        csv_path = RunFolder.of(path).log
         columns = read_run_columns(str(csv_path))
-    except RunLogError as error:
+    except (RunFolderError, RunLogError) as error:
         raise DiscoveryDataError(str(error)) from None
     if columns.rows == 0:
         raise DiscoveryDataError(f"{csv_path}: no rows")
@@ -164,13 +154,9 @@ def load_measured(path: Path, settle_s: float = DEFAULT_SETTLE_S, inputs_only: b
         row = int(np.flatnonzero(steps <= 0)[0]) + 2
         raise DiscoveryDataError(f"{csv_path}: time_s does not increase at row {row}")
     incl_x, incl_y = numbers["incl_x_deg"][known], numbers["incl_y_deg"][known]
-    moved = np.zeros(len(time_s), dtype=bool)
-    moved[1:] = (np.diff(incl_x) != 0) | (np.diff(incl_y) != 0)
-    since_move = numbers["since_move_s"][known]
-    if np.isfinite(since_move).all():
-        moved[1:] |= np.diff(since_move) < 0
-    mounting = np.cumsum(moved)
-    settled = settled_rows(time_s, mounting, settle_s)
+    since_move_s = numbers["since_move_s"][known]
+    mounting = positions.mountings(incl_x, incl_y, since_move_s)
+    settled = settled_rows(time_s, mounting, since_move_s, settle_s)
 
     chamber = _chamber_inputs(columns, known)
     observed: dict[str, np.ndarray] = {}

@@ -10,6 +10,7 @@ from a frame are written as the board sent them, so nothing is rounded twice.
 from __future__ import annotations
 
 import csv
+import io
 import math
 from dataclasses import dataclass
 from typing import IO, Any, Mapping
@@ -143,6 +144,13 @@ class RunLogWriter:
             self._stream.flush()
         self.rows = 0
 
+    def write_row(self, cells: Mapping[str, str]) -> None:
+        """One row from its cells as text; a column not given is empty."""
+        self._writer.writerow(cells)
+        if self._flush_each_row:
+            self._stream.flush()
+        self.rows += 1
+
     def write_imu_frame(
         self,
         frame: Frame,
@@ -196,14 +204,18 @@ def read_run_log(path: str) -> list[dict[str, str]]:
     return [dict(zip(header, cells)) for cells in records[1:]]
 
 
+TEXT_COLUMNS = frozenset({"direction", "phase", "chamber_fault", "comp_set", "coef_source", "true_drift_set"})
+
+
 @dataclass(frozen=True)
 class RunColumns:
-    """A run.csv as numeric columns: empty or unreadable cells are NaN and
-    counted per column; text columns (``phase``, ``comp_set``) stay text."""
+    """A run.csv as columns: numbers as float arrays, empty or unreadable
+    cells NaN and counted per column; text columns (``phase``,
+    ``comp_set``, ...) as arrays of str, empty cells "" """
 
     path: str
     numbers: Mapping[str, Any]  # column -> numpy float array
-    texts: Mapping[str, list[str]]
+    texts: Mapping[str, Any]  # column -> numpy str array
     unreadable: Mapping[str, int]  # column -> cells that were not numbers
 
     @property
@@ -211,22 +223,69 @@ class RunColumns:
         return len(self.numbers["time_s"])
 
 
-TEXT_COLUMNS = frozenset({"direction", "phase", "chamber_fault", "comp_set", "coef_source"})
-
-
 def read_run_columns(path: str) -> RunColumns:
-    """A run.csv (read_run_log's checks) as columns for numeric work."""
+    """A run.csv as columns, with read_run_log's checks. pandas' C parser
+    reads a well-formed log; a file it cannot take whole (a short row,
+    quoting, bytes that are not UTF-8) goes through read_run_log, which
+    names what is wrong and where."""
+    import numpy as np
+    import pandas as pd
+
+    header = _header(path)
+    numeric = [column for column in header if column not in TEXT_COLUMNS]
+    try:
+        with open(path, "rb") as stream:
+            data = stream.read()
+        frame = pd.read_csv(
+            io.BytesIO(data), dtype={column: str for column in header if column in TEXT_COLUMNS},
+            keep_default_na=False, na_values={column: [""] for column in numeric}, encoding="utf-8",
+            engine="c", on_bad_lines="error",
+        )
+        whole = data.count(b",") == (len(header) - 1) * (len(frame) + 1) and data.count(b'"') == 0
+    except (OSError, ValueError, pd.errors.ParserError):
+        whole = False
+    if not whole or tuple(frame.columns) != header:
+        return _columns_of_rows(path, read_run_log(path))
+    numbers: dict[str, Any] = {}
+    unreadable: dict[str, int] = {}
+    for column in numeric:
+        values = frame[column]
+        if not pd.api.types.is_numeric_dtype(values):
+            converted = pd.to_numeric(values, errors="coerce")
+            unreadable[column] = int((converted.isna() & values.notna() & (values != "")).sum())
+            values = converted
+        else:
+            unreadable[column] = 0
+        numbers[column] = values.to_numpy(dtype=float, na_value=np.nan)
+    texts = {column: frame[column].to_numpy(dtype=str) for column in header if column in TEXT_COLUMNS}
+    return RunColumns(path, numbers, texts, unreadable)
+
+
+def _header(path: str) -> tuple[str, ...]:
+    """The log's header; RunLogError (from read_run_log, which says why)
+    when it is not run.csv's."""
+    try:
+        with open(path, newline="", encoding="utf-8") as stream:
+            first = tuple(next(csv.reader(stream), ()))
+    except (OSError, UnicodeDecodeError, csv.Error):
+        first = ()
+    if first not in (COLUMNS, ALL_COLUMNS):
+        read_run_log(path)
+    return first
+
+
+def _columns_of_rows(path: str, rows: list[dict[str, str]]) -> RunColumns:
+    """RunColumns of rows read_run_log checked; unreadable cells counted."""
     import numpy as np
 
-    rows = read_run_log(path)
     header = tuple(rows[0]) if rows else COLUMNS
     numbers: dict[str, Any] = {}
-    texts: dict[str, list[str]] = {}
+    texts: dict[str, Any] = {}
     unreadable: dict[str, int] = {}
     for column in header:
         cells = [row[column] for row in rows]
-        if column in TEXT_COLUMNS or column == "true_drift_set":
-            texts[column] = cells
+        if column in TEXT_COLUMNS:
+            texts[column] = np.array(cells, dtype=str)
             continue
         values = np.full(len(cells), math.nan)
         bad = 0
