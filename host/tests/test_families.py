@@ -8,7 +8,15 @@ import pytest
 
 from thermotilt import cli
 from thermotilt.calibration.dataset import Campaign, SetData
-from thermotilt.calibration.families import FAMILIES, compare_families, extrapolating, format_families, recommend
+from thermotilt.calibration.families import (
+    FAMILIES,
+    compare_families,
+    extrapolating,
+    format_families,
+    recommend,
+    score,
+)
+from thermotilt.calibration.fit import design
 from thermotilt.calibration.fit import _POWERS
 
 from test_calibration_fit import ANGLES_DEG, LSB_PER_G, TRUE, cycle, smooth_noise, write_run_log
@@ -93,3 +101,16 @@ def test_too_few_inclinations_for_a_quadratic_are_named():
     assert extrapolating(scores) == ["X"]
     assert "too few inclinations on X" in format_families(scores)
     assert extrapolating(compare_families(campaign, ("X",))) == []
+
+
+def test_rmse_and_bic_are_statsmodels_ols():
+    import statsmodels.api as sm
+
+    campaign = synthetic_campaign(0.3)
+    data = campaign.sets["W"]
+    for family in FAMILIES:
+        columns = design(data.temperature_c, data.acceleration["X"], FAMILIES[family], data.rate_c_per_s)
+        reference = sm.OLS(data.residual["X"], columns).fit(method="qr")
+        mine = score(campaign, family, "W", "X")
+        assert mine.rmse_lsb == pytest.approx(np.sqrt(reference.ssr / reference.df_resid), rel=1e-9)
+        assert mine.bic == pytest.approx(reference.bic, rel=1e-9)

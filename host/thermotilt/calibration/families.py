@@ -19,11 +19,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import statsmodels.api as sm
 
 from ..surfaces import SETS
 from .dataset import Campaign, CalibrationDataError
 from .fit import design
+from .newey_west import group_bounds
 
 # Powers of (T, a, dT/dt), as fit.design takes them.
 FAMILIES: dict[str, tuple[tuple[int, int, int], ...]] = {
@@ -59,25 +59,36 @@ def score(campaign: Campaign, family: str, set_name: str, axis: str) -> FamilySc
         raise CalibrationDataError("the campaign has no temperature rates (a log without time_s?)")
     columns = design(data.temperature_c, data.acceleration[axis], FAMILIES[family], data.rate_c_per_s)
     residual = data.residual[axis]
-    positions = np.unique(data.position)
-    if positions.size < 3:
+    positions = group_bounds(data.position)
+    if len(positions) < 3:
         raise CalibrationDataError(f"{set_name} set, {axis} axis: cross-validation needs at least 3 positions")
     # Each fold's normal equations are the campaign's minus the left-out
     # position's: one pass over the rows instead of one fit per position.
-    groups = [data.position == position for position in positions]
-    grams = [columns[rows].T @ columns[rows] for rows in groups]
-    moments = [columns[rows].T @ residual[rows] for rows in groups]
+    grams = [columns[start:end].T @ columns[start:end] for start, end in positions]
+    moments = [columns[start:end].T @ residual[start:end] for start, end in positions]
     total_gram, total_moment = sum(grams), sum(moments)
-    if np.linalg.matrix_rank(total_gram) < columns.shape[1]:
-        return FamilyScore(family, set_name, axis, columns.shape[1], math.nan, math.nan, math.nan)
+    terms = columns.shape[1]
+    if np.linalg.matrix_rank(total_gram) < terms:
+        return FamilyScore(family, set_name, axis, terms, math.nan, math.nan, math.nan)
     squared_error = 0.0
-    for rows, gram, moment in zip(groups, grams, moments):
+    for (start, end), gram, moment in zip(positions, grams, moments):
         params, *_ = np.linalg.lstsq(total_gram - gram, total_moment - moment, rcond=None)
-        squared_error += float(np.sum((residual[rows] - columns[rows] @ params) ** 2))
-    full = sm.OLS(residual, columns).fit(method="qr")
-    return FamilyScore(family, set_name, axis, columns.shape[1],
-                       float(np.sqrt(squared_error / len(residual))),
-                       float(np.sqrt(full.ssr / full.df_resid)), float(full.bic))
+        squared_error += float(np.sum((residual[start:end] - columns[start:end] @ params) ** 2))
+    rows = len(residual)
+    params, *_ = np.linalg.lstsq(total_gram, total_moment, rcond=None)
+    sse = float(np.sum((residual - columns @ params) ** 2))
+    return FamilyScore(family, set_name, axis, terms, float(np.sqrt(squared_error / rows)),
+                       float(np.sqrt(sse / (rows - terms))), gaussian_bic(sse, rows, terms))
+
+
+def gaussian_bic(sse: float, rows: int, parameters: int) -> float:
+    """The BIC statsmodels' OLS gives a fit with a constant (its bic, with
+    Gaussian errors), from the fit's sum of squared errors; computed here
+    from the normal equations the cross-validation has already formed
+    instead of a QR pass over every row (host/tests/test_families.py holds
+    it to statsmodels')."""
+    log_likelihood = -rows / 2.0 * (math.log(2.0 * math.pi) + math.log(sse / rows) + 1.0)
+    return -2.0 * log_likelihood + math.log(rows) * parameters
 
 
 def compare_families(campaign: Campaign, axes: tuple[str, ...]) -> list[FamilyScore]:

@@ -5,7 +5,7 @@ f(T, a) = p00 + p10 T + p01 a + p20 T^2 + p11 T a + p02 a^2 per set and
 axis, by ordinary least squares. The rows of a 10 Hz, Kalman-filtered log
 are strongly autocorrelated, so OLS's textbook bounds are far too narrow;
 next to them come Newey-West (HAC) bounds computed within each position
-(statsmodels' ``hac-panel``), with the lag window read off the residuals'
+(statsmodels' ``hac-panel``, computed as ``newey_west`` does), with the lag window read off the residuals'
 own autocorrelation (``hac_lags``).
 """
 
@@ -23,6 +23,7 @@ from statsmodels.tsa.stattools import acf
 from ..surfaces import AXES, SETS, COEFFICIENT_NAMES, CoefficientTable, Surface, ZERO_SURFACE
 from ..wire.coefficients import encode_block
 from .dataset import FIT_AXES, Campaign, CalibrationDataError, SetData
+from .newey_west import hac_panel_bounds
 
 # Powers of (T, a) for p00, p10, p01, p20, p11, p02.
 _POWERS = ((0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2))
@@ -114,21 +115,18 @@ def fit_surface(data: SetData, set_name: str, axis: str) -> SurfaceFit:
     # short positions (37 of them in a full campaign) reach that first.
     shortest = int(np.min(np.unique(data.position, return_counts=True)[1]))
     lags = min(hac_lags(ols.resid), max(1, shortest - 1))
-    hac = ols.get_robustcov_results(cov_type="hac-panel", groups=data.position, maxlags=lags)
     unscale = _unscale()
-    alpha = 1.0 - CONFIDENCE
 
-    def bounds(result) -> tuple[tuple[float, float], ...]:
-        return tuple((float(low * k), float(high * k))
-                     for (low, high), k in zip(result.conf_int(alpha), unscale, strict=True))
+    def scaled_back(bounds: np.ndarray) -> tuple[tuple[float, float], ...]:
+        return tuple((float(low * k), float(high * k)) for (low, high), k in zip(bounds, unscale, strict=True))
 
     return SurfaceFit(
         set_name=set_name,
         axis=axis,
         points=points,
         surface=Surface(*(float(value) for value in ols.params * unscale)),
-        ols_bounds=bounds(ols),
-        hac_bounds=bounds(hac),
+        ols_bounds=scaled_back(ols.conf_int(1.0 - CONFIDENCE)),
+        hac_bounds=scaled_back(hac_panel_bounds(ols, data.position, lags, CONFIDENCE)),
         hac_lags=lags,
         sse=float(ols.ssr),
         r_squared=float(ols.rsquared),

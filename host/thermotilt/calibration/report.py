@@ -16,10 +16,12 @@ import numpy as np  # noqa: E402
 
 from .dataset import FIT_AXES, Campaign  # noqa: E402
 from .fit import SurfaceFit, format_table  # noqa: E402
+from .newey_west import group_bounds  # noqa: E402
 from .validate import SET_NAMES, Coefficients, Validation, format_validation, range_warnings  # noqa: E402
 
 DPI = 110
 SET_COLOURS = {"W": "tab:red", "C": "tab:blue"}
+FIGURE_ROWS_PER_POSITION = 2000
 
 
 def _save(figure: plt.Figure, path: Path) -> str:
@@ -77,10 +79,11 @@ def drift_figure(campaign: Campaign, path: Path) -> str:
     colours = plt.get_cmap("viridis")(np.linspace(0, 1, max(1, len(campaign.positions))))
     for axis, plot in zip(FIT_AXES, axes[0]):
         for data in campaign.sets.values():
-            for index in np.unique(data.position):
-                rows = data.position == index
+            for start, end in group_bounds(data.position):
+                # A position's shape shows in a few thousand of its rows.
+                rows = slice(start, end, max(1, (end - start) // FIGURE_ROWS_PER_POSITION))
                 plot.plot(data.temperature_c[rows], data.residual[axis][rows], ".", markersize=1,
-                          color=colours[index])
+                          color=colours[data.position[start]])
         for index, position in enumerate(campaign.positions):
             # A campaign's positions are named "folder (x .. deg, y .. deg)"; the folder is the label.
             plot.plot([], [], "o", color=colours[index], label=position.split(" (")[0])

@@ -31,9 +31,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..surfaces import AXES, PAPER_DEFAULTS, ZERO_SURFACE, CoefficientTable
+from ..surfaces import AXES, PAPER_DEFAULTS, SETS, ZERO_SURFACE, CoefficientTable
 from ..run.folder import RunFolder, RunFolderError
-from ..run.log import RunLogError, read_run_log
+from ..run.log import RunLogError, read_run_columns
 from .compare import CALIBRATED_C, read_fit
 from .dataset import FIT_AXES, REFERENCE_BAND_C, REFERENCE_C, CalibrationDataError, reading_at_25
 
@@ -41,7 +41,6 @@ from .dataset import FIT_AXES, REFERENCE_BAND_C, REFERENCE_C, CalibrationDataErr
 CALIBRATED_INCLINATION_DEG = 45.0
 LSB_PER_G = 1.0 / 0.061e-3
 PAPER_ACCELERATION_LSB = LSB_PER_G * math.sin(math.radians(CALIBRATED_INCLINATION_DEG))
-SETS = ("W", "C")
 SET_NAMES = {"W": "warming", "C": "cooling"}
 _NEEDED = ("time_s", "imu_temp_c", "comp_set", "coef_source",
            *(f"a{axis.lower()}_{kind}" for axis in FIT_AXES for kind in ("filt", "comp")))
@@ -118,22 +117,23 @@ def load_coefficients(source: str) -> Coefficients:
 def validate(run: Path, coefficients: Coefficients | None = None) -> Validation:
     try:
         path = RunFolder.of(run).log
-        rows = read_run_log(str(path))
+        log = read_run_columns(str(path))
     except (RunFolderError, RunLogError) as error:
         raise CalibrationDataError(str(error)) from None
-    usable = [row for row in rows if all(row[column] != "" for column in _NEEDED)
-              and row["comp_set"] in SETS]
-    if not usable:
+    numbers, texts = log.numbers, log.texts
+    usable = np.isin(texts["comp_set"], SETS) & (texts["coef_source"] != "")
+    for column in _NEEDED:
+        if column in numbers:
+            usable &= np.isfinite(numbers[column])
+    if not usable.any():
         raise CalibrationDataError(f"{path}: no row with a temperature, a set and every X/Y acceleration")
-    try:
-        time_s = np.array([float(row["time_s"]) for row in usable])
-        temperature = np.array([float(row["imu_temp_c"]) for row in usable])
-        sets = np.array([row["comp_set"] for row in usable])
-        filtered = {axis: np.array([float(row[f"a{axis.lower()}_filt"]) for row in usable]) for axis in FIT_AXES}
-        firmware = {axis: np.array([float(row[f"a{axis.lower()}_comp"]) for row in usable]) for axis in FIT_AXES}
-    except ValueError as error:
-        raise CalibrationDataError(f"{path}: a cell is not a number ({error})") from None
-    sources = sorted({row["coef_source"] for row in usable})
+    time_s = numbers["time_s"][usable]
+    temperature = numbers["imu_temp_c"][usable]
+    sets = texts["comp_set"][usable]
+    filtered = {axis: numbers[f"a{axis.lower()}_filt"][usable] for axis in FIT_AXES}
+    firmware = {axis: numbers[f"a{axis.lower()}_comp"][usable] for axis in FIT_AXES}
+    usable_rows = int(np.count_nonzero(usable))
+    sources = sorted(set(texts["coef_source"][usable].tolist()))
     if coefficients is None:
         after_from = f"the firmware's output (coef_source {'/'.join(sources)})"
         domain = paper_domain() if sources == ["D"] else None
@@ -154,14 +154,14 @@ def validate(run: Path, coefficients: Coefficients | None = None) -> Validation:
             else:
                 surface = coefficients.table.surface(set_name, axis)
                 after = before - surface.evaluate(t, before)
-            series.setdefault(f"{axis} before", np.full(len(usable), np.nan))[in_set] = before
-            series.setdefault(f"{axis} after", np.full(len(usable), np.nan))[in_set] = after
+            series.setdefault(f"{axis} before", np.full(usable_rows, np.nan))[in_set] = before
+            series.setdefault(f"{axis} after", np.full(usable_rows, np.nan))[in_set] = after
             results.append(AxisResult(set_name, axis, int(in_set.sum()), _rms_about_25(t, before),
                                       _rms_about_25(t, after), _outside(domain, set_name, axis, t, before)))
     difference = None
     if coefficients is not None:
         difference = max(float(np.nanmax(np.abs(series[f"{axis} after"] - firmware[axis]))) for axis in FIT_AXES)
-    return Validation(str(path), len(usable), len(rows) - len(usable),
+    return Validation(str(path), usable_rows, log.rows - usable_rows,
                       (float(temperature.min()), float(temperature.max())), after_from,
                       f"coef_source {'/'.join(sources)}",
                       domain.source if domain else None, results, difference, series)
