@@ -81,8 +81,8 @@ demo: build python-deps
 bench: build python-deps
 	$(VENV)/bin/python host/tools/bench.py
 
-# Issue 9's figures: discovery on runs with hidden effects (12 min with SEEDS=1, of which
-# 3 min make the twin's cycle the chamber's candidates are hidden in).
+# How often `thermotilt discover` names an effect hidden in a run, over SEEDS
+# seeds and four SNRs, against docs/discovery.md's targets; prints the figures.
 SEEDS ?= 3
 bench-discovery: build python-deps
 	$(VENV)/bin/python host/tools/bench_discovery.py --seeds $(SEEDS)

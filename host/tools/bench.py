@@ -23,11 +23,14 @@ speed figures down.
 `bench.py --memory` prints only each board's RAM: its static data and the
 stack's high-water mark (a few seconds).
 
-`bench.py --scatter [--seed N] [--disable TERM ...]` instead runs issue 7's
-long check of the sensor's scatter (about 40 minutes on one core): a
-campaign subset through the twin and `thermotilt fit`'s RMS errors beside
-Tables 2-3, and both field tests' RMS about the 25 degC reading before and
-after the firmware's compensation beside section 4.3.
+`bench.py --scatter [--seed N] [--disable TERM ...]` instead runs the long
+check of the scatter the twin's sensor leaves to the paper's fit (about
+40 minutes on one core; docs/physics-model.md, "Scatter the surfaces
+leave"): a campaign subset through the twin and `thermotilt fit`'s RMS
+errors beside Tables 2-3, and both field tests' RMS about the 25 degC
+reading before and after the firmware's compensation beside section 4.3.
+It prints only; host/tests/test_scatter.py holds the same figures, with the
+filter emulated, to the paper's.
 """
 
 from __future__ import annotations
@@ -373,7 +376,8 @@ FIELD_SETS = {"field-warming": "W", "field-cooling": "C"}
 
 
 def scatter(model: Model, seed: int) -> None:
-    """Issue 7: what the twin's sensor leaves to the paper's fit and field check."""
+    """What the twin's sensor leaves to the paper's fit (Tables 2-3) and
+    field check (section 4.3)."""
     off = [name for name in model.terms if not model.enabled(name)]
     print(f"scatter, seed {seed}, terms off: {', '.join(off) or 'none'}")
     with tempfile.TemporaryDirectory() as scratch:
@@ -410,7 +414,8 @@ def memory() -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--scatter", action="store_true", help="issue 7's long check instead")
+    parser.add_argument("--scatter", action="store_true",
+                        help="the twin's scatter against Tables 2-3 and section 4.3 instead (about 40 min)")
     parser.add_argument("--memory", action="store_true", help="only each board's static RAM and stack peak")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--disable", action="append", default=[], metavar="TERM")
