@@ -77,15 +77,16 @@ simulate: build python-deps
 demo: build python-deps
 	DEMO_DIR=$(RUNS)/demo $(VENV)/bin/python host/tools/demo.py
 
-# How fast the twin runs (simulated seconds per wall second); prints figures.
+# How fast the twin runs, the firmware's CPU and RAM use, the fits' times and
+# the line check; prints the figures and writes docs/performance.md.
 bench: build python-deps
-	$(VENV)/bin/python host/tools/bench.py
+	THERMOTILT_BUILD_DIR=$(abspath $(BUILD)) $(VENV)/bin/python host/tools/bench.py
 
 # How often `thermotilt discover` names an effect hidden in a run, over SEEDS
 # seeds and four SNRs, against docs/discovery.md's targets; prints the figures.
 SEEDS ?= 3
 bench-discovery: build python-deps
-	$(VENV)/bin/python host/tools/bench_discovery.py --seeds $(SEEDS)
+	THERMOTILT_BUILD_DIR=$(abspath $(BUILD)) $(VENV)/bin/python host/tools/bench_discovery.py --seeds $(SEEDS)
 
 fuzz-build: system-deps
 	cmake -S fuzz -B $(FUZZ) -DCMAKE_CXX_COMPILER=clang++
