@@ -74,8 +74,9 @@ simulate: build python-deps
 
 # The main job: the paper's calibration end to end in the twin - campaign,
 # fit, compare, upload through the IMU's serial port, field validation.
+# Writes docs/paper-comparison.md.
 demo: build python-deps
-	DEMO_DIR=$(RUNS)/demo $(VENV)/bin/python host/tools/demo.py
+	DEMO_DIR=$(RUNS)/demo THERMOTILT_BUILD_DIR=$(abspath $(BUILD)) $(VENV)/bin/python host/tools/demo.py
 
 # How fast the twin runs, the firmware's CPU and RAM use, the fits' times and
 # the line check; prints the figures and writes docs/performance.md.
