@@ -6,7 +6,7 @@ BUILD ?= build
 VENV ?= .venv
 PYTHON ?= python3
 JOBS ?= $(shell nproc)
-APT_PACKAGES := cmake make gcc g++ gcc-avr avr-libc binutils-avr arduino-core-avr simavr libsimavr-dev
+APT_PACKAGES := python3 python3-venv cmake make gcc g++ gcc-avr avr-libc binutils-avr arduino-core-avr simavr libsimavr-dev
 # clang 14 and its libFuzzer and sanitizer runtimes, for the fuzz targets.
 FUZZ_APT_PACKAGES := clang libclang-rt-14-dev
 AVR_MCUS := atmega328p atmega2560
@@ -74,18 +74,20 @@ simulate: build python-deps
 
 # The main job: the paper's calibration end to end in the twin - campaign,
 # fit, compare, upload through the IMU's serial port, field validation.
+# Writes docs/paper-comparison.md.
 demo: build python-deps
-	DEMO_DIR=$(RUNS)/demo $(VENV)/bin/python host/tools/demo.py
+	DEMO_DIR=$(RUNS)/demo THERMOTILT_BUILD_DIR=$(abspath $(BUILD)) $(VENV)/bin/python host/tools/demo.py
 
-# How fast the twin runs (simulated seconds per wall second); prints figures.
+# How fast the twin runs, the firmware's CPU and RAM use, the fits' times and
+# the line check; prints the figures and writes docs/performance.md.
 bench: build python-deps
-	$(VENV)/bin/python host/tools/bench.py
+	THERMOTILT_BUILD_DIR=$(abspath $(BUILD)) $(VENV)/bin/python host/tools/bench.py
 
-# Issue 9's figures: discovery on runs with hidden effects (12 min with SEEDS=1, of which
-# 3 min make the twin's cycle the chamber's candidates are hidden in).
+# How often `thermotilt discover` names an effect hidden in a run, over SEEDS
+# seeds and four SNRs, against docs/discovery.md's targets; prints the figures.
 SEEDS ?= 3
 bench-discovery: build python-deps
-	$(VENV)/bin/python host/tools/bench_discovery.py --seeds $(SEEDS)
+	THERMOTILT_BUILD_DIR=$(abspath $(BUILD)) $(VENV)/bin/python host/tools/bench_discovery.py --seeds $(SEEDS)
 
 fuzz-build: system-deps
 	cmake -S fuzz -B $(FUZZ) -DCMAKE_CXX_COMPILER=clang++

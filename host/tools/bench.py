@@ -20,19 +20,27 @@ at most one corrupted frame accepted per million at a 0.1 % byte error
 rate) are for a person to compare. Other jobs on the machine slow the
 speed figures down.
 
+Each figure is printed as it is measured and, at the end, written with the
+date, the machine and the command to docs/performance.md (overwritten;
+`--page` names another file).
+
 `bench.py --memory` prints only each board's RAM: its static data and the
 stack's high-water mark (a few seconds).
 
-`bench.py --scatter [--seed N] [--disable TERM ...]` instead runs issue 7's
-long check of the sensor's scatter (about 40 minutes on one core): a
-campaign subset through the twin and `thermotilt fit`'s RMS errors beside
-Tables 2-3, and both field tests' RMS about the 25 degC reading before and
-after the firmware's compensation beside section 4.3.
+`bench.py --scatter [--seed N] [--disable TERM ...]` instead runs the long
+check of the scatter the twin's sensor leaves to the paper's fit (about
+40 minutes on one core; docs/physics-model.md, "Scatter the surfaces
+leave"): a campaign subset through the twin and `thermotilt fit`'s RMS
+errors beside Tables 2-3, and both field tests' RMS about the 25 degC
+reading before and after the firmware's compensation beside section 4.3.
+It prints only; host/tests/test_scatter.py holds the same figures, with the
+filter emulated, to the paper's.
 """
 
 from __future__ import annotations
 
 import argparse
+import datetime
 import itertools
 import os
 import re
@@ -44,6 +52,7 @@ from pathlib import Path
 
 import numpy as np
 
+import generated_page
 from thermotilt.twin import simulate
 from thermotilt.calibration.dataset import Campaign, SetData, load
 from thermotilt.calibration.families import compare_families
@@ -71,6 +80,34 @@ IMU_AWAKE_TARGET = 0.05
 STEADY_SENSOR = (-1700, -400, 16000, 32)
 
 
+class Figures:
+    """Every figure the bench measures, printed as it comes and kept as a
+    (figure, value, note) row of docs/performance.md: a new figure is one
+    more `add`."""
+
+    def __init__(self) -> None:
+        self.rows: list[tuple[str, str, str]] = []
+
+    def add(self, figure: str, value: str, note: str = "") -> None:
+        print(f"{figure}: {value}" + (f" ({note})" if note else ""), flush=True)
+        self.rows.append((figure, value, note))
+
+
+PAGE = generated_page.DOCS / "performance.md"
+
+
+def write_page(path: Path, rows: list[tuple[str, str, str]], started: datetime.datetime,
+               load_at_start: str) -> None:
+    generated_page.write(path, [
+        "# Performance", "",
+        "How fast the digital twin runs, how much of each board's CPU and RAM the firmware uses, how "
+        "long the fits take and how many corrupted frames the line check lets through. What each figure "
+        "measures and its target are in `host/tools/bench.py`; the targets are for a person to compare, "
+        "the bench asserts nothing.", "",
+        *generated_page.stamp("make bench", started, load_at_start), "",
+        *generated_page.table(("figure", "value", "note"), rows)])
+
+
 def physics_step_us(model: Model, steps: int = 20000) -> tuple[float, float]:
     chamber = Chamber(model, 22.0)
     sensor = Sensor(model, 1, 22.0)
@@ -84,18 +121,19 @@ def physics_step_us(model: Model, steps: int = 20000) -> tuple[float, float]:
     return (middle - begin) / steps * 1e6, (end - middle) / steps * 1e6
 
 
-def speed_line(label: str, simulated_s: float, wall_s: float, target: str = "") -> float:
+def speed_line(figures: Figures, label: str, simulated_s: float, wall_s: float, target: str = "") -> float:
     speed = simulated_s / wall_s
-    print(f"{label}: {simulated_s:.0f} s simulated in {wall_s:.1f} s wall = {speed:.1f}x real time{target}")
+    figures.add(f"twin speed, {label}", f"{speed:.1f}x real time",
+                f"{simulated_s:.0f} s simulated in {wall_s:.1f} s wall{target}")
     return speed
 
 
-def awake_line(name: str, report: dict, doing: str, target: str = "") -> None:
+def awake_line(figures: Figures, name: str, report: dict, doing: str, target: str = "") -> None:
     awake, asleep = report["awake_cycles"], report["sleep_cycles"]
     seconds = (awake + asleep) / DEFAULT_FREQUENCY_HZ
-    print(f"{name}: awake {100 * awake / (awake + asleep):.1f} % of cycles {doing}{target}: "
-          f"{awake / seconds / 1e6:.2f} M cycles executed and {asleep / seconds / 1e6:.2f} M slept "
-          f"a simulated second")
+    figures.add(f"{name} CPU awake, {doing}", f"{100 * awake / (awake + asleep):.1f} % of cycles",
+                f"{awake / seconds / 1e6:.2f} M cycles executed and {asleep / seconds / 1e6:.2f} M slept "
+                f"a simulated second{target}")
 
 
 CHAMBER_ALONE_S = 600.0
@@ -141,7 +179,7 @@ def run_until_call_seconds() -> float:
         return (time.perf_counter() - begin) / calls
 
 
-def step_breakdown(timing: simulate.StepTiming, steps: int, boards: int) -> None:
+def step_breakdown(figures: Figures, timing: simulate.StepTiming, steps: int, boards: int) -> None:
     """Where a coupled step's wall time goes. The run_until calls' own
     binding cost (measured on calls with nothing to simulate) moves from
     simavr to the binding; frames still holds its two ctypes reads a board."""
@@ -157,36 +195,42 @@ def step_breakdown(timing: simulate.StepTiming, steps: int, boards: int) -> None
         "other (schedule, loop)": seconds["other"],
     }
     total = sum(seconds.values())
-    print(f"  a step (10 ms simulated) takes {total / steps * 1e6:.0f} us wall: " + ", ".join(
-        f"{label} {100 * part / total:.0f} %" for label, part in shares.items()))
-    print(f"  Python {100 * (total - simavr) / total:.0f} %, simavr {100 * simavr / total:.0f} %")
+    figures.add("coupled step (fig8, 10 ms simulated), wall time", f"{total / steps * 1e6:.0f} us",
+                ", ".join(f"{label} {100 * part / total:.0f} %" for label, part in shares.items()))
+    figures.add("coupled step, Python against simavr",
+                f"Python {100 * (total - simavr) / total:.0f} %, simavr {100 * simavr / total:.0f} %")
 
 
-def speed_and_awake(model: Model) -> None:
+def speed_and_awake(figures: Figures, model: Model) -> None:
     with tempfile.TemporaryDirectory() as scratch:
         imu = simulate.run(build("field-warming", ScenarioOptions(duration_s=600)), model,
                            Path(scratch) / "field").summary
-        speed_line("imu alone, field-warming (10 min)", imu["sim_seconds"], imu["wall_seconds"])
-        speed_line("chamber alone, a cycle's program (10 min)", CHAMBER_ALONE_S, chamber_alone_seconds(model))
+        speed_line(figures, "IMU alone, field-warming (10 min)", imu["sim_seconds"], imu["wall_seconds"])
+        speed_line(figures, "chamber alone, a cycle's program (10 min)", CHAMBER_ALONE_S,
+                   chamber_alone_seconds(model))
         # Timed, its laps add about 1.5 us to a step of 150-250.
         timing = simulate.StepTiming()
         fig8 = simulate.run(build("fig8", ScenarioOptions()), model, Path(scratch) / "fig8", timing=timing).summary
-        speed_line("both boards, fig8", fig8["sim_seconds"], fig8["wall_seconds"],
-                   f" (target >= {COUPLED_TARGET_X_REAL_TIME:.0f}x on one core)")
-        step_breakdown(timing, round(fig8["sim_seconds"] / simulate.STEP_S), len(fig8["boards"]))
+        speed_line(figures, "both boards coupled, fig8", fig8["sim_seconds"], fig8["wall_seconds"],
+                   f"; target >= {COUPLED_TARGET_X_REAL_TIME:.0f}x on one core")
+        step_breakdown(figures, timing, round(fig8["sim_seconds"] / simulate.STEP_S), len(fig8["boards"]))
         position = simulate.run(build("campaign", ScenarioOptions(hold_s=1, positions=("0",))), model,
                                 Path(scratch) / "campaign").summary
-    speed = speed_line("one campaign position, 1 s holds (simulate campaign --positions 0 --hold-seconds 1)",
-                       position["sim_seconds"], position["wall_seconds"])
+    speed = speed_line(figures, "one campaign position, 1 s holds (simulate campaign --positions 0 "
+                       "--hold-seconds 1)", position["sim_seconds"], position["wall_seconds"])
     # `thermotilt campaign --twin` runs each position as a cycle with 60 s holds, ending with its program.
     position_s = build("cycle", ScenarioOptions()).duration_s
     minutes = CAMPAIGN_POSITIONS * position_s / speed / CORES / 60
-    print(f"  estimate: the paper's campaign ({CAMPAIGN_POSITIONS} positions with 60 s holds, each at most "
-          f"{position_s:.0f} s simulated, at this speed, {CORES} at a time) {minutes:.0f} min "
-          f"(target <= {CAMPAIGN_TARGET_MINUTES:.0f} min on a 2-core machine; estimated, not run)")
-    awake_line("imu_reader", imu["boards"][simulate.IMU], "at 100 Hz sampling, decimation 10, over a 10 min run",
-               f" (target <= {100 * IMU_AWAKE_TARGET:.0f} %)")
-    awake_line("thermal_chamber", fig8["boards"][simulate.CHAMBER], "running fig8's program (control every 250 ms)")
+    figures.add(f"the paper's campaign in the twin ({CAMPAIGN_POSITIONS} positions, 60 s holds), estimated",
+                f"{minutes:.0f} min",
+                f"each position at most {position_s:.0f} s simulated, at the campaign position's speed, "
+                f"{CORES} at a time; estimated, not run; target <= {CAMPAIGN_TARGET_MINUTES:.0f} min on a "
+                f"2-core machine")
+    awake_line(figures, "imu_reader", imu["boards"][simulate.IMU],
+               "100 Hz sampling, decimation 10, a 10 min field run from boot",
+               f"; target <= {100 * IMU_AWAKE_TARGET:.0f} %")
+    awake_line(figures, "thermal_chamber", fig8["boards"][simulate.CHAMBER],
+               "running fig8's program (control every 250 ms)")
 
 
 # Where the IMU's awake cycles go, by the first function up a sample's stack
@@ -231,7 +275,7 @@ def imu_stage(names: tuple[str, ...]) -> str:
     return OTHER_STAGE
 
 
-def imu_profile(model: Model) -> None:
+def imu_profile(figures: Figures, model: Model) -> None:
     """The twin's sampling profiler on the IMU streaming at 100 Hz with the
     default decimation, its sensor level and noisy, grouped into stages."""
     # Each 10 ms sample gets fresh noise of the model's `noise` term, as a real
@@ -262,19 +306,19 @@ def imu_profile(model: Model) -> None:
     for names, samples in stacks.items():
         stages[imu_stage(names)] += samples
     kept = len(profile.samples)
-    print(f"imu_reader: awake {100 * awake / (awake + asleep):.1f} % of cycles once the Kalman gain has settled "
-          f"({PROFILE_START_S:.0f}..{PROFILE_START_S + PROFILE_SECONDS:.0f} s, sensor level with the model's "
-          f"noise, profiler on; "
-          f"target <= {100 * IMU_AWAKE_TARGET:.0f} %)")
-    print(f"imu_reader's awake cycles by stage ({kept} samples, one every {profile.period_cycles} awake cycles, "
-          f"over those {PROFILE_SECONDS:.0f} s):")
+    window = f"{PROFILE_START_S:.0f}..{PROFILE_START_S + PROFILE_SECONDS:.0f} s"
+    figures.add("imu_reader CPU awake, once the Kalman gain has settled", f"{100 * awake / (awake + asleep):.1f} % "
+                f"of cycles", f"{window}, sensor level with the model's noise, profiler on; "
+                f"target <= {100 * IMU_AWAKE_TARGET:.0f} %")
+    sampling = f"{kept} profiler samples over {window}, one every {profile.period_cycles} awake cycles"
     for stage, samples in stages.most_common():
-        print(f"  {100 * samples / kept:5.1f} %  {stage}")
-    print("  top functions: " + ", ".join(f"{without_parameters(name)} {100 * samples / kept:.1f} %"
-                                           for name, samples in profile.by_function(symbols).most_common(6)))
-    print("  (the profiler sees functions, not source lines: code LTO inlined counts as its caller's, e.g. the "
-          "Kalman filters as ImuProcessing::update's and the sample path as loop's; soft float "
-          "and division routines count as their caller's, and in the stages so do Clock's reads)")
+        figures.add(f"imu_reader awake cycles: {stage}", f"{100 * samples / kept:.1f} %", sampling)
+    figures.add("imu_reader awake cycles: top functions",
+                ", ".join(f"{without_parameters(name)} {100 * samples / kept:.1f} %"
+                          for name, samples in profile.by_function(symbols).most_common(6)),
+                "the profiler sees functions, not source lines: code LTO inlined counts as its caller's, e.g. "
+                "the Kalman filters as ImuProcessing::update's and the sample path as loop's; soft float and "
+                "division routines count as their caller's, and in the stages so do Clock's reads")
 
 
 STACK_HEADROOM_TARGET_B = 300
@@ -379,7 +423,8 @@ FIELD_SETS = {"field-warming": "W", "field-cooling": "C"}
 
 
 def scatter(model: Model, seed: int) -> None:
-    """Issue 7: what the twin's sensor leaves to the paper's fit and field check."""
+    """What the twin's sensor leaves to the paper's fit (Tables 2-3) and
+    field check (section 4.3)."""
     off = [name for name in model.terms if not model.enabled(name)]
     print(f"scatter, seed {seed}, terms off: {', '.join(off) or 'none'}")
     with tempfile.TemporaryDirectory() as scratch:
@@ -408,40 +453,57 @@ def scatter(model: Model, seed: int) -> None:
                       f"after {result.rms_after_lsb:5.2f} (paper {after:2.0f}) LSB")
 
 
-def memory() -> None:
+def memory(figures: Figures) -> None:
     for name, untouched, capacity in stack_use():
-        print(f"{name}: static RAM {static_ram(name)} B, stack peak {capacity - untouched} B, "
-              f"untouched {untouched} B (target >= {STACK_HEADROOM_TARGET_B} B)")
+        figures.add(f"{name} RAM", f"static {static_ram(name)} B, stack peak {capacity - untouched} B, "
+                    f"untouched {untouched} B", f"target: untouched >= {STACK_HEADROOM_TARGET_B} B")
+
+
+def integrity(figures: Figures) -> None:
+    """build/native/integrity_bench's figures: frames shaped like IMU, CHS,
+    SETPRG and SETCOE through the twin's corruption code into the
+    firmware's parser (docs/protocol.md, "Why a CRC")."""
+    output = subprocess.run([str(build_dir() / "native" / "integrity_bench")], check=True,
+                            capture_output=True, text=True).stdout
+    for line in output.splitlines():
+        rate = re.match(r"\s*byte error rate ([0-9.]+): (.*)", line)
+        if rate:
+            figures.add(f"corrupted frames accepted at {100 * float(rate[1]):g} % byte errors", rate[2],
+                        "target: at most 1 per million at 0.1 %")
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--scatter", action="store_true", help="issue 7's long check instead")
+    parser.add_argument("--scatter", action="store_true",
+                        help="the twin's scatter against Tables 2-3 and section 4.3 instead (about 40 min)")
     parser.add_argument("--memory", action="store_true", help="only each board's static RAM and stack peak")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--disable", action="append", default=[], metavar="TERM")
+    parser.add_argument("--page", type=Path, default=PAGE, help=f"the page to write (default {PAGE})")
     args = parser.parse_args()
     if args.scatter:
         scatter(Model.load().with_terms({name: False for name in args.disable}), args.seed)
         return
+    figures = Figures()
     if args.memory:
-        memory()
+        memory(figures)
         return
+    started, load_at_start = generated_page.now(), generated_page.load_average()
     model = Model.load()
     chamber_us, sensor_us = physics_step_us(model)
-    print(f"physics: chamber step {chamber_us:.1f} us, sensor step {sensor_us:.1f} us "
-          f"(one of each per 10 ms simulated)")
-    speed_and_awake(model)
-    imu_profile(model)
-    memory()
-    print(f"fit: {fit_seconds():.2f} s for one surface with statistics over {FIT_POINTS} points "
-          f"(target <= 1 s)")
+    figures.add("physics model step", f"chamber {chamber_us:.1f} us, sensor {sensor_us:.1f} us",
+                "one of each per 10 ms simulated")
+    speed_and_awake(figures, model)
+    imu_profile(figures, model)
+    memory(figures)
+    figures.add("fit, one surface with statistics", f"{fit_seconds():.2f} s",
+                f"{FIT_POINTS} synthetic points; target <= 1 s")
     seconds, points = families_seconds()
-    print(f"fit --compare-families: {seconds:.1f} s for 4 families x 2 sets x 2 axes, leave-one-position-out "
-          f"over {CAMPAIGN_POSITIONS} positions, {points} points per set (target <= 30 s)")
-    print(subprocess.run([str(build_dir() / "native" / "integrity_bench")], check=True,
-                         capture_output=True, text=True).stdout, end="")
-    print("integrity target: at most 1 corrupted frame accepted per million at 0.1 % byte errors")
+    figures.add("fit --compare-families", f"{seconds:.1f} s",
+                f"4 families x 2 sets x 2 axes, leave-one-position-out over {CAMPAIGN_POSITIONS} positions, "
+                f"{points} synthetic points per set, no run logs to parse; target <= 30 s")
+    integrity(figures)
+    write_page(args.page, figures.rows, started, load_at_start)
 
 
 if __name__ == "__main__":

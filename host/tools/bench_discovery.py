@@ -1,5 +1,6 @@
 """`make bench-discovery`: how often `thermotilt discover` is right on runs
-with a known effect hidden in them (issue 9's figures), and how fast it is.
+with a known effect hidden in them, over seeds and SNRs, and how fast it
+is (docs/discovery.md; host/tests/test_discovery.py checks single seeds).
 
 Every candidate is hidden at SNR 0.5, 1, 2 and 4 with --seeds seeds (random
 sign and channel), with the model's own noise: the sensor's on
@@ -11,7 +12,7 @@ and the designed collinear pair (sensor_lag on one slow ramp over
 Prints the false-discovery rate on null runs, the share named right per
 SNR, the ambiguous share on the collinear pair, the gap closed relative to
 the true model and the confusion matrix, then the time of one discovery on
-a 100 000-row run. Asserts nothing: issue 9's targets (FDR <= 5 %, right
+a 100 000-row run. Asserts nothing: the targets (FDR <= 5 %, right
 name >= 95 % at SNR >= 2 and >= 70 % at SNR 1, ambiguous >= 90 %, gap
 shrink >= 80 %) are for a person to compare with.
 """

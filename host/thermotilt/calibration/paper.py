@@ -1,5 +1,5 @@
 """The published fits of Sensors 2018, 18, 2536 (Tables 2-5, section 4.3), as
-data, once: tests, the README and `thermotilt compare` read them from here.
+data, once: tests, make demo's paper comparison and `thermotilt compare` read them from here.
 
 Each coefficient comes with the 95 % confidence bounds Matlab's cftool
 printed. Two entries of Table 2's cooling column are misprinted and kept as

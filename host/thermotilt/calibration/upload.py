@@ -244,7 +244,7 @@ class _Session:
         restart = self.wait(lambda frame: frame.type == "VER", RESTART_WAIT_S, since=mark)
         if restart is None:
             raise UploadError(f"{self.name} did not come back within {RESTART_WAIT_S:g} s of RESET (an old "
-                              "bootloader that leaves the watchdog on keeps resetting: see the README)"
+                              "bootloader that leaves the watchdog on keeps resetting: see docs/reliability.md)"
                               + SAVED_UNCHECKED)
         if restart["reset_cause"] != "COMMANDED":
             raise UploadError(f"after RESET {self.name} reported reset_cause {restart['reset_cause']}, not "
