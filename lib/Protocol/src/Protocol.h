@@ -47,7 +47,7 @@ namespace ProgmemTag {
 #undef THERMOTILT_FRAME
 }
 
-// Fields after TYPE and SEQ, e.g. Protocol::FieldCount::SETPRG == 6.
+// Fields after TYPE and SEQ, e.g. Protocol::FieldCount::SETPRG == 7.
 namespace FieldCount {
 #define THERMOTILT_FRAME(tag, direction, fields) constexpr uint8_t tag = countFields(fields);
 #include "ProtocolFrames.def"
