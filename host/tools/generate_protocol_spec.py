@@ -18,7 +18,7 @@ DEFINITION = HOST_DIR.parent / "lib" / "Protocol" / "src" / "ProtocolFrames.def"
 MODULE = HOST_DIR / "thermotilt" / "protocol_spec.py"
 
 _DEFINE = re.compile(r"^#define THERMOTILT_PROTOCOL_(\w+) (\d+)$", re.MULTILINE)
-_FRAME = re.compile(r'^THERMOTILT_FRAME\((\w+), (BOARD|HOST), "([^"]*)"\)$', re.MULTILINE)
+_FRAME = re.compile(r'^THERMOTILT_FRAME\((\w+), (STREAM|ANSWER|OUTCOME|COMMAND), "([^"]*)"\)$', re.MULTILINE)
 _ERROR = re.compile(r'^THERMOTILT_ERROR\(([A-Z][A-Z0-9_]*), "([^"]+)"\)$', re.MULTILINE)
 _ERROR_DETAIL = re.compile(r'^THERMOTILT_ERROR_DETAIL\(([A-Z][A-Z0-9_]*), "([A-Z0-9_ ]+)"\)$', re.MULTILINE)
 _FIELD = re.compile(r"^([a-z][a-z0-9_]*):([ift])$")
@@ -57,20 +57,22 @@ def parse_errors(text):
 
 
 def parse_definition(text):
-    """Return (constants, frames) where frames is [(tag, direction, [(name, kind)])]."""
+    """Return (constants, frames) where frames is [(tag, direction, role, [(name, kind)])]:
+    a COMMAND goes from the host to a board, every other role the other way."""
     constants = {name: int(value) for name, value in _DEFINE.findall(text)}
     missing = [name for name in _CONSTANTS if name not in constants]
     if missing:
         raise DefinitionError(f"missing #define THERMOTILT_PROTOCOL_{missing[0]}")
     frames = []
-    for tag, direction, field_list in _FRAME.findall(text):
+    for tag, role, field_list in _FRAME.findall(text):
         fields = []
         for item in field_list.split(",") if field_list else []:
             match = _FIELD.match(item)
             if not match:
                 raise DefinitionError(f"{tag}: bad field {item!r}, expected name:i|f|t")
             fields.append((match.group(1), match.group(2)))
-        frames.append((tag, direction.lower(), fields))
+        direction = "host" if role == "COMMAND" else "board"
+        frames.append((tag, direction, role.lower(), fields))
     if _count_lines(text, "THERMOTILT_FRAME(") != len(frames):
         raise DefinitionError("a THERMOTILT_FRAME line does not match the expected form")
     return constants, frames
@@ -87,15 +89,18 @@ def render(text):
         f"MAX_LINE = {constants['MAX_LINE']}",
         f"MAX_FIELDS = {constants['MAX_FIELDS']}",
         "",
-        "# tag: (direction, ((field name, kind), ...)); kind i integer, f float, t token",
+        "# tag: (direction, role, ((field name, kind), ...)); kind i integer, f float,",
+        "# t token. role: stream (sent on the board's own schedule), answer (the data",
+        "# a query returns before its ACK), outcome (ACK, ERR) or command.",
         "FRAMES = {",
     ]
-    for tag, direction, fields in frames:
+    for tag, direction, role, fields in frames:
         if not fields:
-            lines.append(f'    "{tag}": ("{direction}", ()),')
+            lines.append(f'    "{tag}": ("{direction}", "{role}", ()),')
             continue
         lines.append(f'    "{tag}": (')
         lines.append(f'        "{direction}",')
+        lines.append(f'        "{role}",')
         lines.append("        (")
         lines.extend(f'            ("{name}", "{kind}"),' for name, kind in fields)
         lines.append("        ),")

@@ -193,19 +193,15 @@ uint16_t Protocol::checksum(const char *text, uint8_t length)
     return crc16Xmodem((const uint8_t *)text, length);
 }
 
-#define THERMOTILT_FRAME(tag, direction, fields) const char Protocol::ProgmemTag::tag[] PROGMEM = #tag;
+#define THERMOTILT_FRAME(tag, role, fields) const char Protocol::ProgmemTag::tag[] PROGMEM = #tag;
 #include "ProtocolFrames.def"
 #undef THERMOTILT_FRAME
 
 bool Protocol::isBoardFrame(const char *type)
 {
-#define THERMOTILT_FRAME(tag, direction, fields) \
-    if (THERMOTILT_DIRECTION_##direction && strcmp_P(type, ProgmemTag::tag) == 0) return true;
-#define THERMOTILT_DIRECTION_BOARD true
-#define THERMOTILT_DIRECTION_HOST false
+#define THERMOTILT_FRAME(tag, role, fields) \
+    if (FrameRole::role != FrameRole::COMMAND && strcmp_P(type, ProgmemTag::tag) == 0) return true;
 #include "ProtocolFrames.def"
-#undef THERMOTILT_DIRECTION_HOST
-#undef THERMOTILT_DIRECTION_BOARD
 #undef THERMOTILT_FRAME
     return false;
 }

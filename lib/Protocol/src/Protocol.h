@@ -35,21 +35,21 @@ constexpr uint8_t countFields(const char *fields)
 // Type tags, e.g. Protocol::Tag::IMU == "IMU", for tools and tests. The
 // boards reach a tag through Frame, which keeps it in program memory.
 namespace Tag {
-#define THERMOTILT_FRAME(tag, direction, fields) constexpr char tag[] = #tag;
+#define THERMOTILT_FRAME(tag, role, fields) constexpr char tag[] = #tag;
 #include "ProtocolFrames.def"
 #undef THERMOTILT_FRAME
 }
 
 // The same in program memory (PROGMEM, Protocol.cpp).
 namespace ProgmemTag {
-#define THERMOTILT_FRAME(tag, direction, fields) extern const char tag[];
+#define THERMOTILT_FRAME(tag, role, fields) extern const char tag[];
 #include "ProtocolFrames.def"
 #undef THERMOTILT_FRAME
 }
 
 // Fields after TYPE and SEQ, e.g. Protocol::FieldCount::SETPRG == 7.
 namespace FieldCount {
-#define THERMOTILT_FRAME(tag, direction, fields) constexpr uint8_t tag = countFields(fields);
+#define THERMOTILT_FRAME(tag, role, fields) constexpr uint8_t tag = countFields(fields);
 #include "ProtocolFrames.def"
 #undef THERMOTILT_FRAME
 }
@@ -64,7 +64,7 @@ struct FrameType {
 };
 
 namespace Frame {
-#define THERMOTILT_FRAME(tag, direction, fields) constexpr FrameType tag = {ProgmemTag::tag, FieldCount::tag};
+#define THERMOTILT_FRAME(tag, role, fields) constexpr FrameType tag = {ProgmemTag::tag, FieldCount::tag};
 #include "ProtocolFrames.def"
 #undef THERMOTILT_FRAME
 }
@@ -95,6 +95,10 @@ namespace ErrorDetail {
 #include "ProtocolFrames.def"
 #undef THERMOTILT_ERROR_DETAIL
 }
+
+// What a frame type is for (ProtocolFrames.def); all but COMMAND go from a
+// board to the host.
+enum class FrameRole : uint8_t { STREAM, ANSWER, OUTCOME, COMMAND };
 
 // True for the types a board sends (IMU, CHS, ACK, ERR, ...): a board never
 // answers those, so an echoing terminal cannot make it talk to itself.
