@@ -37,7 +37,6 @@ struct FrameSpec {
 const FrameSpec FRAME_SPECS[] = {
 #define THERMOTILT_FRAME(tag, role, fields) {#tag, #role, fields},
 #include <ProtocolFrames.def>
-#undef THERMOTILT_FRAME
 };
 
 struct ErrorDetailSpec {
@@ -48,13 +47,11 @@ struct ErrorDetailSpec {
 const char* const ERROR_CODES[] = {
 #define THERMOTILT_ERROR(code, meaning) #code,
 #include <ProtocolFrames.def>
-#undef THERMOTILT_ERROR
 };
 
 const ErrorDetailSpec ERROR_DETAILS[] = {
 #define THERMOTILT_ERROR_DETAIL(token, codes) {#token, codes},
 #include <ProtocolFrames.def>
-#undef THERMOTILT_ERROR_DETAIL
 };
 
 // Whether a space-separated list holds the word.

@@ -86,11 +86,14 @@ bool dataReadyLevel()
 const char* sensorStatusName(Lsm9ds0Accel::Status status)
 {
     switch (status) {
-    case Lsm9ds0Accel::Status::NoAnswer: return Detail::NO_ANSWER;
-    case Lsm9ds0Accel::Status::WrongId: return Detail::WRONG_ID;
-    case Lsm9ds0Accel::Status::WriteFailed: return Detail::WRITE_FAILED;
-    default: return "OK";
+    case Lsm9ds0Accel::Status::Ok: break;
+#define THERMOTILT_SENSOR_STATUS(enumerator, token) \
+    case Lsm9ds0Accel::Status::enumerator: { \
+        return Detail::token; \
     }
+#include <ProtocolFrames.def>
+    }
+    return "OK";
 }
 
 void connectSensor()
@@ -118,12 +121,16 @@ void sensorLost(const char* why)
 bool blockErrorCode(BlockStatus status, Protocol::ErrorCode& code)
 {
     switch (status) {
-    case BlockStatus::BadMagic: code = Error::EEPROM_MAGIC; return true;
-    case BlockStatus::BadVersion: code = Error::EEPROM_VERSION; return true;
-    case BlockStatus::BadCrc: code = Error::EEPROM_CRC; return true;
-    case BlockStatus::BadValues: code = Error::EEPROM_VALUES; return true;
-    default: return false;
+    case BlockStatus::Ok:
+    case BlockStatus::Blank: break;
+#define THERMOTILT_BLOCK_STATUS(enumerator, name) \
+    case BlockStatus::enumerator: { \
+        code = Error::name; \
+        return true; \
     }
+#include <ProtocolFrames.def>
+    }
+    return false;
 }
 
 // LTO inlines setup(), loop() and what they call into main(), whose one frame

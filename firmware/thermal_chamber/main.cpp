@@ -33,20 +33,11 @@ const float CONTROL_PERIOD_S = (float)CONTROL_PERIOD_MS / 1000.0f;
 // An hour: longer is no heartbeat at all.
 const int32_t MAX_HEARTBEAT_S = 3600;
 
+// The faults the board latches, each named as CHS and ERR name it.
 enum Fault : uint8_t {
     NO_FAULT,
-    INNER_OPEN,
-    INNER_SHORT,
-    OUTER_OPEN,
-    OUTER_SHORT,
-    INNER_HOT,
-    INNER_COLD,
-    OUTER_HOT,
-    OUTER_COLD,
-    NO_RESPONSE,
-    WRONG_WAY,
-    HOLD_LOST,
-    HOST_SILENT,
+#define THERMOTILT_CHAMBER_FAULT(token, code) token,
+#include <ProtocolFrames.def>
 };
 
 SerialLink link;
@@ -74,40 +65,26 @@ ThermistorReading outer = {NAN, ThermistorStatus::Ok};
 ProgramState programState;
 DriveCommand drive = {0, Direction::Off};
 
+// Each fault's name and the ERR code it is reported with, in Fault's order.
+const char* const FAULT_NAMES[] PROGMEM = {
+    "OK",  // NO_FAULT, as CHS says it
+#define THERMOTILT_CHAMBER_FAULT(token, code) Detail::token,
+#include <ProtocolFrames.def>
+};
+const Protocol::ErrorCode FAULT_CODES[] PROGMEM = {
+    Error::FAULT,  // NO_FAULT, never reported
+#define THERMOTILT_CHAMBER_FAULT(token, code) Error::code,
+#include <ProtocolFrames.def>
+};
+
 const char* faultName(Fault value)
 {
-    switch (value) {
-    case INNER_OPEN: return Detail::INNER_OPEN;
-    case INNER_SHORT: return Detail::INNER_SHORT;
-    case OUTER_OPEN: return Detail::OUTER_OPEN;
-    case OUTER_SHORT: return Detail::OUTER_SHORT;
-    case INNER_HOT: return Detail::INNER_HOT;
-    case INNER_COLD: return Detail::INNER_COLD;
-    case OUTER_HOT: return Detail::OUTER_HOT;
-    case OUTER_COLD: return Detail::OUTER_COLD;
-    case NO_RESPONSE: return Detail::NO_RESPONSE;
-    case WRONG_WAY: return Detail::WRONG_WAY;
-    case HOLD_LOST: return Detail::HOLD_LOST;
-    case HOST_SILENT: return Detail::HOST_SILENT;
-    default: return "OK";
-    }
+    return (const char*)pgm_read_ptr(&FAULT_NAMES[value]);
 }
 
-// The ERR code a fault is reported with.
 Protocol::ErrorCode faultCategory(Fault value)
 {
-    switch (value) {
-    case INNER_OPEN:
-    case INNER_SHORT:
-    case OUTER_OPEN:
-    case OUTER_SHORT: return Error::THERMISTOR;
-    case INNER_HOT:
-    case INNER_COLD:
-    case OUTER_HOT:
-    case OUTER_COLD: return Error::LIMIT;
-    case HOST_SILENT: return Error::HEARTBEAT;
-    default: return Error::RUNAWAY;
-    }
+    return {(const char*)pgm_read_ptr(&FAULT_CODES[value].text)};
 }
 
 Fault faultOf(GuardFault value)
@@ -323,17 +300,14 @@ void sendGuard()
 const char* programErrorName(ProgramError error)
 {
     switch (error) {
-    case ProgramError::StartOutOfRange: return Detail::START_RANGE;
-    case ProgramError::MaxOutOfRange: return Detail::MAX_RANGE;
-    case ProgramError::StartNotBelowMax: return Detail::START_GE_MAX;
-    case ProgramError::StepNotPositive: return Detail::STEP_LE_0;
-    case ProgramError::StepLargerThanSpan: return Detail::STEP_GT_SPAN;
-    case ProgramError::StepTooSmall: return Detail::STEP_TOO_SMALL;
-    case ProgramError::HoldZero: return Detail::HOLD_0;
-    case ProgramError::CycleTooLong: return Detail::TOO_LONG;
-    case ProgramError::HoldStartUnknown: return Detail::HOLD_START_TFA;
-    default: return "OK";
+    case ProgramError::None: break;
+#define THERMOTILT_PROGRAM_ERROR(enumerator, token) \
+    case ProgramError::enumerator: { \
+        return Detail::token; \
     }
+#include <ProtocolFrames.def>
+    }
+    return "OK";
 }
 
 void setProgram(const FrameParser& command)
@@ -398,11 +372,14 @@ void setControl(const FrameParser& command)
 const char* guardErrorName(GuardError error)
 {
     switch (error) {
-    case GuardError::CheckOutOfRange: return Detail::CHECK_RANGE;
-    case GuardError::LimitOutOfRange: return Detail::LIMIT_RANGE;
-    case GuardError::LimitsInverted: return Detail::LIMIT_MIN_GE_MAX;
-    default: return "OK";
+    case GuardError::None: break;
+#define THERMOTILT_GUARD_ERROR(enumerator, token) \
+    case GuardError::enumerator: { \
+        return Detail::token; \
     }
+#include <ProtocolFrames.def>
+    }
+    return "OK";
 }
 
 void setGuard(const FrameParser& command)

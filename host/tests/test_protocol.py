@@ -464,3 +464,36 @@ def test_generator_refuses_a_frame_without_a_known_role():
         generator.parse_definition(constants + 'THERMOTILT_FRAME(ACK, BOARD, "cmd_seq:i,cmd_type:t")\n')
     _, frames = generator.parse_definition(constants + 'THERMOTILT_FRAME(ACK, OUTCOME, "cmd_seq:i,cmd_type:t")\n')
     assert frames == [("ACK", "board", "outcome", [("cmd_seq", "i"), ("cmd_type", "t")])]
+
+
+ENUM_TABLE = [
+    'THERMOTILT_ERROR(BUSY, "one")',
+    'THERMOTILT_ERROR(FAULT, "two")',
+    'THERMOTILT_ERROR(LIMIT, "three")',
+    'THERMOTILT_ERROR_DETAIL(STOP_FIRST, "BUSY")',
+    'THERMOTILT_ERROR_DETAIL(INNER_HOT, "LIMIT FAULT")',
+]
+
+
+@pytest.mark.parametrize(
+    "line, complaint",
+    [
+        ("THERMOTILT_CHAMBER_FAULT(INNER_HOT, LIMIT)", None),
+        ("THERMOTILT_CHAMBER_FAULT(INNER_HOT, LIMIT)  // a comment (with parentheses)", None),
+        ("THERMOTILT_CHAMBER_FAULT(STOP_FIRST, BUSY)", "ERR FAULT does not carry STOP_FIRST"),
+        ("THERMOTILT_CHAMBER_FAULT(INNER_HOT, BUSY)", "ERR BUSY does not carry INNER_HOT"),
+        ("THERMOTILT_CHAMBER_FAULT(INNER_HOT, IDLE)", "no ERR code IDLE"),
+        ("THERMOTILT_CHAMBER_FAULT(INNER_HOT)", "expected"),
+        ("THERMOTILT_CHAMBER_FAULTS(INNER_HOT, LIMIT)", "no such line"),
+        ("THERMOTILT_CHAMBER_FAULT(INNER_HOT, LIMIT) x", "expected form"),
+        ("THERMOTILT_BLOCK_STATUS(BadMagic, LIMIT)\nTHERMOTILT_BLOCK_STATUS(BadMagic, BUSY)", "named twice"),
+    ],
+)
+def test_generator_checks_the_lines_that_name_firmware_enumerators(line, complaint):
+    generator = load_generator()
+    text = "\n".join(ENUM_TABLE + [line]) + "\n"
+    if complaint is None:
+        generator.check_enum_lines(text, generator.parse_errors(text))
+        return
+    with pytest.raises(generator.DefinitionError, match=complaint):
+        generator.check_enum_lines(text, generator.parse_errors(text))

@@ -195,14 +195,12 @@ uint16_t Protocol::checksum(const char *text, uint8_t length)
 
 #define THERMOTILT_FRAME(tag, role, fields) const char Protocol::ProgmemTag::tag[] PROGMEM = #tag;
 #include "ProtocolFrames.def"
-#undef THERMOTILT_FRAME
 
 bool Protocol::isBoardFrame(const char *type)
 {
 #define THERMOTILT_FRAME(tag, role, fields) \
     if (FrameRole::role != FrameRole::COMMAND && strcmp_P(type, ProgmemTag::tag) == 0) return true;
 #include "ProtocolFrames.def"
-#undef THERMOTILT_FRAME
     return false;
 }
 

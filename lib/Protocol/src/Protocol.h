@@ -37,21 +37,18 @@ constexpr uint8_t countFields(const char *fields)
 namespace Tag {
 #define THERMOTILT_FRAME(tag, role, fields) constexpr char tag[] = #tag;
 #include "ProtocolFrames.def"
-#undef THERMOTILT_FRAME
 }
 
 // The same in program memory (PROGMEM, Protocol.cpp).
 namespace ProgmemTag {
 #define THERMOTILT_FRAME(tag, role, fields) extern const char tag[];
 #include "ProtocolFrames.def"
-#undef THERMOTILT_FRAME
 }
 
 // Fields after TYPE and SEQ, e.g. Protocol::FieldCount::SETPRG == 7.
 namespace FieldCount {
 #define THERMOTILT_FRAME(tag, role, fields) constexpr uint8_t tag = countFields(fields);
 #include "ProtocolFrames.def"
-#undef THERMOTILT_FRAME
 }
 
 // A frame type with its field count, e.g. Protocol::Frame::ACK. A FrameWriter
@@ -66,7 +63,6 @@ struct FrameType {
 namespace Frame {
 #define THERMOTILT_FRAME(tag, role, fields) constexpr FrameType tag = {ProgmemTag::tag, FieldCount::tag};
 #include "ProtocolFrames.def"
-#undef THERMOTILT_FRAME
 }
 
 // An ERR frame's code, e.g. Protocol::Error::BAD_ARG. The boards' SerialLink
@@ -79,13 +75,11 @@ struct ErrorCode {
 namespace ErrorText {
 #define THERMOTILT_ERROR(code, meaning) constexpr char code[] = #code;
 #include "ProtocolFrames.def"
-#undef THERMOTILT_ERROR
 }
 
 namespace Error {
 #define THERMOTILT_ERROR(code, meaning) constexpr ErrorCode code = {ErrorText::code};
 #include "ProtocolFrames.def"
-#undef THERMOTILT_ERROR
 }
 
 // Detail tokens of ERR frames, e.g. Protocol::ErrorDetail::FACTOR_1_255. Like
@@ -93,7 +87,6 @@ namespace Error {
 namespace ErrorDetail {
 #define THERMOTILT_ERROR_DETAIL(token, codes) constexpr char token[] = #token;
 #include "ProtocolFrames.def"
-#undef THERMOTILT_ERROR_DETAIL
 }
 
 // What a frame type is for (ProtocolFrames.def); all but COMMAND go from a
@@ -104,16 +97,12 @@ enum class FrameRole : uint8_t { STREAM, ANSWER, OUTCOME, COMMAND };
 // answers those, so an echoing terminal cannot make it talk to itself.
 bool isBoardFrame(const char *type);
 
+// Why FrameParser dropped a line, e.g. MALFORMED_BAD_CHECKSUM; ERR BAD_FRAME
+// names it with the detail token of the same name.
 enum MalformedReason : uint8_t {
     MALFORMED_NONE = 0,
-    MALFORMED_TRUNCATED,        // a new '$' arrived before the line ended
-    MALFORMED_TOO_LONG,         // more than MAX_LINE characters
-    MALFORMED_BAD_CHAR,         // a control or non-ASCII byte inside the line
-    MALFORMED_NO_CHECKSUM,      // no '*' followed by exactly CHECKSUM_DIGITS characters
-    MALFORMED_BAD_CHECKSUM,     // checksum digits not hex or not matching
-    MALFORMED_BAD_TYPE,         // TYPE is not 2..7 upper-case letters
-    MALFORMED_BAD_SEQ,          // SEQ missing, not decimal or above 65535
-    MALFORMED_TOO_MANY_FIELDS,  // more than MAX_FIELDS fields after SEQ
+#define THERMOTILT_MALFORMED_REASON(token) MALFORMED_##token,
+#include "ProtocolFrames.def"
 };
 
 // CRC-16/XMODEM of `length` bytes: the check of the text between '$' and '*'.
