@@ -195,6 +195,10 @@ uint16_t Protocol::checksum(const char *text, uint8_t length)
 
 #define THERMOTILT_FRAME(tag, role, fields) const char Protocol::ProgmemTag::tag[] PROGMEM = #tag;
 #include "ProtocolFrames.def"
+#define THERMOTILT_ERROR(code, meaning) const char Protocol::ErrorText::code[] = #code;
+#include "ProtocolFrames.def"
+#define THERMOTILT_ERROR_DETAIL(token, codes) const char Protocol::ErrorDetail::token[] = #token;
+#include "ProtocolFrames.def"
 
 bool Protocol::isBoardFrame(const char *type)
 {

@@ -72,8 +72,9 @@ struct ErrorCode {
     const char *text;
 };
 
+// Defined once (Protocol.cpp), so that a code used in two files is in RAM once.
 namespace ErrorText {
-#define THERMOTILT_ERROR(code, meaning) constexpr char code[] = #code;
+#define THERMOTILT_ERROR(code, meaning) extern const char code[];
 #include "ProtocolFrames.def"
 }
 
@@ -83,9 +84,10 @@ namespace Error {
 }
 
 // Detail tokens of ERR frames, e.g. Protocol::ErrorDetail::FACTOR_1_255. Like
-// string literals they take RAM on the AVR, and only where a board uses them.
+// string literals they take RAM on the AVR, and only those a board uses, each
+// once (Protocol.cpp).
 namespace ErrorDetail {
-#define THERMOTILT_ERROR_DETAIL(token, codes) constexpr char token[] = #token;
+#define THERMOTILT_ERROR_DETAIL(token, codes) extern const char token[];
 #include "ProtocolFrames.def"
 }
 
