@@ -55,6 +55,18 @@ bool SerialLink::poll(uint32_t nowMs)
     return false;
 }
 
+void SerialLink::dispatch(const Protocol::Command* commands, uint8_t count)
+{
+    Protocol::Command command;
+    if (!Protocol::findCommand(commands, count, parser_.type(), command)) {
+        reject(Protocol::Error::UNKNOWN_CMD, parser_.type());
+    } else if (parser_.fieldCount() < command.minFields) {
+        reject(Protocol::Error::BAD_ARG, command.fieldsDetail);
+    } else {
+        command.handler(parser_);
+    }
+}
+
 void SerialLink::send()
 {
     const char* text = writer_.finish();

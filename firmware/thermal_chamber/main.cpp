@@ -19,6 +19,7 @@
 
 namespace {
 
+namespace Frame = Protocol::Frame;
 namespace Error = Protocol::Error;
 namespace Detail = Protocol::ErrorDetail;
 
@@ -165,7 +166,7 @@ char directionLetter(Direction direction)
 
 void sendStatus(uint32_t now)
 {
-    FrameWriter& frame = link.start(Protocol::Frame::CHS);
+    FrameWriter& frame = link.start(Frame::CHS);
     frame.addUnsigned(now);
     frame.addChar(phaseLetter());
     frame.addUnsigned(running ? programState.step : 0);
@@ -256,7 +257,7 @@ bool parseHoldStart(const char* text, HoldStart& value)
 void sendProgram()
 {
     const ProgramSettings& settings = program.settings();
-    FrameWriter& frame = link.start(Protocol::Frame::PRG);
+    FrameWriter& frame = link.start(Frame::PRG);
     frame.addFixed(settings.start_c, 2);
     frame.addFixed(settings.max_c, 2);
     frame.addFixed(settings.step_c, 2);
@@ -289,7 +290,7 @@ static_assert(GUARD_FIELD_COUNT + 1 == Protocol::FieldCount::GRD, "GRD carries t
 void sendGuard()
 {
     const GuardSettings& settings = guard.settings();
-    FrameWriter& frame = link.start(Protocol::Frame::GRD);
+    FrameWriter& frame = link.start(Frame::GRD);
     for (uint8_t i = 0; i < GUARD_FIELD_COUNT; ++i) {
         frame.addFixed(settings.*GUARD_FIELDS[i].member, GUARD_FIELDS[i].decimals);
     }
@@ -310,7 +311,7 @@ const char* programErrorName(ProgramError error)
     return "OK";
 }
 
-void setProgram(const FrameParser& command)
+void onSetProgram(const FrameParser& command)
 {
     int32_t hold = 0;
     int32_t rest = 0;
@@ -346,13 +347,13 @@ void setProgram(const FrameParser& command)
     link.acknowledge();
 }
 
-void setControl(const FrameParser& command)
+void onSetControl(const FrameParser& command)
 {
     const char* mode = command.field(0);
     float kp = 0.0f;
     float ki = 0.0f;
-    bool parsed = command.fieldCount() >= Protocol::FieldCount::SETCTL && command.fieldFloat(1, kp) &&
-                  command.fieldFloat(2, ki) && kp >= 0.0f && ki >= 0.0f && isfinite(kp) && isfinite(ki);
+    bool parsed = command.fieldFloat(1, kp) && command.fieldFloat(2, ki) && kp >= 0.0f && ki >= 0.0f &&
+                  isfinite(kp) && isfinite(ki);
     uint8_t chosen = 0;
     while (parsed && chosen <= CONTROL_PR && strcmp(mode, CONTROL_MODE_NAMES[chosen]) != 0) {
         ++chosen;
@@ -382,10 +383,10 @@ const char* guardErrorName(GuardError error)
     return "OK";
 }
 
-void setGuard(const FrameParser& command)
+void onSetGuard(const FrameParser& command)
 {
     GuardSettings settings;
-    bool parsed = command.fieldCount() >= Protocol::FieldCount::SETGRD;
+    bool parsed = true;
     for (uint8_t i = 0; parsed && i < GUARD_FIELD_COUNT; ++i) {
         parsed = command.fieldFloat(i, settings.*GUARD_FIELDS[i].member);
     }
@@ -401,11 +402,10 @@ void setGuard(const FrameParser& command)
     link.acknowledge();
 }
 
-void setHeartbeat(const FrameParser& command)
+void onSetHeartbeat(const FrameParser& command)
 {
     int32_t seconds = 0;
-    if (command.fieldCount() < Protocol::FieldCount::SETHB || !command.fieldInt(0, seconds) || seconds < 0 ||
-        seconds > MAX_HEARTBEAT_S) {
+    if (!command.fieldInt(0, seconds) || seconds < 0 || seconds > MAX_HEARTBEAT_S) {
         link.reject(Error::BAD_ARG, Detail::HEARTBEAT_0_3600);
         return;
     }
@@ -414,7 +414,7 @@ void setHeartbeat(const FrameParser& command)
 }
 
 // A latched fault clears only on request, and only once its cause is gone.
-void clearFault()
+void onClear(const FrameParser&)
 {
     Fault present = presentThermistorFault();
     if (present == NO_FAULT) {
@@ -429,48 +429,57 @@ void clearFault()
     link.acknowledge();
 }
 
-void handleCommand(uint32_t now)
+void onStart(const FrameParser&)
 {
-    const FrameParser& command = link.command();
-    if (link.commandIs(Protocol::Frame::START)) {
-        if (fault != NO_FAULT) {
-            link.reject(Error::FAULT, faultName(fault));
-            return;
-        }
-        if (!programAccepted) {
-            link.reject(Error::NO_PROGRAM, Detail::SETPRG_FIRST);
-            return;
-        }
-        running = true;
-        guard.reset();
-        lastProgramTickMs = now;
-        controller.reset();
-        programState = programRun.start(inner.celsius);
-        link.acknowledge();
-    } else if (link.commandIs(Protocol::Frame::STOP)) {
-        stopProgram();
-        link.acknowledge();
-    } else if (link.commandIs(Protocol::Frame::VERSION)) {
-        link.sendVersion("thermal_chamber", FIRMWARE_VERSION);
-        link.acknowledge();
-    } else if (link.commandIs(Protocol::Frame::STATUS)) {
-        sendProgram();
-        sendGuard();
-        link.acknowledge();
-    } else if (link.commandIs(Protocol::Frame::SETPRG)) {
-        setProgram(command);
-    } else if (link.commandIs(Protocol::Frame::SETCTL)) {
-        setControl(command);
-    } else if (link.commandIs(Protocol::Frame::SETGRD)) {
-        setGuard(command);
-    } else if (link.commandIs(Protocol::Frame::SETHB)) {
-        setHeartbeat(command);
-    } else if (link.commandIs(Protocol::Frame::CLEAR)) {
-        clearFault();
-    } else {
-        link.reject(Error::UNKNOWN_CMD, command.type());
+    if (fault != NO_FAULT) {
+        link.reject(Error::FAULT, faultName(fault));
+        return;
     }
+    if (!programAccepted) {
+        link.reject(Error::NO_PROGRAM, Detail::SETPRG_FIRST);
+        return;
+    }
+    running = true;
+    guard.reset();
+    lastProgramTickMs = link.lastHostFrameMs();
+    controller.reset();
+    programState = programRun.start(inner.celsius);
+    link.acknowledge();
 }
+
+void onStop(const FrameParser&)
+{
+    stopProgram();
+    link.acknowledge();
+}
+
+void onVersion(const FrameParser&)
+{
+    link.sendVersion("thermal_chamber", FIRMWARE_VERSION);
+    link.acknowledge();
+}
+
+void onStatus(const FrameParser&)
+{
+    sendProgram();
+    sendGuard();
+    link.acknowledge();
+}
+
+// The commands of this board (docs/protocol.md), for SerialLink::dispatch.
+// SETPRG checks its own fields: BUSY comes first, hold_start may be left
+// off, and a refused SETPRG must also forget the accepted program.
+constexpr Protocol::Command COMMANDS[] PROGMEM = {
+    Protocol::command(Frame::START, onStart),
+    Protocol::command(Frame::STOP, onStop),
+    Protocol::command(Frame::VERSION, onVersion),
+    Protocol::command(Frame::STATUS, onStatus),
+    Protocol::command(Frame::SETPRG, onSetProgram),
+    Protocol::command(Frame::SETCTL, onSetControl, Detail::SETCTL_FIELDS),
+    Protocol::command(Frame::SETGRD, onSetGuard, Detail::SETGRD_FIELDS),
+    Protocol::command(Frame::SETHB, onSetHeartbeat, Detail::HEARTBEAT_0_3600),
+    Protocol::command(Frame::CLEAR, onClear),
+};
 
 }  // namespace
 
@@ -492,7 +501,7 @@ void loop()
     link.writePending();
     uint32_t now = millis();
     if (link.poll(now)) {
-        handleCommand(now);
+        link.dispatch(COMMANDS);
     }
     if (now - lastControlMs >= CONTROL_PERIOD_MS) {
         lastControlMs += CONTROL_PERIOD_MS;

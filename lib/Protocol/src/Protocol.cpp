@@ -512,11 +512,6 @@ bool FrameParser::typeIs(const char *tag) const
     return strcmp(line_, tag) == 0;
 }
 
-bool FrameParser::typeIs_P(const char *tag) const
-{
-    return strcmp_P(line_, tag) == 0;
-}
-
 const char *FrameParser::field(uint8_t index) const
 {
     return index < fieldCount_ ? line_ + fieldStart_[index] : 0;

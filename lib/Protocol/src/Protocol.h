@@ -174,8 +174,6 @@ public:
 
     const char *type() const { return line_; }
     bool typeIs(const char *tag) const;
-    // The same with the tag in program memory, e.g. Protocol::Frame::START.tag.
-    bool typeIs_P(const char *tag) const;
     uint16_t seq() const { return seq_; }
     uint8_t fieldCount() const { return fieldCount_; }
     // Field i after TYPE and SEQ, or 0 when i is out of range.
