@@ -443,8 +443,8 @@ __attribute__((noinline)) void loop()
     } else {
         dataReadyChanged = false;
         uint32_t sinceSample = now - lastSampleMs;
-        uint32_t pollAfter =
-            dataReadyLine.trusted() ? DATA_READY_LINE_SILENT_MS : SAMPLE_PERIOD_MS - DATA_READY_WINDOW_MS;
+        uint32_t pollAfter = dataReadyLine.trusted() ? DATA_READY_LINE_SILENT_MS
+                                                     : SAMPLE_PERIOD_MS - DATA_READY_WINDOW_MS;
         bool level = dataReadyLevel();
         if (dataReadyLine.saysReady(level)) {
             readSample(now, true, level);

@@ -212,8 +212,8 @@ void controlTick(uint32_t now)
     Fault detected = presentThermistorFault();
     if (detected == NO_FAULT) {
         // Limits and runaway, judged with the drive that produced these readings.
-        detected = faultOf(guard.update(driving ? programState.setpoint_c : NAN, inner.celsius, outer.celsius,
-                                        drive, CONTROL_PERIOD_S));
+        detected = faultOf(guard.update(driving ? programState.setpoint_c : NAN, inner.celsius, outer.celsius, drive,
+                                        CONTROL_PERIOD_S));
     }
     if (detected == NO_FAULT && hostSilent(now)) {
         detected = HOST_SILENT;
@@ -279,9 +279,9 @@ struct GuardField {
     uint8_t decimals;
 };
 const GuardField GUARD_FIELDS[] = {
-    {&GuardSettings::band_c, 2},        {&GuardSettings::gain_c, 2},        {&GuardSettings::window_s, 1},
-    {&GuardSettings::wrong_way_c, 2},   {&GuardSettings::max_error_c_s, 1}, {&GuardSettings::inner_min_c, 2},
-    {&GuardSettings::inner_max_c, 2},   {&GuardSettings::outer_min_c, 2},   {&GuardSettings::outer_max_c, 2},
+    {&GuardSettings::band_c, 2},      {&GuardSettings::gain_c, 2},        {&GuardSettings::window_s, 1},
+    {&GuardSettings::wrong_way_c, 2}, {&GuardSettings::max_error_c_s, 1}, {&GuardSettings::inner_min_c, 2},
+    {&GuardSettings::inner_max_c, 2}, {&GuardSettings::outer_min_c, 2},   {&GuardSettings::outer_max_c, 2},
 };
 const uint8_t GUARD_FIELD_COUNT = sizeof GUARD_FIELDS / sizeof GUARD_FIELDS[0];
 static_assert(GUARD_FIELD_COUNT == Protocol::FieldCount::SETGRD, "SETGRD carries the guard fields");
@@ -321,8 +321,8 @@ void onSetProgram(const FrameParser& command)
     const uint8_t holdStartField = Protocol::FieldCount::SETPRG - 1;
     bool parsed = command.fieldCount() >= holdStartField && command.fieldFloat(0, settings.start_c) &&
                   command.fieldFloat(1, settings.max_c) && command.fieldFloat(2, settings.step_c) &&
-                  command.fieldInt(3, hold) && command.fieldInt(4, rest) && command.fieldInt(5, cycles) &&
-                  hold >= 0 && rest >= 0 && cycles >= 0 && cycles <= 65535 &&
+                  command.fieldInt(3, hold) && command.fieldInt(4, rest) && command.fieldInt(5, cycles) && hold >= 0 &&
+                  rest >= 0 && cycles >= 0 && cycles <= 65535 &&
                   (command.fieldCount() == holdStartField ||
                    parseHoldStart(command.field(holdStartField), settings.hold_start));
     if (running) {
@@ -352,8 +352,8 @@ void onSetControl(const FrameParser& command)
     const char* mode = command.field(0);
     float kp = 0.0f;
     float ki = 0.0f;
-    bool parsed = command.fieldFloat(1, kp) && command.fieldFloat(2, ki) && kp >= 0.0f && ki >= 0.0f &&
-                  isfinite(kp) && isfinite(ki);
+    bool parsed = command.fieldFloat(1, kp) && command.fieldFloat(2, ki) && kp >= 0.0f && ki >= 0.0f && isfinite(kp) &&
+                  isfinite(ki);
     uint8_t chosen = 0;
     while (parsed && chosen <= CONTROL_PR && strcmp(mode, CONTROL_MODE_NAMES[chosen]) != 0) {
         ++chosen;

@@ -52,9 +52,12 @@ char hexDigit(uint8_t nibble)
 
 int8_t hexValue(char c)
 {
-    if (c >= '0' && c <= '9') return (int8_t)(c - '0');
-    if (c >= 'A' && c <= 'F') return (int8_t)(c - 'A' + 10);
-    if (c >= 'a' && c <= 'f') return (int8_t)(c - 'a' + 10);
+    if (c >= '0' && c <= '9')
+        return (int8_t)(c - '0');
+    if (c >= 'A' && c <= 'F')
+        return (int8_t)(c - 'A' + 10);
+    if (c >= 'a' && c <= 'f')
+        return (int8_t)(c - 'a' + 10);
     return -1;
 }
 
@@ -203,7 +206,8 @@ uint16_t Protocol::checksum(const char *text, uint8_t length)
 bool Protocol::isBoardFrame(const char *type)
 {
 #define THERMOTILT_FRAME(tag, role, fields) \
-    if (FrameRole::role != FrameRole::COMMAND && strcmp_P(type, ProgmemTag::tag) == 0) return true;
+    if (FrameRole::role != FrameRole::COMMAND && strcmp_P(type, ProgmemTag::tag) == 0) \
+        return true;
 #include "ProtocolFrames.def"
     return false;
 }
@@ -324,8 +328,10 @@ void FrameWriter::addScientific(float value, uint8_t significantDigits)
     if (!startField() || addNonFinite(value)) {
         return;
     }
-    if (significantDigits < 1) significantDigits = 1;
-    if (significantDigits > MAX_DECIMALS) significantDigits = MAX_DECIMALS;
+    if (significantDigits < 1)
+        significantDigits = 1;
+    if (significantDigits > MAX_DECIMALS)
+        significantDigits = MAX_DECIMALS;
     char text[NUMBER_BUFFER_SIZE];
     formatScientific(value, (uint8_t)(significantDigits - 1), text);
     append(text);

@@ -184,10 +184,7 @@ public:
 
     // Wraps at 65535.
     uint16_t malformedCount() const { return malformedCount_; }
-    Protocol::MalformedReason lastMalformedReason() const
-    {
-        return (Protocol::MalformedReason)lastMalformed_;
-    }
+    Protocol::MalformedReason lastMalformedReason() const { return (Protocol::MalformedReason)lastMalformed_; }
 
 private:
     enum State : uint8_t { WAITING_FOR_START, IN_LINE, DISCARDING };
