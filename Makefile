@@ -6,7 +6,7 @@ BUILD ?= build
 VENV ?= .venv
 PYTHON ?= python3
 JOBS ?= $(shell nproc)
-APT_PACKAGES := python3 python3-venv cmake make gcc g++ gcc-avr avr-libc binutils-avr arduino-core-avr simavr libsimavr-dev
+APT_PACKAGES := python3 python3-venv cmake make gcc g++ gcc-avr avr-libc binutils-avr arduino-core-avr simavr libsimavr-dev clang-format
 # clang 14 and its libFuzzer and sanitizer runtimes, for the fuzz targets.
 FUZZ_APT_PACKAGES := clang libclang-rt-14-dev
 AVR_MCUS := atmega328p atmega2560
@@ -19,7 +19,7 @@ VENV_READY := $(VENV)/.installed
 SCENARIO ?= fig8
 RUNS ?= runs
 
-.PHONY: all firmware simulate demo test deps system-deps python-deps build native avr bench bench-discovery fuzz fuzz-build clean
+.PHONY: all firmware simulate demo test deps system-deps python-deps build native avr bench bench-discovery fuzz fuzz-build lint-cpp clean
 
 all: demo
 
@@ -96,6 +96,13 @@ fuzz-build: system-deps
 # Every libFuzzer target for FUZZ_SECONDS (make test gives each 20 s).
 fuzz: fuzz-build
 	@bash fuzz/run.sh $(FUZZ) $(FUZZ_SECONDS)
+
+# The project's C/C++ sources against .clang-format (cmake/ holds the vendored
+# Unity fallback, which keeps its own layout); exits non-zero on a violation.
+CPP_SOURCES := $(foreach dir,lib firmware sim test fuzz host/native,'$(dir)/*.c' '$(dir)/*.cpp' '$(dir)/*.h')
+lint-cpp:
+	@command -v clang-format >/dev/null || { echo "error: clang-format is missing: make system-deps" >&2; exit 1; }
+	git ls-files -z -- $(CPP_SOURCES) | xargs -0 clang-format --dry-run --Werror
 
 test: build fuzz-build python-deps
 	@BUILD=$(BUILD) VENV=$(VENV) bash cmake/run-tests.sh $(AVR_MCUS)

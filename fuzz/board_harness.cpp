@@ -30,14 +30,13 @@ uint8_t bootFlags = POWER_ON_FLAGS;
 
 struct FrameSpec {
     const char* tag;
-    const char* direction;
+    const char* role;
     const char* fields;
 };
 
 const FrameSpec FRAME_SPECS[] = {
-#define THERMOTILT_FRAME(tag, direction, fields) {#tag, #direction, fields},
+#define THERMOTILT_FRAME(tag, role, fields) {#tag, #role, fields},
 #include <ProtocolFrames.def>
-#undef THERMOTILT_FRAME
 };
 
 struct ErrorDetailSpec {
@@ -48,13 +47,11 @@ struct ErrorDetailSpec {
 const char* const ERROR_CODES[] = {
 #define THERMOTILT_ERROR(code, meaning) #code,
 #include <ProtocolFrames.def>
-#undef THERMOTILT_ERROR
 };
 
 const ErrorDetailSpec ERROR_DETAILS[] = {
 #define THERMOTILT_ERROR_DETAIL(token, codes) {#token, codes},
 #include <ProtocolFrames.def>
-#undef THERMOTILT_ERROR_DETAIL
 };
 
 // Whether a space-separated list holds the word.
@@ -126,7 +123,7 @@ bool isBoardInteger(const char* text)
 void checkAgainstTable(const FrameParser& frame)
 {
     const FrameSpec* spec = specOf(frame.type());
-    require(spec != 0 && strcmp(spec->direction, "BOARD") == 0, "the board sent a type that is no board frame");
+    require(spec != 0 && strcmp(spec->role, "COMMAND") != 0, "the board sent a type that is no board frame");
     uint8_t index = 0;
     for (const char* kind = strchr(spec->fields, ':'); kind; kind = strchr(kind + 1, ':'), ++index) {
         require(index < frame.fieldCount(), "a board frame has fewer fields than ProtocolFrames.def");

@@ -98,7 +98,9 @@ public:
 
     void setTemperature(int32_t raw)
     {
-        uint16_t value = (uint16_t)(raw < TEMPERATURE_MIN ? TEMPERATURE_MIN : raw > TEMPERATURE_MAX ? TEMPERATURE_MAX : raw);
+        uint16_t value = (uint16_t)(raw < TEMPERATURE_MIN   ? TEMPERATURE_MIN
+                                    : raw > TEMPERATURE_MAX ? TEMPERATURE_MAX
+                                                            : raw);
         registers_[Lsm9ds0::OUT_TEMP_L_XM] = (uint8_t)value;
         registers_[Lsm9ds0::OUT_TEMP_H_XM] = (uint8_t)((value >> 8) & 0x0F);
     }
@@ -146,8 +148,8 @@ void writeCoefficientBlock(const uint8_t* floats, size_t length)
     float* terms = &coefficients.set[0].axis[0].p[0];
     size_t count = COMP_SET_COUNT * COMP_AXIS_COUNT * COMP_COEFFICIENT_COUNT;
     for (size_t i = 0; i < count && 4 * i + 4 <= length; ++i) {
-        uint32_t bits = (uint32_t)floats[4 * i] | (uint32_t)floats[4 * i + 1] << 8 |
-                        (uint32_t)floats[4 * i + 2] << 16 | (uint32_t)floats[4 * i + 3] << 24;
+        uint32_t bits = (uint32_t)floats[4 * i] | (uint32_t)floats[4 * i + 1] << 8 | (uint32_t)floats[4 * i + 2] << 16 |
+                        (uint32_t)floats[4 * i + 3] << 24;
         memcpy(&terms[i], &bits, sizeof bits);
     }
     encodeCoefficients(coefficients, ArduinoShim::eeprom());
@@ -155,10 +157,7 @@ void writeCoefficientBlock(const uint8_t* floats, size_t length)
 
 class Imu : public Board {
 public:
-    void powerOn() override
-    {
-        ArduinoShim::attachI2cDevice(Lsm9ds0::ADDRESS_XM_SDO_HIGH, &sensor_);
-    }
+    void powerOn() override { ArduinoShim::attachI2cDevice(Lsm9ds0::ADDRESS_XM_SDO_HIGH, &sensor_); }
 
     void setWorld(char key, int32_t value, bool) override
     {

@@ -92,8 +92,9 @@ static int usage(void)
 static int parse_sensor(const char *text, sensor_option_t *sensor)
 {
     int consumed = 0;
-    if (sscanf(text, "%d,%d,%d,%d%n", &sensor->values[0], &sensor->values[1], &sensor->values[2],
-               &sensor->values[3], &consumed) != 4 || text[consumed] != '\0') {
+    if (sscanf(text, "%d,%d,%d,%d%n", &sensor->values[0], &sensor->values[1], &sensor->values[2], &sensor->values[3],
+               &consumed) != 4 ||
+        text[consumed] != '\0') {
         return -1;
     }
     sensor->attached = 1;
@@ -156,13 +157,17 @@ int main(int argc, char **argv)
         if (strcmp(arg, "-m") == 0 && has_value) {
             mcu = argv[++i];
         } else if (strcmp(arg, "-f") == 0 && has_value) {
-            if (parse_positive(argv[++i], &frequency) != 0) return usage();
+            if (parse_positive(argv[++i], &frequency) != 0)
+                return usage();
         } else if (strcmp(arg, "-t") == 0 && has_value) {
-            if (parse_positive(argv[++i], &timeout_s) != 0) return usage();
+            if (parse_positive(argv[++i], &timeout_s) != 0)
+                return usage();
         } else if (strcmp(arg, "--lsm9ds0") == 0 && has_value) {
-            if (parse_sensor(argv[++i], &sensor_option) != 0) return usage();
+            if (parse_sensor(argv[++i], &sensor_option) != 0)
+                return usage();
         } else if (strcmp(arg, "--adc") == 0 && has_value) {
-            if (parse_adc(argv[++i], &adc) != 0) return usage();
+            if (parse_adc(argv[++i], &adc) != 0)
+                return usage();
         } else if (strcmp(arg, "--input") == 0 && has_value) {
             input_path = argv[++i];
         } else if (strcmp(arg, "--unity") == 0) {
@@ -228,8 +233,7 @@ int main(int argc, char **argv)
         return state == cpu_Done ? EXIT_PASSED : EXIT_TIMED_OUT;
     }
     if (!watch.verdict_seen) {
-        fprintf(stderr, "avr_run: %s printed no Unity verdict within %.1f s simulated\n", elf_path,
-                simulated_s);
+        fprintf(stderr, "avr_run: %s printed no Unity verdict within %.1f s simulated\n", elf_path, simulated_s);
         return EXIT_TIMED_OUT;
     }
     return watch.verdict_ok && watch.failures == 0 ? EXIT_PASSED : EXIT_TESTS_FAILED;

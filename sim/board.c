@@ -62,8 +62,7 @@ static void uart0_output(struct avr_irq_t *irq, uint32_t value, void *param)
     }
 }
 
-__attribute__((format(printf, 3, 4))) static void report(char *error, size_t error_capacity,
-                                                        const char *format, ...)
+__attribute__((format(printf, 3, 4))) static void report(char *error, size_t error_capacity, const char *format, ...)
 {
     if (error_capacity == 0) {
         return;
@@ -103,9 +102,8 @@ static avr_cycle_count_t send_next_byte(avr_t *avr, avr_cycle_count_t when, void
  */
 static void set_run_cycle_limit(board_t *board)
 {
-    board->avr->run_cycle_limit = board->profile.plain_run || board->one_instruction_per_call
-                                      ? 1
-                                      : BOARD_RUN_CYCLE_LIMIT;
+    board->avr->run_cycle_limit = board->profile.plain_run || board->one_instruction_per_call ? 1
+                                                                                              : BOARD_RUN_CYCLE_LIMIT;
 }
 
 static void after_reset(avr_io_t *io)
@@ -286,8 +284,8 @@ static void take_sample(board_profile_t *profile, uint32_t pc)
     board_profile_sample_t *sample = &profile->samples[profile->kept++];
     sample->frames[0] = pc;
     for (int frame = 1; frame < BOARD_PROFILE_FRAMES; ++frame) {
-        sample->frames[frame] =
-            frame <= profile->depth ? profile->calls[profile->depth - frame].call_site : BOARD_PROFILE_NO_FRAME;
+        sample->frames[frame] = frame <= profile->depth ? profile->calls[profile->depth - frame].call_site
+                                                        : BOARD_PROFILE_NO_FRAME;
     }
 }
 
@@ -398,8 +396,8 @@ void board_capture_uart0(board_t *board, board_uart_byte_fn on_byte, void *conte
     avr_ioctl(board->avr, AVR_IOCTL_UART_SET_FLAGS('0'), &flags);
     board->on_uart_byte = on_byte;
     board->uart_context = context;
-    avr_irq_register_notify(avr_io_getirq(board->avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUTPUT),
-                            uart0_output, board);
+    avr_irq_register_notify(avr_io_getirq(board->avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUTPUT), uart0_output,
+                            board);
 }
 
 /*
@@ -439,8 +437,8 @@ void board_feed_uart0(board_t *board, const uint8_t *bytes, size_t length, uint3
     board->uart_input = bytes;
     board->uart_input_length = length;
     board->uart_input_sent = 0;
-    avr_cycle_timer_register(board->avr, (avr_cycle_count_t)board->avr->frequency / 1000 * start_ms,
-                             send_next_byte, board);
+    avr_cycle_timer_register(board->avr, (avr_cycle_count_t)board->avr->frequency / 1000 * start_ms, send_next_byte,
+                             board);
 }
 
 static avr_cycle_count_t stop_here(avr_t *avr, avr_cycle_count_t when, void *param)

@@ -61,7 +61,7 @@ typedef struct board {
     board_reset_fn reset_hooks[BOARD_RESET_HOOKS];
     void *reset_contexts[BOARD_RESET_HOOKS];
     int reset_hook_count;
-    uint64_t slept_cycles; /* cycles simavr skipped while the CPU slept, since load */
+    uint64_t slept_cycles;        /* cycles simavr skipped while the CPU slept, since load */
     int one_instruction_per_call; /* board_run_one_instruction_per_call */
     board_profile_t profile;
 } board_t;

@@ -38,8 +38,10 @@ const char* makeFrame(FrameWriter& writer, uint16_t seq, Draws& draws)
     case 0:
         writer.begin(Protocol::Tag::IMU, seq);
         writer.addUnsigned(draws.below(100000000));
-        for (int axis = 0; axis < 3; ++axis) writer.addInt((int32_t)draws.below(65536) - 32768);
-        for (int axis = 0; axis < 6; ++axis) writer.addFixed(draws.between(-20000.0f, 20000.0f), 1);
+        for (int axis = 0; axis < 3; ++axis)
+            writer.addInt((int32_t)draws.below(65536) - 32768);
+        for (int axis = 0; axis < 6; ++axis)
+            writer.addFixed(draws.between(-20000.0f, 20000.0f), 1);
         writer.addFixed(draws.between(-10.0f, 45.0f), 3);
         writer.addChar(draws.below(2) ? 'W' : 'C');
         writer.addChar('E');
@@ -69,7 +71,8 @@ const char* makeFrame(FrameWriter& writer, uint16_t seq, Draws& draws)
         writer.begin(Protocol::Tag::SETCOE, seq);
         writer.addChar(draws.below(2) ? 'W' : 'C');
         writer.addChar((char)('X' + draws.below(3)));
-        for (int term = 0; term < 6; ++term) writer.addScientific(draws.between(-600.0f, 600.0f), 9);
+        for (int term = 0; term < 6; ++term)
+            writer.addScientific(draws.between(-600.0f, 600.0f), 9);
         break;
     }
     return writer.finish();
@@ -152,9 +155,8 @@ int main(int argc, char** argv)
         double perMillion = 1e6 * (double)counts.corruptedAccepted / (double)counts.sent;
         printf("  byte error rate %.4g: %llu of %llu frames hit, %llu arrived intact, "
                "%llu corrupted frames accepted = %.2f per million frames sent",
-               rate, (unsigned long long)counts.hit, (unsigned long long)counts.sent,
-               (unsigned long long)counts.intact, (unsigned long long)counts.corruptedAccepted,
-               perMillion);
+               rate, (unsigned long long)counts.hit, (unsigned long long)counts.sent, (unsigned long long)counts.intact,
+               (unsigned long long)counts.corruptedAccepted, perMillion);
         if (counts.corruptedAccepted == 0) {
             printf(" (95 %% upper bound %.2f)", 1e6 * kZeroEventsUpperBound95 / (double)counts.sent);
         }

@@ -119,8 +119,7 @@ void l298n_attach(l298n_t *bridge, avr_t *avr)
     bridge->level_since = avr->cycle;
     bridge->window_start = avr->cycle;
     for (size_t i = 0; i < sizeof watched / sizeof watched[0]; i++) {
-        avr_irq_register_notify(avr_iomem_getirq(avr, watched[i], NULL, AVR_IOMEM_IRQ_ALL), on_register_write,
-                                bridge);
+        avr_irq_register_notify(avr_iomem_getirq(avr, watched[i], NULL, AVR_IOMEM_IRQ_ALL), on_register_write, bridge);
     }
     update(bridge);
 }

@@ -30,8 +30,8 @@ enum {
 };
 
 /* AODR[3:0] of CTRL_REG1_XM -> output data rate in mHz (0 = power-down). */
-static const uint32_t output_rate_mhz[16] = {0, 3125, 6250, 12500, 25000, 50000, 100000,
-                                             200000, 400000, 800000, 1600000};
+static const uint32_t output_rate_mhz[16] = {0,      3125,   6250,   12500,  25000,  50000,
+                                             100000, 200000, 400000, 800000, 1600000};
 
 static uint8_t data_rate_index(const lsm9ds0_t *sensor)
 {

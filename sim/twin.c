@@ -40,8 +40,7 @@ static void log_errors_only(avr_t *avr, const int level, const char *format, va_
     }
 }
 
-twin_t *twin_create(const char *elf_path, const char *mcu, uint32_t frequency_hz, char *error,
-                    size_t error_capacity)
+twin_t *twin_create(const char *elf_path, const char *mcu, uint32_t frequency_hz, char *error, size_t error_capacity)
 {
     avr_global_logger_set(log_errors_only);
     twin_t *twin = calloc(1, sizeof *twin);

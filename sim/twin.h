@@ -1,6 +1,6 @@
 /*
  * A flat C interface over one simulated board, for ctypes
- * (host/thermotilt/twin.py): the firmware image in simavr with its USART0
+ * (host/thermotilt/twin/boards.py): the firmware image in simavr with its USART0
  * bridge, analog inputs with fault overrides, and optionally the LSM9DS0
  * model on TWI and the L298N observer on the Mega's pins. Everything but the
  * pty is deterministic: the same calls give the same bytes.
@@ -19,8 +19,7 @@ enum twin_adc_fault { TWIN_ADC_NONE = 0, TWIN_ADC_OPEN = 1, TWIN_ADC_SHORT = 2 }
 enum { TWIN_ADC_CHANNELS = 8, TWIN_SUPPLY_MILLIVOLTS = 5000 };
 
 /* NULL on failure, with a readable reason in error. */
-twin_t *twin_create(const char *elf_path, const char *mcu, uint32_t frequency_hz, char *error,
-                    size_t error_capacity);
+twin_t *twin_create(const char *elf_path, const char *mcu, uint32_t frequency_hz, char *error, size_t error_capacity);
 void twin_free(twin_t *twin);
 
 /* Runs until the cycle count reaches until_cycle; returns a twin_state. */

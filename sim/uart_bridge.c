@@ -90,10 +90,8 @@ void uart_bridge_attach(uart_bridge_t *bridge, board_t *board)
     bridge->receiver_full = 1;
     bridge->firmware_input = avr_io_getirq(board->avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_INPUT);
     board_capture_uart0(board, on_firmware_byte, bridge);
-    avr_irq_register_notify(avr_io_getirq(board->avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUT_XON), on_xon,
-                            bridge);
-    avr_irq_register_notify(avr_io_getirq(board->avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUT_XOFF), on_xoff,
-                            bridge);
+    avr_irq_register_notify(avr_io_getirq(board->avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUT_XON), on_xon, bridge);
+    avr_irq_register_notify(avr_io_getirq(board->avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUT_XOFF), on_xoff, bridge);
 }
 
 void uart_bridge_free(uart_bridge_t *bridge)

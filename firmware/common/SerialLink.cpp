@@ -9,20 +9,12 @@
 
 namespace Detail = Protocol::ErrorDetail;
 
-static const char* malformedName(Protocol::MalformedReason reason)
-{
-    switch (reason) {
-    case Protocol::MALFORMED_TRUNCATED: return Detail::TRUNCATED;
-    case Protocol::MALFORMED_TOO_LONG: return Detail::TOO_LONG;
-    case Protocol::MALFORMED_BAD_CHAR: return Detail::BAD_CHAR;
-    case Protocol::MALFORMED_NO_CHECKSUM: return Detail::NO_CHECKSUM;
-    case Protocol::MALFORMED_BAD_CHECKSUM: return Detail::BAD_CHECKSUM;
-    case Protocol::MALFORMED_BAD_TYPE: return Detail::BAD_TYPE;
-    case Protocol::MALFORMED_BAD_SEQ: return Detail::BAD_SEQ;
-    case Protocol::MALFORMED_TOO_MANY_FIELDS: return Detail::TOO_MANY_FIELDS;
-    default: return "UNKNOWN";  // MALFORMED_NONE, which is never reported
-    }
-}
+// BAD_FRAME's detail for each reason, in MalformedReason's order.
+static const char* const MALFORMED_NAMES[] PROGMEM = {
+    "UNKNOWN",  // MALFORMED_NONE, never reported
+#define THERMOTILT_MALFORMED_REASON(token) Detail::token,
+#include <ProtocolFrames.def>
+};
 
 SerialLink::SerialLink()
     : writer_(line_, sizeof line_),
@@ -51,7 +43,8 @@ bool SerialLink::poll(uint32_t nowMs)
             if (!malformedReported_ || nowMs - lastMalformedReportMs_ >= MALFORMED_REPORT_MS) {
                 malformedReported_ = true;
                 lastMalformedReportMs_ = nowMs;
-                report(Protocol::Error::BAD_FRAME, malformedName(parser_.lastMalformedReason()));
+                report(Protocol::Error::BAD_FRAME,
+                       (const char*)pgm_read_ptr(&MALFORMED_NAMES[parser_.lastMalformedReason()]));
             }
         }
         if (complete && !Protocol::isBoardFrame(parser_.type())) {
@@ -60,6 +53,18 @@ bool SerialLink::poll(uint32_t nowMs)
         }
     }
     return false;
+}
+
+void SerialLink::dispatch(const Protocol::Command* commands, uint8_t count)
+{
+    Protocol::Command command;
+    if (!Protocol::findCommand(commands, count, parser_.type(), command)) {
+        reject(Protocol::Error::UNKNOWN_CMD, parser_.type());
+    } else if (parser_.fieldCount() < command.minFields) {
+        reject(Protocol::Error::BAD_ARG, command.fieldsDetail);
+    } else {
+        command.handler(parser_);
+    }
 }
 
 void SerialLink::send()

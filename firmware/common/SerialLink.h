@@ -7,6 +7,7 @@
 #ifndef THERMOTILT_SERIAL_LINK_H
 #define THERMOTILT_SERIAL_LINK_H
 
+#include <CommandTable.h>
 #include <Protocol.h>
 
 // Both boards and the host use one speed; see docs/protocol.md.
@@ -25,16 +26,21 @@ public:
     void begin();
 
     // Reads up to MAX_BYTES_PER_POLL bytes; true when a command frame is
-    // ready in command(). Frames a board sends (IMU, ACK, ERR, ...) are
+    // ready for dispatch(). Frames a board sends (IMU, ACK, ERR, ...) are
     // ignored, so an echoing terminal cannot start a conversation of the
     // board with itself. A malformed line is answered with an unsolicited
     // ERR, at most once per MALFORMED_REPORT_MS. nowMs is the board's clock.
     bool poll(uint32_t nowMs);
-    const FrameParser& command() const { return parser_; }
-    // Inline, as start(): e.g. commandIs(Protocol::Frame::START).
-    __attribute__((always_inline)) bool commandIs(Protocol::FrameType type) const
+
+    // Carries out the command poll() found with its entry of commands, a
+    // table in program memory: ERR UNKNOWN_CMD when it has none, ERR BAD_ARG
+    // when the command has fewer fields than the entry needs, else the
+    // entry's handler, which answers.
+    void dispatch(const Protocol::Command* commands, uint8_t count);
+    template <uint8_t count>
+    void dispatch(const Protocol::Command (&commands)[count])
     {
-        return parser_.typeIs_P(type.tag);
+        dispatch(commands, count);
     }
 
     // nowMs of the poll() that read the last valid frame from the host.

@@ -60,9 +60,7 @@ ISR(TWI_vect)
         receiveNext = receiveNext + 1;
         --receiveLeft;
         // fall through: acknowledge every byte but the last
-    case TW_MR_SLA_ACK:
-        TWCR = receiveLeft > 1 ? (GO | _BV(TWEA)) : GO;
-        break;
+    case TW_MR_SLA_ACK: TWCR = receiveLeft > 1 ? (GO | _BV(TWEA)) : GO; break;
     case TW_MR_DATA_NACK:
         *receiveNext = TWDR;
         receiveLeft = 0;

@@ -24,8 +24,7 @@ public:
     bool readRegisters(uint8_t address7, uint8_t firstReg, uint8_t* out, uint8_t count) override;
 
 private:
-    bool transfer(uint8_t address7, const uint8_t* send, uint8_t sendCount, uint8_t* receive,
-                  uint8_t receiveCount);
+    bool transfer(uint8_t address7, const uint8_t* send, uint8_t sendCount, uint8_t* receive, uint8_t receiveCount);
     void reset();
 
     uint8_t bitRate_;

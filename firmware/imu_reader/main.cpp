@@ -17,6 +17,7 @@
 
 namespace {
 
+namespace Frame = Protocol::Frame;
 namespace Error = Protocol::Error;
 namespace Detail = Protocol::ErrorDetail;
 
@@ -86,11 +87,14 @@ bool dataReadyLevel()
 const char* sensorStatusName(Lsm9ds0Accel::Status status)
 {
     switch (status) {
-    case Lsm9ds0Accel::Status::NoAnswer: return Detail::NO_ANSWER;
-    case Lsm9ds0Accel::Status::WrongId: return Detail::WRONG_ID;
-    case Lsm9ds0Accel::Status::WriteFailed: return Detail::WRITE_FAILED;
-    default: return "OK";
+    case Lsm9ds0Accel::Status::Ok: break;
+#define THERMOTILT_SENSOR_STATUS(enumerator, token) \
+    case Lsm9ds0Accel::Status::enumerator: { \
+        return Detail::token; \
     }
+#include <ProtocolFrames.def>
+    }
+    return "OK";
 }
 
 void connectSensor()
@@ -118,12 +122,16 @@ void sensorLost(const char* why)
 bool blockErrorCode(BlockStatus status, Protocol::ErrorCode& code)
 {
     switch (status) {
-    case BlockStatus::BadMagic: code = Error::EEPROM_MAGIC; return true;
-    case BlockStatus::BadVersion: code = Error::EEPROM_VERSION; return true;
-    case BlockStatus::BadCrc: code = Error::EEPROM_CRC; return true;
-    case BlockStatus::BadValues: code = Error::EEPROM_VALUES; return true;
-    default: return false;
+    case BlockStatus::Ok:
+    case BlockStatus::Blank: break;
+#define THERMOTILT_BLOCK_STATUS(enumerator, name) \
+    case BlockStatus::enumerator: { \
+        code = Error::name; \
+        return true; \
     }
+#include <ProtocolFrames.def>
+    }
+    return false;
 }
 
 // LTO inlines setup(), loop() and what they call into main(), whose one frame
@@ -163,7 +171,7 @@ __attribute__((noinline)) void saveCoefficients()
 
 void sendImuFrame(const int16_t raw[AXES], const ImuOutput& out)
 {
-    FrameWriter& frame = link.start(Protocol::Frame::IMU);
+    FrameWriter& frame = link.start(Frame::IMU);
     frame.addUnsigned(Clock::nowMs());
     for (uint8_t axis = 0; axis < AXES; ++axis) {
         frame.addInt(raw[axis]);
@@ -261,7 +269,7 @@ bool parseSetAndAxis(const FrameParser& command, uint8_t& set, uint8_t& axis)
 
 void sendCoefficients(uint8_t set, uint8_t axis)
 {
-    FrameWriter& frame = link.start(Protocol::Frame::COE);
+    FrameWriter& frame = link.start(Frame::COE);
     frame.addChar(set == 0 ? 'W' : 'C');
     frame.addChar((char)('X' + axis));
     for (uint8_t term = 0; term < COMP_COEFFICIENT_COUNT; ++term) {
@@ -272,7 +280,7 @@ void sendCoefficients(uint8_t set, uint8_t axis)
 
 void sendConfiguration()
 {
-    FrameWriter& frame = link.start(Protocol::Frame::ICF);
+    FrameWriter& frame = link.start(Frame::ICF);
     frame.addUnsigned(processing.decimation());
     frame.addUnsigned(streaming ? 1 : 0);
     frame.addChar(coefficientSource);
@@ -280,76 +288,121 @@ void sendConfiguration()
     link.send();
 }
 
-void handleCommand()
+void onStart(const FrameParser&)
 {
-    const FrameParser& command = link.command();
+    streaming = true;
+    processing.restartDecimation();
+    link.acknowledge();
+}
+
+void onStop(const FrameParser&)
+{
+    streaming = false;
+    processing.restartDecimation();
+    link.acknowledge();
+}
+
+// After a tilt-table move: the filters would take ~90 s to forget the old
+// angle; seeded again, the next samples average from the new one.
+void onReseed(const FrameParser&)
+{
+    processing.reset();
+    link.acknowledge();
+}
+
+void onVersion(const FrameParser&)
+{
+    link.sendVersion("imu_reader", FIRMWARE_VERSION);
+    link.acknowledge();
+}
+
+void onStatus(const FrameParser&)
+{
+    sendConfiguration();
+    link.acknowledge();
+}
+
+void onSetDecimation(const FrameParser& command)
+{
+    int32_t factor = 0;
+    if (!command.fieldInt(0, factor) || factor < 1 || factor > 255) {
+        link.reject(Error::BAD_ARG, Detail::FACTOR_1_255);
+        return;
+    }
+    processing.setDecimation((uint8_t)factor);
+    link.acknowledge();
+}
+
+void onGetCoefficients(const FrameParser& command)
+{
     uint8_t set = 0;
     uint8_t axis = 0;
-    if (link.commandIs(Protocol::Frame::START) || link.commandIs(Protocol::Frame::STOP)) {
-        streaming = link.commandIs(Protocol::Frame::START);
-        processing.restartDecimation();
-        link.acknowledge();
-    } else if (link.commandIs(Protocol::Frame::RESEED)) {
-        // After a tilt-table move: the filters would take ~90 s to forget the
-        // old angle; seeded again, the next samples average from the new one.
-        processing.reset();
-        link.acknowledge();
-    } else if (link.commandIs(Protocol::Frame::VERSION)) {
-        link.sendVersion("imu_reader", FIRMWARE_VERSION);
-        link.acknowledge();
-    } else if (link.commandIs(Protocol::Frame::STATUS)) {
-        sendConfiguration();
-        link.acknowledge();
-    } else if (link.commandIs(Protocol::Frame::SETDEC)) {
-        int32_t factor = 0;
-        if (command.fieldCount() < Protocol::FieldCount::SETDEC || !command.fieldInt(0, factor) ||
-            factor < 1 || factor > 255) {
-            link.reject(Error::BAD_ARG, Detail::FACTOR_1_255);
-            return;
-        }
-        processing.setDecimation((uint8_t)factor);
-        link.acknowledge();
-    } else if (link.commandIs(Protocol::Frame::GETCOE)) {
-        if (command.fieldCount() < Protocol::FieldCount::GETCOE || !parseSetAndAxis(command, set, axis)) {
-            link.reject(Error::BAD_ARG, Detail::SET_AXIS);
-            return;
-        }
-        sendCoefficients(set, axis);
-        link.acknowledge();
-    } else if (link.commandIs(Protocol::Frame::SETCOE)) {
-        AxisSurface surface;
-        bool valid = command.fieldCount() >= Protocol::FieldCount::SETCOE && parseSetAndAxis(command, set, axis);
-        for (uint8_t term = 0; valid && term < COMP_COEFFICIENT_COUNT; ++term) {
-            valid = command.fieldFloat((uint8_t)(2 + term), surface.p[term]) && isfinite(surface.p[term]);
-        }
-        if (!valid) {
-            link.reject(Error::BAD_ARG, Detail::COEFFICIENTS);
-            return;
-        }
-        if (!surfaceOutputFitsFrame(surface)) {
-            link.reject(Error::BAD_ARG, Detail::OUTPUT_TOO_LARGE);
-            return;
-        }
-        coefficients.set[set].axis[axis] = surface;
-        coefficientSource = UPLOADED;
-        link.acknowledge();
-    } else if (link.commandIs(Protocol::Frame::SAVECOE)) {
-        saveCoefficients();
-        link.acknowledge();
-    } else if (link.commandIs(Protocol::Frame::DEFCOE)) {
-        loadDefaultCoefficients(coefficients);
-        coefficientSource = FROM_DEFAULTS;
-        link.acknowledge();
-    } else if (link.commandIs(Protocol::Frame::RESET)) {
-        link.acknowledge();
-        // The ACK leaves before the reset cuts the line.
-        link.flush();
-        startCommandedReset();
-        resetting = true;
-    } else {
-        link.reject(Error::UNKNOWN_CMD, command.type());
+    if (!parseSetAndAxis(command, set, axis)) {
+        link.reject(Error::BAD_ARG, Detail::SET_AXIS);
+        return;
     }
+    sendCoefficients(set, axis);
+    link.acknowledge();
 }
+
+void onSetCoefficients(const FrameParser& command)
+{
+    uint8_t set = 0;
+    uint8_t axis = 0;
+    AxisSurface surface;
+    bool valid = parseSetAndAxis(command, set, axis);
+    for (uint8_t term = 0; valid && term < COMP_COEFFICIENT_COUNT; ++term) {
+        valid = command.fieldFloat((uint8_t)(2 + term), surface.p[term]) && isfinite(surface.p[term]);
+    }
+    if (!valid) {
+        link.reject(Error::BAD_ARG, Detail::COEFFICIENTS);
+        return;
+    }
+    if (!surfaceOutputFitsFrame(surface)) {
+        link.reject(Error::BAD_ARG, Detail::OUTPUT_TOO_LARGE);
+        return;
+    }
+    coefficients.set[set].axis[axis] = surface;
+    coefficientSource = UPLOADED;
+    link.acknowledge();
+}
+
+void onSaveCoefficients(const FrameParser&)
+{
+    saveCoefficients();
+    link.acknowledge();
+}
+
+void onDefaultCoefficients(const FrameParser&)
+{
+    loadDefaultCoefficients(coefficients);
+    coefficientSource = FROM_DEFAULTS;
+    link.acknowledge();
+}
+
+void onReset(const FrameParser&)
+{
+    link.acknowledge();
+    // The ACK leaves before the reset cuts the line.
+    link.flush();
+    startCommandedReset();
+    resetting = true;
+}
+
+// The commands of this board (docs/protocol.md), for SerialLink::dispatch.
+constexpr Protocol::Command COMMANDS[] PROGMEM = {
+    Protocol::command(Frame::START, onStart),
+    Protocol::command(Frame::STOP, onStop),
+    Protocol::command(Frame::RESEED, onReseed),
+    Protocol::command(Frame::VERSION, onVersion),
+    Protocol::command(Frame::STATUS, onStatus),
+    Protocol::command(Frame::SETDEC, onSetDecimation, Detail::FACTOR_1_255),
+    Protocol::command(Frame::GETCOE, onGetCoefficients, Detail::SET_AXIS),
+    Protocol::command(Frame::SETCOE, onSetCoefficients, Detail::COEFFICIENTS),
+    Protocol::command(Frame::SAVECOE, onSaveCoefficients),
+    Protocol::command(Frame::DEFCOE, onDefaultCoefficients),
+    Protocol::command(Frame::RESET, onReset),
+};
 
 }  // namespace
 
@@ -376,7 +429,7 @@ __attribute__((noinline)) void loop()
     feedWatchdog();
     link.writePending();
     if (link.poll(Clock::nowMs())) {
-        handleCommand();
+        link.dispatch(COMMANDS);
         if (resetting) {
             return;
         }
@@ -390,8 +443,8 @@ __attribute__((noinline)) void loop()
     } else {
         dataReadyChanged = false;
         uint32_t sinceSample = now - lastSampleMs;
-        uint32_t pollAfter =
-            dataReadyLine.trusted() ? DATA_READY_LINE_SILENT_MS : SAMPLE_PERIOD_MS - DATA_READY_WINDOW_MS;
+        uint32_t pollAfter = dataReadyLine.trusted() ? DATA_READY_LINE_SILENT_MS
+                                                     : SAMPLE_PERIOD_MS - DATA_READY_WINDOW_MS;
         bool level = dataReadyLevel();
         if (dataReadyLine.saysReady(level)) {
             readSample(now, true, level);

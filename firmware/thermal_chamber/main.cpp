@@ -19,6 +19,7 @@
 
 namespace {
 
+namespace Frame = Protocol::Frame;
 namespace Error = Protocol::Error;
 namespace Detail = Protocol::ErrorDetail;
 
@@ -33,20 +34,11 @@ const float CONTROL_PERIOD_S = (float)CONTROL_PERIOD_MS / 1000.0f;
 // An hour: longer is no heartbeat at all.
 const int32_t MAX_HEARTBEAT_S = 3600;
 
+// The faults the board latches, each named as CHS and ERR name it.
 enum Fault : uint8_t {
     NO_FAULT,
-    INNER_OPEN,
-    INNER_SHORT,
-    OUTER_OPEN,
-    OUTER_SHORT,
-    INNER_HOT,
-    INNER_COLD,
-    OUTER_HOT,
-    OUTER_COLD,
-    NO_RESPONSE,
-    WRONG_WAY,
-    HOLD_LOST,
-    HOST_SILENT,
+#define THERMOTILT_CHAMBER_FAULT(token, code) token,
+#include <ProtocolFrames.def>
 };
 
 SerialLink link;
@@ -74,40 +66,26 @@ ThermistorReading outer = {NAN, ThermistorStatus::Ok};
 ProgramState programState;
 DriveCommand drive = {0, Direction::Off};
 
+// Each fault's name and the ERR code it is reported with, in Fault's order.
+const char* const FAULT_NAMES[] PROGMEM = {
+    "OK",  // NO_FAULT, as CHS says it
+#define THERMOTILT_CHAMBER_FAULT(token, code) Detail::token,
+#include <ProtocolFrames.def>
+};
+const Protocol::ErrorCode FAULT_CODES[] PROGMEM = {
+    Error::FAULT,  // NO_FAULT, never reported
+#define THERMOTILT_CHAMBER_FAULT(token, code) Error::code,
+#include <ProtocolFrames.def>
+};
+
 const char* faultName(Fault value)
 {
-    switch (value) {
-    case INNER_OPEN: return Detail::INNER_OPEN;
-    case INNER_SHORT: return Detail::INNER_SHORT;
-    case OUTER_OPEN: return Detail::OUTER_OPEN;
-    case OUTER_SHORT: return Detail::OUTER_SHORT;
-    case INNER_HOT: return Detail::INNER_HOT;
-    case INNER_COLD: return Detail::INNER_COLD;
-    case OUTER_HOT: return Detail::OUTER_HOT;
-    case OUTER_COLD: return Detail::OUTER_COLD;
-    case NO_RESPONSE: return Detail::NO_RESPONSE;
-    case WRONG_WAY: return Detail::WRONG_WAY;
-    case HOLD_LOST: return Detail::HOLD_LOST;
-    case HOST_SILENT: return Detail::HOST_SILENT;
-    default: return "OK";
-    }
+    return (const char*)pgm_read_ptr(&FAULT_NAMES[value]);
 }
 
-// The ERR code a fault is reported with.
 Protocol::ErrorCode faultCategory(Fault value)
 {
-    switch (value) {
-    case INNER_OPEN:
-    case INNER_SHORT:
-    case OUTER_OPEN:
-    case OUTER_SHORT: return Error::THERMISTOR;
-    case INNER_HOT:
-    case INNER_COLD:
-    case OUTER_HOT:
-    case OUTER_COLD: return Error::LIMIT;
-    case HOST_SILENT: return Error::HEARTBEAT;
-    default: return Error::RUNAWAY;
-    }
+    return {(const char*)pgm_read_ptr(&FAULT_CODES[value].text)};
 }
 
 Fault faultOf(GuardFault value)
@@ -188,7 +166,7 @@ char directionLetter(Direction direction)
 
 void sendStatus(uint32_t now)
 {
-    FrameWriter& frame = link.start(Protocol::Frame::CHS);
+    FrameWriter& frame = link.start(Frame::CHS);
     frame.addUnsigned(now);
     frame.addChar(phaseLetter());
     frame.addUnsigned(running ? programState.step : 0);
@@ -234,8 +212,8 @@ void controlTick(uint32_t now)
     Fault detected = presentThermistorFault();
     if (detected == NO_FAULT) {
         // Limits and runaway, judged with the drive that produced these readings.
-        detected = faultOf(guard.update(driving ? programState.setpoint_c : NAN, inner.celsius, outer.celsius,
-                                        drive, CONTROL_PERIOD_S));
+        detected = faultOf(guard.update(driving ? programState.setpoint_c : NAN, inner.celsius, outer.celsius, drive,
+                                        CONTROL_PERIOD_S));
     }
     if (detected == NO_FAULT && hostSilent(now)) {
         detected = HOST_SILENT;
@@ -279,7 +257,7 @@ bool parseHoldStart(const char* text, HoldStart& value)
 void sendProgram()
 {
     const ProgramSettings& settings = program.settings();
-    FrameWriter& frame = link.start(Protocol::Frame::PRG);
+    FrameWriter& frame = link.start(Frame::PRG);
     frame.addFixed(settings.start_c, 2);
     frame.addFixed(settings.max_c, 2);
     frame.addFixed(settings.step_c, 2);
@@ -301,9 +279,9 @@ struct GuardField {
     uint8_t decimals;
 };
 const GuardField GUARD_FIELDS[] = {
-    {&GuardSettings::band_c, 2},        {&GuardSettings::gain_c, 2},        {&GuardSettings::window_s, 1},
-    {&GuardSettings::wrong_way_c, 2},   {&GuardSettings::max_error_c_s, 1}, {&GuardSettings::inner_min_c, 2},
-    {&GuardSettings::inner_max_c, 2},   {&GuardSettings::outer_min_c, 2},   {&GuardSettings::outer_max_c, 2},
+    {&GuardSettings::band_c, 2},      {&GuardSettings::gain_c, 2},        {&GuardSettings::window_s, 1},
+    {&GuardSettings::wrong_way_c, 2}, {&GuardSettings::max_error_c_s, 1}, {&GuardSettings::inner_min_c, 2},
+    {&GuardSettings::inner_max_c, 2}, {&GuardSettings::outer_min_c, 2},   {&GuardSettings::outer_max_c, 2},
 };
 const uint8_t GUARD_FIELD_COUNT = sizeof GUARD_FIELDS / sizeof GUARD_FIELDS[0];
 static_assert(GUARD_FIELD_COUNT == Protocol::FieldCount::SETGRD, "SETGRD carries the guard fields");
@@ -312,7 +290,7 @@ static_assert(GUARD_FIELD_COUNT + 1 == Protocol::FieldCount::GRD, "GRD carries t
 void sendGuard()
 {
     const GuardSettings& settings = guard.settings();
-    FrameWriter& frame = link.start(Protocol::Frame::GRD);
+    FrameWriter& frame = link.start(Frame::GRD);
     for (uint8_t i = 0; i < GUARD_FIELD_COUNT; ++i) {
         frame.addFixed(settings.*GUARD_FIELDS[i].member, GUARD_FIELDS[i].decimals);
     }
@@ -323,20 +301,17 @@ void sendGuard()
 const char* programErrorName(ProgramError error)
 {
     switch (error) {
-    case ProgramError::StartOutOfRange: return Detail::START_RANGE;
-    case ProgramError::MaxOutOfRange: return Detail::MAX_RANGE;
-    case ProgramError::StartNotBelowMax: return Detail::START_GE_MAX;
-    case ProgramError::StepNotPositive: return Detail::STEP_LE_0;
-    case ProgramError::StepLargerThanSpan: return Detail::STEP_GT_SPAN;
-    case ProgramError::StepTooSmall: return Detail::STEP_TOO_SMALL;
-    case ProgramError::HoldZero: return Detail::HOLD_0;
-    case ProgramError::CycleTooLong: return Detail::TOO_LONG;
-    case ProgramError::HoldStartUnknown: return Detail::HOLD_START_TFA;
-    default: return "OK";
+    case ProgramError::None: break;
+#define THERMOTILT_PROGRAM_ERROR(enumerator, token) \
+    case ProgramError::enumerator: { \
+        return Detail::token; \
     }
+#include <ProtocolFrames.def>
+    }
+    return "OK";
 }
 
-void setProgram(const FrameParser& command)
+void onSetProgram(const FrameParser& command)
 {
     int32_t hold = 0;
     int32_t rest = 0;
@@ -346,8 +321,8 @@ void setProgram(const FrameParser& command)
     const uint8_t holdStartField = Protocol::FieldCount::SETPRG - 1;
     bool parsed = command.fieldCount() >= holdStartField && command.fieldFloat(0, settings.start_c) &&
                   command.fieldFloat(1, settings.max_c) && command.fieldFloat(2, settings.step_c) &&
-                  command.fieldInt(3, hold) && command.fieldInt(4, rest) && command.fieldInt(5, cycles) &&
-                  hold >= 0 && rest >= 0 && cycles >= 0 && cycles <= 65535 &&
+                  command.fieldInt(3, hold) && command.fieldInt(4, rest) && command.fieldInt(5, cycles) && hold >= 0 &&
+                  rest >= 0 && cycles >= 0 && cycles <= 65535 &&
                   (command.fieldCount() == holdStartField ||
                    parseHoldStart(command.field(holdStartField), settings.hold_start));
     if (running) {
@@ -372,13 +347,13 @@ void setProgram(const FrameParser& command)
     link.acknowledge();
 }
 
-void setControl(const FrameParser& command)
+void onSetControl(const FrameParser& command)
 {
     const char* mode = command.field(0);
     float kp = 0.0f;
     float ki = 0.0f;
-    bool parsed = command.fieldCount() >= Protocol::FieldCount::SETCTL && command.fieldFloat(1, kp) &&
-                  command.fieldFloat(2, ki) && kp >= 0.0f && ki >= 0.0f && isfinite(kp) && isfinite(ki);
+    bool parsed = command.fieldFloat(1, kp) && command.fieldFloat(2, ki) && kp >= 0.0f && ki >= 0.0f && isfinite(kp) &&
+                  isfinite(ki);
     uint8_t chosen = 0;
     while (parsed && chosen <= CONTROL_PR && strcmp(mode, CONTROL_MODE_NAMES[chosen]) != 0) {
         ++chosen;
@@ -398,17 +373,20 @@ void setControl(const FrameParser& command)
 const char* guardErrorName(GuardError error)
 {
     switch (error) {
-    case GuardError::CheckOutOfRange: return Detail::CHECK_RANGE;
-    case GuardError::LimitOutOfRange: return Detail::LIMIT_RANGE;
-    case GuardError::LimitsInverted: return Detail::LIMIT_MIN_GE_MAX;
-    default: return "OK";
+    case GuardError::None: break;
+#define THERMOTILT_GUARD_ERROR(enumerator, token) \
+    case GuardError::enumerator: { \
+        return Detail::token; \
     }
+#include <ProtocolFrames.def>
+    }
+    return "OK";
 }
 
-void setGuard(const FrameParser& command)
+void onSetGuard(const FrameParser& command)
 {
     GuardSettings settings;
-    bool parsed = command.fieldCount() >= Protocol::FieldCount::SETGRD;
+    bool parsed = true;
     for (uint8_t i = 0; parsed && i < GUARD_FIELD_COUNT; ++i) {
         parsed = command.fieldFloat(i, settings.*GUARD_FIELDS[i].member);
     }
@@ -424,11 +402,10 @@ void setGuard(const FrameParser& command)
     link.acknowledge();
 }
 
-void setHeartbeat(const FrameParser& command)
+void onSetHeartbeat(const FrameParser& command)
 {
     int32_t seconds = 0;
-    if (command.fieldCount() < Protocol::FieldCount::SETHB || !command.fieldInt(0, seconds) || seconds < 0 ||
-        seconds > MAX_HEARTBEAT_S) {
+    if (!command.fieldInt(0, seconds) || seconds < 0 || seconds > MAX_HEARTBEAT_S) {
         link.reject(Error::BAD_ARG, Detail::HEARTBEAT_0_3600);
         return;
     }
@@ -437,7 +414,7 @@ void setHeartbeat(const FrameParser& command)
 }
 
 // A latched fault clears only on request, and only once its cause is gone.
-void clearFault()
+void onClear(const FrameParser&)
 {
     Fault present = presentThermistorFault();
     if (present == NO_FAULT) {
@@ -452,48 +429,57 @@ void clearFault()
     link.acknowledge();
 }
 
-void handleCommand(uint32_t now)
+void onStart(const FrameParser&)
 {
-    const FrameParser& command = link.command();
-    if (link.commandIs(Protocol::Frame::START)) {
-        if (fault != NO_FAULT) {
-            link.reject(Error::FAULT, faultName(fault));
-            return;
-        }
-        if (!programAccepted) {
-            link.reject(Error::NO_PROGRAM, Detail::SETPRG_FIRST);
-            return;
-        }
-        running = true;
-        guard.reset();
-        lastProgramTickMs = now;
-        controller.reset();
-        programState = programRun.start(inner.celsius);
-        link.acknowledge();
-    } else if (link.commandIs(Protocol::Frame::STOP)) {
-        stopProgram();
-        link.acknowledge();
-    } else if (link.commandIs(Protocol::Frame::VERSION)) {
-        link.sendVersion("thermal_chamber", FIRMWARE_VERSION);
-        link.acknowledge();
-    } else if (link.commandIs(Protocol::Frame::STATUS)) {
-        sendProgram();
-        sendGuard();
-        link.acknowledge();
-    } else if (link.commandIs(Protocol::Frame::SETPRG)) {
-        setProgram(command);
-    } else if (link.commandIs(Protocol::Frame::SETCTL)) {
-        setControl(command);
-    } else if (link.commandIs(Protocol::Frame::SETGRD)) {
-        setGuard(command);
-    } else if (link.commandIs(Protocol::Frame::SETHB)) {
-        setHeartbeat(command);
-    } else if (link.commandIs(Protocol::Frame::CLEAR)) {
-        clearFault();
-    } else {
-        link.reject(Error::UNKNOWN_CMD, command.type());
+    if (fault != NO_FAULT) {
+        link.reject(Error::FAULT, faultName(fault));
+        return;
     }
+    if (!programAccepted) {
+        link.reject(Error::NO_PROGRAM, Detail::SETPRG_FIRST);
+        return;
+    }
+    running = true;
+    guard.reset();
+    lastProgramTickMs = link.lastHostFrameMs();
+    controller.reset();
+    programState = programRun.start(inner.celsius);
+    link.acknowledge();
 }
+
+void onStop(const FrameParser&)
+{
+    stopProgram();
+    link.acknowledge();
+}
+
+void onVersion(const FrameParser&)
+{
+    link.sendVersion("thermal_chamber", FIRMWARE_VERSION);
+    link.acknowledge();
+}
+
+void onStatus(const FrameParser&)
+{
+    sendProgram();
+    sendGuard();
+    link.acknowledge();
+}
+
+// The commands of this board (docs/protocol.md), for SerialLink::dispatch.
+// SETPRG checks its own fields: BUSY comes first, hold_start may be left
+// off, and a refused SETPRG must also forget the accepted program.
+constexpr Protocol::Command COMMANDS[] PROGMEM = {
+    Protocol::command(Frame::START, onStart),
+    Protocol::command(Frame::STOP, onStop),
+    Protocol::command(Frame::VERSION, onVersion),
+    Protocol::command(Frame::STATUS, onStatus),
+    Protocol::command(Frame::SETPRG, onSetProgram),
+    Protocol::command(Frame::SETCTL, onSetControl, Detail::SETCTL_FIELDS),
+    Protocol::command(Frame::SETGRD, onSetGuard, Detail::SETGRD_FIELDS),
+    Protocol::command(Frame::SETHB, onSetHeartbeat, Detail::HEARTBEAT_0_3600),
+    Protocol::command(Frame::CLEAR, onClear),
+};
 
 }  // namespace
 
@@ -515,7 +501,7 @@ void loop()
     link.writePending();
     uint32_t now = millis();
     if (link.poll(now)) {
-        handleCommand(now);
+        link.dispatch(COMMANDS);
     }
     if (now - lastControlMs >= CONTROL_PERIOD_MS) {
         lastControlMs += CONTROL_PERIOD_MS;

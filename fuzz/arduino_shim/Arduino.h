@@ -64,5 +64,4 @@ int analogRead(uint8_t pin);
 void attachInterrupt(uint8_t interruptNumber, void (*handler)(void), int mode);
 void analogWrite(uint8_t pin, int value);
 
-
 #endif

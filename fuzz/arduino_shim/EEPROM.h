@@ -14,7 +14,8 @@ public:
     uint16_t length();
     uint8_t& operator[](int address);
 
-    template <typename T> T& get(int address, T& value)
+    template <typename T>
+    T& get(int address, T& value)
     {
         uint8_t* bytes = (uint8_t*)&value;
         for (unsigned i = 0; i < sizeof(T); ++i) {
@@ -23,7 +24,8 @@ public:
         return value;
     }
 
-    template <typename T> const T& put(int address, const T& value)
+    template <typename T>
+    const T& put(int address, const T& value)
     {
         const uint8_t* bytes = (const uint8_t*)&value;
         for (unsigned i = 0; i < sizeof(T); ++i) {

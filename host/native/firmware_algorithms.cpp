@@ -59,8 +59,8 @@ extern "C" int thermotilt_surface_corrections(size_t count, const float* p, cons
 }
 
 extern "C" int thermotilt_chamber_drive(size_t count, const float* setpointC, const float* measuredC, float dtS,
-                                        float proportionalGain, float integralGain, uint8_t roundedError,
-                                        uint8_t* pwm, uint8_t* direction)
+                                        float proportionalGain, float integralGain, uint8_t roundedError, uint8_t* pwm,
+                                        uint8_t* direction)
 {
     if (count > 0 && !(setpointC && measuredC && pwm && direction)) {
         return THERMOTILT_HOST_BAD_ARGUMENT;

@@ -33,16 +33,16 @@ int thermotilt_trend_sets(size_t count, const float *temperature_c, float hyster
 
 /* lib/Compensation: surfaceCorrection f(T, a) of the surface p (p00, p10,
  * p01, p20, p11, p02) at T = temperature_c[i], a = accel_lsb[i]. */
-int thermotilt_surface_corrections(size_t count, const float *p, const float *temperature_c,
-                                   const float *accel_lsb, float *correction);
+int thermotilt_surface_corrections(size_t count, const float *p, const float *temperature_c, const float *accel_lsb,
+                                   float *correction);
 
 /* lib/ChamberControl: one ChamberController(proportional_gain,
  * integral_gain), rounded error on or off, updated with setpoint_c[i] and
  * measured_c[i] every dt_s in order; pwm[i] and direction[i] (0 off, 1 heat,
  * 2 cool) are what update returned. */
 int thermotilt_chamber_drive(size_t count, const float *setpoint_c, const float *measured_c, float dt_s,
-                             float proportional_gain, float integral_gain, uint8_t rounded_error,
-                             uint8_t *pwm, uint8_t *direction);
+                             float proportional_gain, float integral_gain, uint8_t rounded_error, uint8_t *pwm,
+                             uint8_t *direction);
 
 #ifdef __cplusplus
 }

@@ -9,9 +9,9 @@
 
 namespace {
 
-bool validArguments(size_t count, const void* accel, const void* temperature, unsigned decimation,
-                    float hysteresisC, const float* filtered, const float* temperatureC, const uint8_t* set,
-                    const float* compensated, const uint8_t* frameDue)
+bool validArguments(size_t count, const void* accel, const void* temperature, unsigned decimation, float hysteresisC,
+                    const float* filtered, const float* temperatureC, const uint8_t* set, const float* compensated,
+                    const uint8_t* frameDue)
 {
     if (decimation < 1 || decimation > 255 || !isfinite(hysteresisC)) {
         return false;
@@ -72,15 +72,15 @@ extern "C" int thermotilt_host_abi_version(void)
 
 extern "C" int thermotilt_imu_process(size_t count, const int16_t* accel, const int16_t* temperatureRaw,
                                       const uint8_t* reset, unsigned decimation, float hysteresisC,
-                                      const float* coefficients, float* filtered, float* temperatureC,
-                                      uint8_t* set, float* compensated, uint8_t* frameDue)
+                                      const float* coefficients, float* filtered, float* temperatureC, uint8_t* set,
+                                      float* compensated, uint8_t* frameDue)
 {
-    if (!validArguments(count, accel, temperatureRaw, decimation, hysteresisC, filtered, temperatureC, set,
-                        compensated, frameDue)) {
+    if (!validArguments(count, accel, temperatureRaw, decimation, hysteresisC, filtered, temperatureC, set, compensated,
+                        frameDue)) {
         return THERMOTILT_HOST_BAD_ARGUMENT;
     }
-    return run(count, reset, decimation, hysteresisC, coefficients, filtered, temperatureC, set, compensated,
-               frameDue, [&](ImuProcessing& processing, size_t i, const Coefficients& c, ImuOutput& out) {
+    return run(count, reset, decimation, hysteresisC, coefficients, filtered, temperatureC, set, compensated, frameDue,
+               [&](ImuProcessing& processing, size_t i, const Coefficients& c, ImuOutput& out) {
                    return processing.update(accel + IMU_AXES * i, temperatureRaw[i], c, out);
                });
 }
@@ -90,12 +90,12 @@ extern "C" int thermotilt_imu_process_unrounded(size_t count, const float* accel
                                                 const float* coefficients, float* filtered, float* temperatureC,
                                                 uint8_t* set, float* compensated, uint8_t* frameDue)
 {
-    if (!validArguments(count, accel, temperatureCIn, decimation, hysteresisC, filtered, temperatureC, set,
-                        compensated, frameDue)) {
+    if (!validArguments(count, accel, temperatureCIn, decimation, hysteresisC, filtered, temperatureC, set, compensated,
+                        frameDue)) {
         return THERMOTILT_HOST_BAD_ARGUMENT;
     }
-    return run(count, reset, decimation, hysteresisC, coefficients, filtered, temperatureC, set, compensated,
-               frameDue, [&](ImuProcessing& processing, size_t i, const Coefficients& c, ImuOutput& out) {
+    return run(count, reset, decimation, hysteresisC, coefficients, filtered, temperatureC, set, compensated, frameDue,
+               [&](ImuProcessing& processing, size_t i, const Coefficients& c, ImuOutput& out) {
                    return processing.updateUnrounded(accel + IMU_AXES * i, temperatureCIn[i], c, out);
                });
 }

@@ -36,10 +36,9 @@ int thermotilt_host_abi_version(void);
 
 /* The firmware's path: raw LSB as the LSM9DS0's registers hold them and
  * OUT_TEMP_XM raw (8 LSB/degC; the firmware adds 21 degC). */
-int thermotilt_imu_process(size_t count, const int16_t *accel, const int16_t *temperature_raw,
-                           const uint8_t *reset, unsigned decimation, float hysteresis_c,
-                           const float *coefficients, float *filtered, float *temperature_c,
-                           uint8_t *set, float *compensated, uint8_t *frame_due);
+int thermotilt_imu_process(size_t count, const int16_t *accel, const int16_t *temperature_raw, const uint8_t *reset,
+                           unsigned decimation, float hysteresis_c, const float *coefficients, float *filtered,
+                           float *temperature_c, uint8_t *set, float *compensated, uint8_t *frame_due);
 
 /* The same processing from unquantised inputs: acceleration in LSB and the
  * sensor's temperature in degC (what temperatureRawToC would give, before
@@ -47,8 +46,8 @@ int thermotilt_imu_process(size_t count, const int16_t *accel, const int16_t *te
  * gives exactly what thermotilt_imu_process gives. */
 int thermotilt_imu_process_unrounded(size_t count, const float *accel, const float *temperature_c_in,
                                      const uint8_t *reset, unsigned decimation, float hysteresis_c,
-                                     const float *coefficients, float *filtered, float *temperature_c,
-                                     uint8_t *set, float *compensated, uint8_t *frame_due);
+                                     const float *coefficients, float *filtered, float *temperature_c, uint8_t *set,
+                                     float *compensated, uint8_t *frame_due);
 
 #ifdef __cplusplus
 }

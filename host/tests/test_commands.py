@@ -1,6 +1,6 @@
-"""thermotilt.wire.client.CommandClient against the real imu_reader image in the
-twin (directly, and through its pseudo-terminal with pyserial) and against a
-scripted port for what the twin cannot stage.
+"""thermotilt.wire.client.CommandClient against the real imu_reader and
+thermal_chamber images in the twin (directly, and through a pseudo-terminal
+with pyserial) and against a scripted port for what the twin cannot stage.
 
 Expected values come from docs/protocol.md (answers, ERR codes) and the
 paper's default coefficients.
@@ -17,7 +17,7 @@ from thermotilt.wire.client import CommandClient, CommandRefused, CommandTimeout
 from thermotilt.wire.protocol import FrameReader, build_frame, parse_line
 from thermotilt.twin.boards import Board
 
-from firmware_helpers import of_type
+from firmware_helpers import chamber, of_type
 
 # -1700 / -400 / 16000 LSB, raw temperature 32 -> 25.000 degC.
 SENSOR = (-1700, -400, 16000, 32)
@@ -80,6 +80,23 @@ def test_fifty_getcoe_sent_back_to_back_overrun_the_board(imu):
     frames = FrameReader().feed(imu.read_uart())
     assert len(of_type(frames, "ACK")) < COMMANDS
     assert {e["code"] for e in of_type(frames, "ERR")} == {"BAD_FRAME"}
+
+
+@pytest.mark.twin
+def test_every_data_frame_of_a_chamber_query_is_its_answer_and_not_passed_on():
+    # docs/protocol.md: the chamber answers STATUS with PRG and GRD, then ACK.
+    passed_on = []
+    with chamber(22.0) as board:
+        board.run_until(0.3)
+        client = CommandClient(board, on_frame=passed_on.append)
+        status = client.command("STATUS")
+        version = client.command("VERSION")
+        client.wait_for(lambda frame: frame.type == "CHS", 1.5)
+    assert [frame.type for frame in status.data] == ["PRG", "GRD"]
+    assert [frame.type for frame in version.data] == ["VER"]
+    assert {frame.type for frame in passed_on} == {"VER", "CHS"}
+    # The VER passed on is the one the board sent when it started.
+    assert of_type(passed_on, "VER")[0].seq == 0
 
 
 @pytest.mark.twin

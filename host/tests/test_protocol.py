@@ -131,6 +131,41 @@ def test_table_matches_brief():
     }
 
 
+def docs_frame_titles(text):
+    """Tag -> the title of its section in docs/protocol.md ("### IMU — ...")."""
+    return dict(re.findall(r"^### ([A-Z]{2,7}) — (.*)$", text, re.MULTILINE))
+
+
+def docs_query_data(text):
+    """The frames docs/protocol.md's command table lists in an answer besides
+    ACK and ERR (e.g. "ICF (imu) or PRG and GRD (chamber), ACK")."""
+    section = text[text.index("## Host → board commands") :]
+    section = section[: section.index("\n## ", 1)]
+    frames = set()
+    for line in section.splitlines():
+        cells = [cell.strip() for cell in line.strip().strip("|").split("|")]
+        if len(cells) == 4 and cells[0].startswith("`$"):
+            frames.update(word for word in re.findall(r"\b[A-Z]{2,7}\b", cells[3]) if word in FRAMES)
+    return frames - {"ACK", "ERR"}
+
+
+def test_frame_roles_are_the_ones_the_docs_describe():
+    docs = REPO_DIR / "docs" / "protocol.md"
+    if not docs.exists():
+        pytest.skip("not in the ThermoTilt repository: no docs/protocol.md")
+    text = docs.read_text()
+    roles = {role: {tag for tag, spec in FRAMES.items() if spec.role == role} for role in
+             (protocol.STREAM, protocol.ANSWER, protocol.OUTCOME, protocol.COMMAND)}
+    assert sum(len(tags) for tags in roles.values()) == len(FRAMES)
+    titles = docs_frame_titles(text)
+    assert {tag for tag, title in titles.items() if "answer to" in title} == roles[protocol.ANSWER]
+    assert docs_query_data(text) == roles[protocol.ANSWER] == {"VER", "ICF", "PRG", "GRD", "COE"}
+    assert roles[protocol.STREAM] == {"IMU", "CHS"}
+    assert roles[protocol.OUTCOME] == {"ACK", "ERR"}
+    assert all(FRAMES[tag].direction == protocol.HOST for tag in roles[protocol.COMMAND])
+    assert all(spec.direction == protocol.BOARD for spec in FRAMES.values() if spec.role != protocol.COMMAND)
+
+
 def load_generator():
     spec = importlib.util.spec_from_file_location("generator", HOST_DIR / "tools" / "generate_protocol_spec.py")
     generator = importlib.util.module_from_spec(spec)
@@ -420,3 +455,45 @@ def test_read_from_stream(tmp_path):
     with open(path, "rb") as stream:
         frames = list(reader.read_from(stream, chunk_size=5))
     assert len(frames) == len(VECTORS)
+
+
+def test_generator_refuses_a_frame_without_a_known_role():
+    constants = "".join(f"#define THERMOTILT_PROTOCOL_{name} 1\n" for name in ("VERSION", "MAX_LINE", "MAX_FIELDS"))
+    generator = load_generator()
+    with pytest.raises(generator.DefinitionError, match="expected form"):
+        generator.parse_definition(constants + 'THERMOTILT_FRAME(ACK, BOARD, "cmd_seq:i,cmd_type:t")\n')
+    _, frames = generator.parse_definition(constants + 'THERMOTILT_FRAME(ACK, OUTCOME, "cmd_seq:i,cmd_type:t")\n')
+    assert frames == [("ACK", "board", "outcome", [("cmd_seq", "i"), ("cmd_type", "t")])]
+
+
+ENUM_TABLE = [
+    'THERMOTILT_ERROR(BUSY, "one")',
+    'THERMOTILT_ERROR(FAULT, "two")',
+    'THERMOTILT_ERROR(LIMIT, "three")',
+    'THERMOTILT_ERROR_DETAIL(STOP_FIRST, "BUSY")',
+    'THERMOTILT_ERROR_DETAIL(INNER_HOT, "LIMIT FAULT")',
+]
+
+
+@pytest.mark.parametrize(
+    "line, complaint",
+    [
+        ("THERMOTILT_CHAMBER_FAULT(INNER_HOT, LIMIT)", None),
+        ("THERMOTILT_CHAMBER_FAULT(INNER_HOT, LIMIT)  // a comment (with parentheses)", None),
+        ("THERMOTILT_CHAMBER_FAULT(STOP_FIRST, BUSY)", "ERR FAULT does not carry STOP_FIRST"),
+        ("THERMOTILT_CHAMBER_FAULT(INNER_HOT, BUSY)", "ERR BUSY does not carry INNER_HOT"),
+        ("THERMOTILT_CHAMBER_FAULT(INNER_HOT, IDLE)", "no ERR code IDLE"),
+        ("THERMOTILT_CHAMBER_FAULT(INNER_HOT)", "expected"),
+        ("THERMOTILT_CHAMBER_FAULTS(INNER_HOT, LIMIT)", "no such line"),
+        ("THERMOTILT_CHAMBER_FAULT(INNER_HOT, LIMIT) x", "expected form"),
+        ("THERMOTILT_BLOCK_STATUS(BadMagic, LIMIT)\nTHERMOTILT_BLOCK_STATUS(BadMagic, BUSY)", "named twice"),
+    ],
+)
+def test_generator_checks_the_lines_that_name_firmware_enumerators(line, complaint):
+    generator = load_generator()
+    text = "\n".join(ENUM_TABLE + [line]) + "\n"
+    if complaint is None:
+        generator.check_enum_lines(text, generator.parse_errors(text))
+        return
+    with pytest.raises(generator.DefinitionError, match=complaint):
+        generator.check_enum_lines(text, generator.parse_errors(text))

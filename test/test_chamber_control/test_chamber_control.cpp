@@ -31,9 +31,9 @@ static void test_paper_gain_default(void)
 
 static void test_saturation(void)
 {
-    assertDrive(255, Direction::Heat, pOnly(1.0f));  // 350 -> 255
-    assertDrive(255, Direction::Cool, pOnly(-3.0f)); // -1050 -> 255 cool
-    assertDrive(255, Direction::Heat, pOnly(0.75f)); // 262.5 -> 255
+    assertDrive(255, Direction::Heat, pOnly(1.0f));   // 350 -> 255
+    assertDrive(255, Direction::Cool, pOnly(-3.0f));  // -1050 -> 255 cool
+    assertDrive(255, Direction::Heat, pOnly(0.75f));  // 262.5 -> 255
 }
 
 static void test_near_zero_error(void)
@@ -41,8 +41,8 @@ static void test_near_zero_error(void)
     assertDrive(35, Direction::Heat, pOnly(0.1f));
     assertDrive(175, Direction::Cool, pOnly(-0.5f));
     assertDrive(0, Direction::Off, pOnly(0.0f));
-    assertDrive(0, Direction::Off, pOnly(0.001f)); // 0.35 rounds to 0
-    assertDrive(1, Direction::Heat, pOnly(0.002f)); // 0.7 rounds to 1
+    assertDrive(0, Direction::Off, pOnly(0.001f));   // 0.35 rounds to 0
+    assertDrive(1, Direction::Heat, pOnly(0.002f));  // 0.7 rounds to 1
 }
 
 static void test_large_errors_saturate_not_wrap(void)
@@ -75,7 +75,7 @@ static void test_pi_integrates(void)
     for (int i = 0; i < 10; ++i)
         command = controller.update(20.1f, 20.0f, 1.0f);
     TEST_ASSERT_FLOAT_WITHIN(0.01f, 10.0f, controller.integral());
-    assertDrive(45, Direction::Heat, command); // 35 + 10
+    assertDrive(45, Direction::Heat, command);  // 35 + 10
     controller.reset();
     TEST_ASSERT_FLOAT_WITHIN(0.0f, 0.0f, controller.integral());
 }

@@ -100,8 +100,10 @@ static void test_drift_span(void)
     for (uint8_t s = 0; s < COMP_SET_COUNT; ++s) {
         const AxisSurface& x = surface((CompSet)s, 0);
         const AxisSurface& y = surface((CompSet)s, 1);
-        TEST_ASSERT_FLOAT_WITHIN(50.0f, 1300.0f, surfaceCorrection(x, -10.0f, 0.0f) - surfaceCorrection(x, 45.0f, 0.0f));
-        TEST_ASSERT_FLOAT_WITHIN(100.0f, 850.0f, surfaceCorrection(y, -10.0f, 0.0f) - surfaceCorrection(y, 45.0f, 0.0f));
+        TEST_ASSERT_FLOAT_WITHIN(50.0f, 1300.0f,
+                                 surfaceCorrection(x, -10.0f, 0.0f) - surfaceCorrection(x, 45.0f, 0.0f));
+        TEST_ASSERT_FLOAT_WITHIN(100.0f, 850.0f,
+                                 surfaceCorrection(y, -10.0f, 0.0f) - surfaceCorrection(y, 45.0f, 0.0f));
     }
 }
 
@@ -327,9 +329,9 @@ static void test_non_finite_outputs_do_not_fit(void)
     TEST_ASSERT_FALSE(surfaceOutputFitsFrame(overflowing));
 }
 
-static bool allBytesZero(const Coefficients &value)
+static bool allBytesZero(const Coefficients& value)
 {
-    const uint8_t *bytes = (const uint8_t *)&value;
+    const uint8_t* bytes = (const uint8_t*)&value;
     for (size_t i = 0; i < sizeof value; ++i) {
         if (bytes[i] != 0) {
             return false;

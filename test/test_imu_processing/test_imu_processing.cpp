@@ -200,7 +200,8 @@ static void test_matches_the_firmware_code_it_replaced(void)
         if (expectedDue) {
             const CoefficientSet& surfaces = coefficients.forTrend(expected.set);
             for (uint8_t axis = 0; axis < IMU_AXES; ++axis) {
-                expected.compensated[axis] = compensate(surfaces.axis[axis], expected.temperatureC, expected.filtered[axis]);
+                expected.compensated[axis] = compensate(surfaces.axis[axis], expected.temperatureC,
+                                                        expected.filtered[axis]);
             }
         }
         ImuOutput out;

@@ -10,7 +10,7 @@
 // reaches 1 - 1/e = 63.2 % of a step after -1/ln(1 - K) = 1000.0 samples.
 static const float kSteadyGain = 1e-3f;
 static const long kSamplesTo632 = 1000;
-static const long kSamplesTo632Tolerance = 20; // 2 %
+static const long kSamplesTo632Tolerance = 20;  // 2 %
 // Gain is within 0.5 % of steady state after ~3000 samples (P ~ R/n, then
 // coth-shaped convergence with time constant 500 samples).
 static const int kConvergeSamples = 5000;

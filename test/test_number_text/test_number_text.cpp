@@ -109,8 +109,8 @@ static void compareFixed(float value, uint8_t decimals)
         // As bits: avr-libc's snprintf has no %g.
         uint32_t bits;
         memcpy(&bits, &value, sizeof bits);
-        snprintf(message, sizeof message, "float 0x%08lx to %u decimals: %s, not %s", (unsigned long)bits,
-                 decimals, field, expected);
+        snprintf(message, sizeof message, "float 0x%08lx to %u decimals: %s, not %s", (unsigned long)bits, decimals,
+                 field, expected);
         TEST_MESSAGE(message);
     }
 }

@@ -12,8 +12,7 @@ static const uint32_t kMinute = 60000UL;
 void setUp(void) {}
 void tearDown(void) {}
 
-static void assertState(ProgramPhase phase, uint32_t cycle, uint16_t step, float setpoint,
-                        ProgramState state)
+static void assertState(ProgramPhase phase, uint32_t cycle, uint16_t step, float setpoint, ProgramState state)
 {
     TEST_ASSERT_EQUAL(phase, state.phase);
     TEST_ASSERT_EQUAL_UINT32(cycle, state.cycle);
@@ -150,8 +149,7 @@ static void test_times_beyond_16_and_31_bits(void)
     assertState(ProgramPhase::Cooling, 929, 49, 4.0f, program.stateAt(0xFFFFFFFFUL));
 }
 
-static ProgramError validateWith(float start, float max, float step, uint32_t hold,
-                                 uint32_t rest, uint16_t cycles)
+static ProgramError validateWith(float start, float max, float step, uint32_t hold, uint32_t rest, uint16_t cycles)
 {
     ProgramSettings settings;
     settings.start_c = start;

@@ -41,7 +41,8 @@ static void test_checksum(void)
 
 static void test_table(void)
 {
-    // Field lists of the brief, counted by hand (after TYPE and SEQ).
+    // The field lists of docs/protocol.md's frame signatures, counted by hand
+    // (after TYPE and SEQ).
     TEST_ASSERT_EQUAL_UINT8(13, Protocol::FieldCount::IMU);
     TEST_ASSERT_EQUAL_UINT8(9, Protocol::FieldCount::CHS);
     TEST_ASSERT_EQUAL_UINT8(8, Protocol::FieldCount::SETCOE);

@@ -25,8 +25,7 @@ void tearDown(void) {}
 
 // Ticks with fixed readings until a fault or `limit` ticks; returns the
 // ticks run, the fault in `fault`.
-static uint16_t ticksUntilFault(float target, float inner, DriveCommand drive, uint16_t limit,
-                                GuardFault &fault)
+static uint16_t ticksUntilFault(float target, float inner, DriveCommand drive, uint16_t limit, GuardFault &fault)
 {
     for (uint16_t tick = 1; tick <= limit; ++tick) {
         fault = guard.update(target, inner, 20.0f, drive, TICK_S);

@@ -71,7 +71,7 @@ static void test_open_circuit(void)
     TEST_ASSERT_EQUAL(ThermistorStatus::Open, thermistor.read(1023).status);
     TEST_ASSERT_EQUAL(ThermistorStatus::Open, thermistor.read(Thermistor::kOpenCircuitAdc).status);
     ThermistorReading open = thermistor.read(1023);
-    TEST_ASSERT_TRUE(open.celsius != open.celsius); // NaN
+    TEST_ASSERT_TRUE(open.celsius != open.celsius);  // NaN
 }
 
 static void test_short_circuit(void)

@@ -11,6 +11,7 @@
 #define pgm_read_word(address) (*(const uint16_t*)(address))
 #define pgm_read_dword(address) (*(const uint32_t*)(address))
 #define pgm_read_float(address) (*(const float*)(address))
+#define pgm_read_ptr(address) (*(const void* const*)(address))
 #define strcpy_P strcpy
 #define strcmp_P strcmp
 #define strlen_P strlen

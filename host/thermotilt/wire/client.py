@@ -1,8 +1,9 @@
 """Commands to a board, one at a time, each waiting for its answer.
 
 A board answers every command with ACK or ERR whose ``cmd_seq`` is the
-command's SEQ; a query sends its data frame (COE, VER, ICF, PRG) just before
-the ACK (docs/protocol.md). It reads commands through a 64-byte receive
+command's SEQ; a query sends its data frames (the ANSWER frames of
+ProtocolFrames.def: VER, ICF, PRG, GRD, COE) just before the ACK
+(docs/protocol.md). It reads commands through a 64-byte receive
 ring (firmware/common/Uart0) and answers at the 115200-baud line rate, so a
 host that sends the next command before the answer came overruns that
 ring: in the twin (with Arduino's Serial, whose ring was the same size),
@@ -36,10 +37,10 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import Any, Protocol
 
-from .protocol import Frame, FrameReader, SequenceCounter, build_frame
+from .protocol import ANSWER, FRAMES, Frame, FrameReader, SequenceCounter, build_frame
 
 # The data frames that answer a query, sent right before its ACK.
-ANSWER_DATA_TYPES = frozenset({"COE", "VER", "ICF", "PRG"})
+ANSWER_DATA_TYPES = frozenset(tag for tag, spec in FRAMES.items() if spec.role == ANSWER)
 NOT_RETRIED = frozenset({"START"})
 # The longest answer, COE and ACK, is ~110 bytes: 9.5 ms at 115200 baud,
 # behind at most one IMU or CHS frame already on the wire. 0.5 s leaves

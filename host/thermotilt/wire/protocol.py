@@ -25,6 +25,11 @@ SEQ_MODULUS = 65536
 
 BOARD = "board"
 HOST = "host"
+# Frame roles (ProtocolFrames.def): what a frame type is for.
+STREAM = "stream"  # board -> host on the board's own schedule (IMU, CHS)
+ANSWER = "answer"  # board -> host: the data a query returns just before its ACK
+OUTCOME = "outcome"  # board -> host: how a command ended (ACK, ERR)
+COMMAND = "command"  # host -> board
 
 # Malformed-frame reasons. The first nine match Protocol::MalformedReason in
 # the firmware; FIELD_COUNT and BAD_FIELD come from checking the frame table,
@@ -65,6 +70,7 @@ class FieldSpec:
 class FrameSpec:
     tag: str
     direction: str  # BOARD (board -> host) or HOST (host -> board command)
+    role: str  # STREAM, ANSWER, OUTCOME or COMMAND
     fields: tuple[FieldSpec, ...]
 
     @property
@@ -73,8 +79,8 @@ class FrameSpec:
 
 
 FRAMES: dict[str, FrameSpec] = {
-    tag: FrameSpec(tag, direction, tuple(FieldSpec(name, kind) for name, kind in fields))
-    for tag, (direction, fields) in protocol_spec.FRAMES.items()
+    tag: FrameSpec(tag, direction, role, tuple(FieldSpec(name, kind) for name, kind in fields))
+    for tag, (direction, role, fields) in protocol_spec.FRAMES.items()
 }
 
 

@@ -5,10 +5,13 @@ PROTOCOL_VERSION = 2
 MAX_LINE = 120
 MAX_FIELDS = 16
 
-# tag: (direction, ((field name, kind), ...)); kind i integer, f float, t token
+# tag: (direction, role, ((field name, kind), ...)); kind i integer, f float,
+# t token. role: stream (sent on the board's own schedule), answer (the data
+# a query returns before its ACK), outcome (ACK, ERR) or command.
 FRAMES = {
     "IMU": (
         "board",
+        "stream",
         (
             ("t_ms", "i"),
             ("ax_raw", "i"),
@@ -27,6 +30,7 @@ FRAMES = {
     ),
     "CHS": (
         "board",
+        "stream",
         (
             ("t_ms", "i"),
             ("phase", "t"),
@@ -41,6 +45,7 @@ FRAMES = {
     ),
     "VER": (
         "board",
+        "answer",
         (
             ("device", "t"),
             ("firmware_version", "t"),
@@ -50,6 +55,7 @@ FRAMES = {
     ),
     "ICF": (
         "board",
+        "answer",
         (
             ("decimation", "i"),
             ("streaming", "i"),
@@ -59,6 +65,7 @@ FRAMES = {
     ),
     "PRG": (
         "board",
+        "answer",
         (
             ("start_c", "f"),
             ("max_c", "f"),
@@ -75,6 +82,7 @@ FRAMES = {
     ),
     "GRD": (
         "board",
+        "answer",
         (
             ("band_c", "f"),
             ("gain_c", "f"),
@@ -90,6 +98,7 @@ FRAMES = {
     ),
     "COE": (
         "board",
+        "answer",
         (
             ("set", "t"),
             ("axis", "t"),
@@ -103,6 +112,7 @@ FRAMES = {
     ),
     "ACK": (
         "board",
+        "outcome",
         (
             ("cmd_seq", "i"),
             ("cmd_type", "t"),
@@ -110,18 +120,20 @@ FRAMES = {
     ),
     "ERR": (
         "board",
+        "outcome",
         (
             ("cmd_seq", "i"),
             ("code", "t"),
             ("detail", "t"),
         ),
     ),
-    "START": ("host", ()),
-    "STOP": ("host", ()),
-    "VERSION": ("host", ()),
-    "STATUS": ("host", ()),
+    "START": ("host", "command", ()),
+    "STOP": ("host", "command", ()),
+    "VERSION": ("host", "command", ()),
+    "STATUS": ("host", "command", ()),
     "SETPRG": (
         "host",
+        "command",
         (
             ("start_c", "f"),
             ("max_c", "f"),
@@ -134,6 +146,7 @@ FRAMES = {
     ),
     "SETCTL": (
         "host",
+        "command",
         (
             ("mode", "t"),
             ("kp", "f"),
@@ -142,6 +155,7 @@ FRAMES = {
     ),
     "SETGRD": (
         "host",
+        "command",
         (
             ("band_c", "f"),
             ("gain_c", "f"),
@@ -156,20 +170,23 @@ FRAMES = {
     ),
     "SETHB": (
         "host",
+        "command",
         (
             ("timeout_s", "i"),
         ),
     ),
-    "CLEAR": ("host", ()),
+    "CLEAR": ("host", "command", ()),
     "SETDEC": (
         "host",
+        "command",
         (
             ("factor", "i"),
         ),
     ),
-    "RESEED": ("host", ()),
+    "RESEED": ("host", "command", ()),
     "GETCOE": (
         "host",
+        "command",
         (
             ("set", "t"),
             ("axis", "t"),
@@ -177,6 +194,7 @@ FRAMES = {
     ),
     "SETCOE": (
         "host",
+        "command",
         (
             ("set", "t"),
             ("axis", "t"),
@@ -188,9 +206,9 @@ FRAMES = {
             ("p02", "f"),
         ),
     ),
-    "SAVECOE": ("host", ()),
-    "DEFCOE": ("host", ()),
-    "RESET": ("host", ()),
+    "SAVECOE": ("host", "command", ()),
+    "DEFCOE": ("host", "command", ()),
+    "RESET": ("host", "command", ()),
 }
 
 # ERR code: (when a board sends it, (detail tokens, ...)); a code without

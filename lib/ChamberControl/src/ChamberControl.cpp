@@ -28,8 +28,7 @@ void ChamberController::setIntegralGain(float gain)
         integral_ = 0.0f;
 }
 
-DriveCommand ChamberController::update(float setpointCelsius, float measuredCelsius,
-                                       float dtSeconds)
+DriveCommand ChamberController::update(float setpointCelsius, float measuredCelsius, float dtSeconds)
 {
     DriveCommand off = {0, Direction::Off};
     float error = setpointCelsius - measuredCelsius;
@@ -70,8 +69,7 @@ L298nOutputs l298nPins(const DriveCommand &command)
         pins.enaDuty = command.pwm;
         pins.in2High = true;
         break;
-    case Direction::Off:
-        break;
+    case Direction::Off: break;
     }
     return pins;
 }

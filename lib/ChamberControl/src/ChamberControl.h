@@ -36,8 +36,7 @@ public:
     static const float kPaperProportionalGain;
     static const uint8_t kMaxPwm = 255;
 
-    explicit ChamberController(float proportionalGain = kPaperProportionalGain,
-                               float integralGain = 0.0f);
+    explicit ChamberController(float proportionalGain = kPaperProportionalGain, float integralGain = 0.0f);
 
     void setProportionalGain(float gain) { proportionalGain_ = gain; }
     void setIntegralGain(float gain);

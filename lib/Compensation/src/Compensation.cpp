@@ -9,7 +9,9 @@ namespace {
 const uint8_t DEFAULT_TERM_COUNT = COMP_SET_COUNT * COMP_AXIS_COUNT * COMP_COEFFICIENT_COUNT;
 
 // In flash on AVR: as a plain const table it would cost 144 bytes of RAM.
+// One row per surface: p00, p10, p01, p20, p11, p02.
 const float DEFAULT_TERMS[DEFAULT_TERM_COUNT] PROGMEM = {
+    // clang-format off
     // Warming: Table 2 (X), Table 3 (Y), Z uncorrected.
     571.5f, -20.23f, 1.569e-3f, -0.1044f, -6.936e-5f, 6.327e-9f,
     354.0f, -13.96f, 5.747e-3f, -2.931e-3f, -1.915e-4f, -5.363e-8f,
@@ -20,6 +22,7 @@ const float DEFAULT_TERMS[DEFAULT_TERM_COUNT] PROGMEM = {
     582.9f, -21.29f, 7.23e-4f, -7.898e-2f, -6.362e-5f, -7.354e-8f,
     338.1f, -12.82f, 4.439e-3f, -3.299e-2f, -1.579e-4f, -1.455e-8f,
     0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f,
+    // clang-format on
 };
 
 }  // namespace

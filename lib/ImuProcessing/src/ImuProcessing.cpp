@@ -8,10 +8,7 @@
 #define IMU_PROCESSING_NOINLINE
 #endif
 
-ImuProcessing::ImuProcessing(uint8_t decimation, float hysteresisC)
-    : decimator_(decimation), trend_(hysteresisC)
-{
-}
+ImuProcessing::ImuProcessing(uint8_t decimation, float hysteresisC) : decimator_(decimation), trend_(hysteresisC) {}
 
 namespace {
 
@@ -35,8 +32,7 @@ IMU_PROCESSING_NOINLINE bool ImuProcessing::update(const int16_t raw[IMU_AXES], 
     for (uint8_t channel = 0; channel <= IMU_AXES; ++channel) {
         bool isAxis = channel < IMU_AXES;
         KalmanFilter& filter = isAxis ? accelFilters_[channel] : temperatureFilter_;
-        filter.updateFixed(isAxis ? KalmanFilter::fixedFromWhole(raw[channel])
-                                  : temperatureRawToFixed(temperatureRaw));
+        filter.updateFixed(isAxis ? KalmanFilter::fixedFromWhole(raw[channel]) : temperatureRawToFixed(temperatureRaw));
     }
     return finish(coefficients, out, counting);
 }

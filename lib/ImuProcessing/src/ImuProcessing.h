@@ -30,16 +30,15 @@ struct ImuOutput {
 
 class ImuProcessing {
 public:
-    explicit ImuProcessing(uint8_t decimation = IMU_DEFAULT_DECIMATION,
-                           float hysteresisC = IMU_DEFAULT_HYSTERESIS_C);
+    explicit ImuProcessing(uint8_t decimation = IMU_DEFAULT_DECIMATION, float hysteresisC = IMU_DEFAULT_HYSTERESIS_C);
 
     // One sample as the LSM9DS0 gives it: raw X, Y, Z and OUT_TEMP_XM (8
     // LSB/degC, temperatureRawToC). Filters, updates the trend and, while
     // counting (the firmware's streaming), the decimator; for the sample that
     // completes a frame also compensates with `coefficients` and returns
     // true. Not counting, it filters alike and never returns true.
-    bool update(const int16_t raw[IMU_AXES], int16_t temperatureRaw, const Coefficients& coefficients,
-                ImuOutput& out, bool counting = true);
+    bool update(const int16_t raw[IMU_AXES], int16_t temperatureRaw, const Coefficients& coefficients, ImuOutput& out,
+                bool counting = true);
 
     // The same with unquantised inputs: acceleration in LSB and temperature in
     // degC, before the filters. update() is this with raw[a] and

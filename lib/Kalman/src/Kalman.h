@@ -25,13 +25,12 @@
 // rounded to 2^-15 and held to the range of an int16 (an LSM9DS0 register).
 class KalmanFilter {
 public:
-    static const float kPaperProcessNoise;     // Q
-    static const float kPaperMeasurementNoise; // R
+    static const float kPaperProcessNoise;      // Q
+    static const float kPaperMeasurementNoise;  // R
     // A measurement unit in updateFixed()'s input.
     static const int32_t FIXED_ONE = 32768;
 
-    KalmanFilter(float processNoise = kPaperProcessNoise,
-                 float measurementNoise = kPaperMeasurementNoise);
+    KalmanFilter(float processNoise = kPaperProcessNoise, float measurementNoise = kPaperMeasurementNoise);
 
     // Feeds one measurement and returns the new estimate.
     float update(float measurement);

@@ -53,8 +53,7 @@ bool Lsm9ds0Accel::readFreshAcceleration(int16_t out[3], bool& fresh)
 bool Lsm9ds0Accel::readTemperatureRaw(int16_t& out)
 {
     uint8_t bytes[2];
-    if (!bus_.readRegisters(address7_, Lsm9ds0::OUT_TEMP_L_XM | Lsm9ds0::AUTO_INCREMENT, bytes,
-                            2)) {
+    if (!bus_.readRegisters(address7_, Lsm9ds0::OUT_TEMP_L_XM | Lsm9ds0::AUTO_INCREMENT, bytes, 2)) {
         return false;
     }
     out = temperatureRawFromBytes(bytes[0], bytes[1]);

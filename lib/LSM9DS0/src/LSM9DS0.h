@@ -12,8 +12,7 @@
 class I2cBus {
 public:
     virtual bool writeRegister(uint8_t address7, uint8_t reg, uint8_t value) = 0;
-    virtual bool readRegisters(uint8_t address7, uint8_t firstReg, uint8_t* out,
-                               uint8_t count) = 0;
+    virtual bool readRegisters(uint8_t address7, uint8_t firstReg, uint8_t* out, uint8_t count) = 0;
 
 protected:
     // Not virtual: a virtual destructor would pull operator delete into AVR

@@ -143,9 +143,7 @@ uint32_t TemperatureProgram::msToNextStep(uint32_t program_ms) const
     return holdMs() - inCycle % holdMs();
 }
 
-ProgramRun::ProgramRun(const TemperatureProgram &program) : program_(program), programMs_(0), waiting_(false)
-{
-}
+ProgramRun::ProgramRun(const TemperatureProgram &program) : program_(program), programMs_(0), waiting_(false) {}
 
 bool ProgramRun::reached(const ProgramState &state, float innerC) const
 {

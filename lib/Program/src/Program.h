@@ -27,9 +27,9 @@
 
 // Numeric values are stable; the protocol sends them as T, F, A.
 enum class HoldStart : uint8_t {
-    Timed = 0,          // every hold starts when its step does
-    FirstStepWaits = 1, // step 0 of each cycle waits (the run from ambient or rest)
-    AllStepsWait = 2,   // every driven step waits
+    Timed = 0,           // every hold starts when its step does
+    FirstStepWaits = 1,  // step 0 of each cycle waits (the run from ambient or rest)
+    AllStepsWait = 2,    // every driven step waits
 };
 
 struct ProgramSettings {
@@ -38,7 +38,7 @@ struct ProgramSettings {
     float step_c = 2.0f;
     uint32_t hold_s = 60;
     uint32_t rest_s = 1200;
-    uint16_t cycles = 0; // 0 = repeat forever
+    uint16_t cycles = 0;  // 0 = repeat forever
     // Timed by default: a SETPRG without hold_start means what it meant
     // before the field was appended (docs/architecture.md).
     HoldStart hold_start = HoldStart::Timed;
@@ -47,14 +47,14 @@ struct ProgramSettings {
 // Numeric values are stable so firmware can report them over serial.
 enum class ProgramError : uint8_t {
     None = 0,
-    StartOutOfRange = 1, // start_c outside kMinCelsius..kMaxCelsius (or NaN)
-    MaxOutOfRange = 2,   // max_c outside kMinCelsius..kMaxCelsius (or NaN)
+    StartOutOfRange = 1,  // start_c outside kMinCelsius..kMaxCelsius (or NaN)
+    MaxOutOfRange = 2,    // max_c outside kMinCelsius..kMaxCelsius (or NaN)
     StartNotBelowMax = 3,
-    StepNotPositive = 4, // step_c <= 0 (or NaN)
+    StepNotPositive = 4,  // step_c <= 0 (or NaN)
     StepLargerThanSpan = 5,
-    StepTooSmall = 6,    // more than kMaxWarmingSteps warming steps
+    StepTooSmall = 6,  // more than kMaxWarmingSteps warming steps
     HoldZero = 7,
-    CycleTooLong = 8,    // cycles * cycle duration does not fit in uint32_t ms
+    CycleTooLong = 8,  // cycles * cycle duration does not fit in uint32_t ms
     HoldStartUnknown = 9,
 };
 
@@ -62,16 +62,16 @@ enum class ProgramPhase : uint8_t { Warming = 0, Cooling = 1, Rest = 2, Done = 3
 
 struct ProgramState {
     ProgramPhase phase;
-    uint32_t cycle;    // 0-based; in Done, the number of cycles run
-    uint16_t step;     // warming 0..W-1, cooling W..2W-2; stepsPerCycle() in Rest/Done
-    float setpoint_c;  // in Rest and Done: start_c, but the drive is off
-    bool driveEnabled; // false in Rest and Done: the Peltier must be off
+    uint32_t cycle;     // 0-based; in Done, the number of cycles run
+    uint16_t step;      // warming 0..W-1, cooling W..2W-2; stepsPerCycle() in Rest/Done
+    float setpoint_c;   // in Rest and Done: start_c, but the drive is off
+    bool driveEnabled;  // false in Rest and Done: the Peltier must be off
 };
 
 class TemperatureProgram {
 public:
-    static const float kMinCelsius; // -10, the paper's calibration range
-    static const float kMaxCelsius; // 45
+    static const float kMinCelsius;  // -10, the paper's calibration range
+    static const float kMaxCelsius;  // 45
     static const uint16_t kMaxWarmingSteps = 1000;
     // A waiting step counts as reached within this of its setpoint: ThermalGuard's
     // default band_c, which is wider than the P law's droop at -10 degC (0.6

@@ -24,11 +24,17 @@
 #ifndef pgm_read_float
 #define pgm_read_float(address) (*(const float*)(address))
 #endif
+#ifndef pgm_read_ptr
+#define pgm_read_ptr(address) (*(const void* const*)(address))
+#endif
 #ifndef strcmp_P
 #define strcmp_P strcmp
 #endif
 #ifndef strncpy_P
 #define strncpy_P strncpy
+#endif
+#ifndef memcpy_P
+#define memcpy_P memcpy
 #endif
 #endif
 

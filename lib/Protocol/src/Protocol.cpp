@@ -52,9 +52,12 @@ char hexDigit(uint8_t nibble)
 
 int8_t hexValue(char c)
 {
-    if (c >= '0' && c <= '9') return (int8_t)(c - '0');
-    if (c >= 'A' && c <= 'F') return (int8_t)(c - 'A' + 10);
-    if (c >= 'a' && c <= 'f') return (int8_t)(c - 'a' + 10);
+    if (c >= '0' && c <= '9')
+        return (int8_t)(c - '0');
+    if (c >= 'A' && c <= 'F')
+        return (int8_t)(c - 'A' + 10);
+    if (c >= 'a' && c <= 'f')
+        return (int8_t)(c - 'a' + 10);
     return -1;
 }
 
@@ -193,20 +196,19 @@ uint16_t Protocol::checksum(const char *text, uint8_t length)
     return crc16Xmodem((const uint8_t *)text, length);
 }
 
-#define THERMOTILT_FRAME(tag, direction, fields) const char Protocol::ProgmemTag::tag[] PROGMEM = #tag;
+#define THERMOTILT_FRAME(tag, role, fields) const char Protocol::ProgmemTag::tag[] PROGMEM = #tag;
 #include "ProtocolFrames.def"
-#undef THERMOTILT_FRAME
+#define THERMOTILT_ERROR(code, meaning) const char Protocol::ErrorText::code[] = #code;
+#include "ProtocolFrames.def"
+#define THERMOTILT_ERROR_DETAIL(token, codes) const char Protocol::ErrorDetail::token[] = #token;
+#include "ProtocolFrames.def"
 
 bool Protocol::isBoardFrame(const char *type)
 {
-#define THERMOTILT_FRAME(tag, direction, fields) \
-    if (THERMOTILT_DIRECTION_##direction && strcmp_P(type, ProgmemTag::tag) == 0) return true;
-#define THERMOTILT_DIRECTION_BOARD true
-#define THERMOTILT_DIRECTION_HOST false
+#define THERMOTILT_FRAME(tag, role, fields) \
+    if (FrameRole::role != FrameRole::COMMAND && strcmp_P(type, ProgmemTag::tag) == 0) \
+        return true;
 #include "ProtocolFrames.def"
-#undef THERMOTILT_DIRECTION_HOST
-#undef THERMOTILT_DIRECTION_BOARD
-#undef THERMOTILT_FRAME
     return false;
 }
 
@@ -326,8 +328,10 @@ void FrameWriter::addScientific(float value, uint8_t significantDigits)
     if (!startField() || addNonFinite(value)) {
         return;
     }
-    if (significantDigits < 1) significantDigits = 1;
-    if (significantDigits > MAX_DECIMALS) significantDigits = MAX_DECIMALS;
+    if (significantDigits < 1)
+        significantDigits = 1;
+    if (significantDigits > MAX_DECIMALS)
+        significantDigits = MAX_DECIMALS;
     char text[NUMBER_BUFFER_SIZE];
     formatScientific(value, (uint8_t)(significantDigits - 1), text);
     append(text);
@@ -512,11 +516,6 @@ MalformedReason FrameParser::splitLine(uint8_t end)
 bool FrameParser::typeIs(const char *tag) const
 {
     return strcmp(line_, tag) == 0;
-}
-
-bool FrameParser::typeIs_P(const char *tag) const
-{
-    return strcmp_P(line_, tag) == 0;
 }
 
 const char *FrameParser::field(uint8_t index) const

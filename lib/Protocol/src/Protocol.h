@@ -35,23 +35,20 @@ constexpr uint8_t countFields(const char *fields)
 // Type tags, e.g. Protocol::Tag::IMU == "IMU", for tools and tests. The
 // boards reach a tag through Frame, which keeps it in program memory.
 namespace Tag {
-#define THERMOTILT_FRAME(tag, direction, fields) constexpr char tag[] = #tag;
+#define THERMOTILT_FRAME(tag, role, fields) constexpr char tag[] = #tag;
 #include "ProtocolFrames.def"
-#undef THERMOTILT_FRAME
 }
 
 // The same in program memory (PROGMEM, Protocol.cpp).
 namespace ProgmemTag {
-#define THERMOTILT_FRAME(tag, direction, fields) extern const char tag[];
+#define THERMOTILT_FRAME(tag, role, fields) extern const char tag[];
 #include "ProtocolFrames.def"
-#undef THERMOTILT_FRAME
 }
 
-// Fields after TYPE and SEQ, e.g. Protocol::FieldCount::SETPRG == 6.
+// Fields after TYPE and SEQ, e.g. Protocol::FieldCount::SETPRG == 7.
 namespace FieldCount {
-#define THERMOTILT_FRAME(tag, direction, fields) constexpr uint8_t tag = countFields(fields);
+#define THERMOTILT_FRAME(tag, role, fields) constexpr uint8_t tag = countFields(fields);
 #include "ProtocolFrames.def"
-#undef THERMOTILT_FRAME
 }
 
 // A frame type with its field count, e.g. Protocol::Frame::ACK. A FrameWriter
@@ -64,9 +61,8 @@ struct FrameType {
 };
 
 namespace Frame {
-#define THERMOTILT_FRAME(tag, direction, fields) constexpr FrameType tag = {ProgmemTag::tag, FieldCount::tag};
+#define THERMOTILT_FRAME(tag, role, fields) constexpr FrameType tag = {ProgmemTag::tag, FieldCount::tag};
 #include "ProtocolFrames.def"
-#undef THERMOTILT_FRAME
 }
 
 // An ERR frame's code, e.g. Protocol::Error::BAD_ARG. The boards' SerialLink
@@ -76,40 +72,39 @@ struct ErrorCode {
     const char *text;
 };
 
+// Defined once (Protocol.cpp), so that a code used in two files is in RAM once.
 namespace ErrorText {
-#define THERMOTILT_ERROR(code, meaning) constexpr char code[] = #code;
+#define THERMOTILT_ERROR(code, meaning) extern const char code[];
 #include "ProtocolFrames.def"
-#undef THERMOTILT_ERROR
 }
 
 namespace Error {
 #define THERMOTILT_ERROR(code, meaning) constexpr ErrorCode code = {ErrorText::code};
 #include "ProtocolFrames.def"
-#undef THERMOTILT_ERROR
 }
 
 // Detail tokens of ERR frames, e.g. Protocol::ErrorDetail::FACTOR_1_255. Like
-// string literals they take RAM on the AVR, and only where a board uses them.
+// string literals they take RAM on the AVR, and only those a board uses, each
+// once (Protocol.cpp).
 namespace ErrorDetail {
-#define THERMOTILT_ERROR_DETAIL(token, codes) constexpr char token[] = #token;
+#define THERMOTILT_ERROR_DETAIL(token, codes) extern const char token[];
 #include "ProtocolFrames.def"
-#undef THERMOTILT_ERROR_DETAIL
 }
+
+// What a frame type is for (ProtocolFrames.def); all but COMMAND go from a
+// board to the host.
+enum class FrameRole : uint8_t { STREAM, ANSWER, OUTCOME, COMMAND };
 
 // True for the types a board sends (IMU, CHS, ACK, ERR, ...): a board never
 // answers those, so an echoing terminal cannot make it talk to itself.
 bool isBoardFrame(const char *type);
 
+// Why FrameParser dropped a line, e.g. MALFORMED_BAD_CHECKSUM; ERR BAD_FRAME
+// names it with the detail token of the same name.
 enum MalformedReason : uint8_t {
     MALFORMED_NONE = 0,
-    MALFORMED_TRUNCATED,        // a new '$' arrived before the line ended
-    MALFORMED_TOO_LONG,         // more than MAX_LINE characters
-    MALFORMED_BAD_CHAR,         // a control or non-ASCII byte inside the line
-    MALFORMED_NO_CHECKSUM,      // no '*' followed by exactly CHECKSUM_DIGITS characters
-    MALFORMED_BAD_CHECKSUM,     // checksum digits not hex or not matching
-    MALFORMED_BAD_TYPE,         // TYPE is not 2..7 upper-case letters
-    MALFORMED_BAD_SEQ,          // SEQ missing, not decimal or above 65535
-    MALFORMED_TOO_MANY_FIELDS,  // more than MAX_FIELDS fields after SEQ
+#define THERMOTILT_MALFORMED_REASON(token) MALFORMED_##token,
+#include "ProtocolFrames.def"
 };
 
 // CRC-16/XMODEM of `length` bytes: the check of the text between '$' and '*'.
@@ -179,8 +174,6 @@ public:
 
     const char *type() const { return line_; }
     bool typeIs(const char *tag) const;
-    // The same with the tag in program memory, e.g. Protocol::Frame::START.tag.
-    bool typeIs_P(const char *tag) const;
     uint16_t seq() const { return seq_; }
     uint8_t fieldCount() const { return fieldCount_; }
     // Field i after TYPE and SEQ, or 0 when i is out of range.
@@ -191,10 +184,7 @@ public:
 
     // Wraps at 65535.
     uint16_t malformedCount() const { return malformedCount_; }
-    Protocol::MalformedReason lastMalformedReason() const
-    {
-        return (Protocol::MalformedReason)lastMalformed_;
-    }
+    Protocol::MalformedReason lastMalformedReason() const { return (Protocol::MalformedReason)lastMalformed_; }
 
 private:
     enum State : uint8_t { WAITING_FOR_START, IN_LINE, DISCARDING };

@@ -13,11 +13,16 @@ bool ResetCause::wasCommanded(uint8_t flags, bool commandMarked)
 
 const char* ResetCause::name(uint8_t flags, bool commandMarked)
 {
-    if (wasCommanded(flags, commandMarked)) return "COMMANDED";
-    if (flags & WATCHDOG_FLAG) return "WATCHDOG";
-    if (flags & BROWNOUT_FLAG) return "BROWNOUT";
-    if (flags & EXTERNAL_FLAG) return "EXTERNAL";
-    if (flags & POWER_ON_FLAG) return "POWER_ON";
+    if (wasCommanded(flags, commandMarked))
+        return "COMMANDED";
+    if (flags & WATCHDOG_FLAG)
+        return "WATCHDOG";
+    if (flags & BROWNOUT_FLAG)
+        return "BROWNOUT";
+    if (flags & EXTERNAL_FLAG)
+        return "EXTERNAL";
+    if (flags & POWER_ON_FLAG)
+        return "POWER_ON";
     return "UNKNOWN";
 }
 

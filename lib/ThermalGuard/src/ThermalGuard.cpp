@@ -71,10 +71,14 @@ void ThermalGuard::reset()
 
 GuardFault ThermalGuard::limitFault(float innerC, float outerC) const
 {
-    if (innerC > settings_.inner_max_c) return GuardFault::InnerHot;
-    if (innerC < settings_.inner_min_c) return GuardFault::InnerCold;
-    if (outerC > settings_.outer_max_c) return GuardFault::OuterHot;
-    if (outerC < settings_.outer_min_c) return GuardFault::OuterCold;
+    if (innerC > settings_.inner_max_c)
+        return GuardFault::InnerHot;
+    if (innerC < settings_.inner_min_c)
+        return GuardFault::InnerCold;
+    if (outerC > settings_.outer_max_c)
+        return GuardFault::OuterHot;
+    if (outerC < settings_.outer_min_c)
+        return GuardFault::OuterCold;
     return GuardFault::None;
 }
 
@@ -86,8 +90,7 @@ void ThermalGuard::restartApproach(float innerC, int8_t direction)
     sinceGainS_ = 0.0f;
 }
 
-GuardFault ThermalGuard::update(float targetC, float innerC, float outerC, const DriveCommand &drive,
-                                float dtSeconds)
+GuardFault ThermalGuard::update(float targetC, float innerC, float outerC, const DriveCommand &drive, float dtSeconds)
 {
     GuardFault limit = limitFault(innerC, outerC);
     if (limit != GuardFault::None) {

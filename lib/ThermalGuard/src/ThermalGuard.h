@@ -51,10 +51,10 @@ enum class GuardFault : uint8_t {
 
 enum class GuardError : uint8_t {
     None = 0,
-    CheckOutOfRange = 1, // band, gain or wrong-way distance not in (0, 10] degC, window not in
-                         // (0, 600] s, error budget not in (0, 3600] degC s (or NaN)
-    LimitOutOfRange = 2, // a face limit outside kHardMinCelsius..kHardMaxCelsius (or NaN)
-    LimitsInverted = 3,  // a minimum not below its maximum
+    CheckOutOfRange = 1,  // band, gain or wrong-way distance not in (0, 10] degC, window not in
+                          // (0, 600] s, error budget not in (0, 3600] degC s (or NaN)
+    LimitOutOfRange = 2,  // a face limit outside kHardMinCelsius..kHardMaxCelsius (or NaN)
+    LimitsInverted = 3,   // a minimum not below its maximum
 };
 
 class ThermalGuard {
@@ -83,20 +83,19 @@ public:
     // target_c is NaN while the program does not drive the face (idle, rest,
     // done): then only the limits apply. A NaN reading trips nothing here;
     // the thermistor checks own that case.
-    GuardFault update(float targetC, float innerC, float outerC, const DriveCommand &drive,
-                      float dtSeconds);
+    GuardFault update(float targetC, float innerC, float outerC, const DriveCommand &drive, float dtSeconds);
 
 private:
     void restartApproach(float innerC, int8_t direction);
 
     GuardSettings settings_;
     float lastTargetC_;
-    float goalC_;       // the reading that counts as the next gain
-    float closestC_;    // the closest the reading came to the target under full drive
+    float goalC_;     // the reading that counts as the next gain
+    float closestC_;  // the closest the reading came to the target under full drive
     float sinceGainS_;
     float holdErrorCS_;
-    int8_t approachDirection_; // +1 heating, -1 cooling, 0 not under full drive
-    bool reached_;      // the reading was within band_c of the current target
+    int8_t approachDirection_;  // +1 heating, -1 cooling, 0 not under full drive
+    bool reached_;              // the reading was within band_c of the current target
 };
 
 #endif

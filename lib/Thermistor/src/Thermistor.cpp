@@ -28,8 +28,7 @@ float Thermistor::resistanceOhms(uint16_t adc) const
 float Thermistor::celsiusFromOhms(float ohms) const
 {
     float logRatio = logf(ohms / params_.nominalOhms);
-    float inverseKelvin =
-        logRatio / params_.betaKelvin + 1.0f / (params_.nominalCelsius + kZeroCelsiusInKelvin);
+    float inverseKelvin = logRatio / params_.betaKelvin + 1.0f / (params_.nominalCelsius + kZeroCelsiusInKelvin);
     return 1.0f / inverseKelvin - kZeroCelsiusInKelvin;
 }
 

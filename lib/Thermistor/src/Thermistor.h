@@ -26,16 +26,16 @@
 // kMaxPlausibleCelsius (-55..150 degC, the usual NTC rating) is OutOfRange.
 
 struct ThermistorParams {
-    float referenceOhms = 100000.0f; // divider resistor from VCC to the pin
-    float nominalOhms = 100000.0f;   // R0, thermistor resistance at T0
-    float nominalCelsius = 25.0f;    // T0
-    float betaKelvin = 3950.0f;      // beta
+    float referenceOhms = 100000.0f;  // divider resistor from VCC to the pin
+    float nominalOhms = 100000.0f;    // R0, thermistor resistance at T0
+    float nominalCelsius = 25.0f;     // T0
+    float betaKelvin = 3950.0f;       // beta
 };
 
 enum class ThermistorStatus : uint8_t { Ok = 0, Open = 1, Short = 2, OutOfRange = 3 };
 
 struct ThermistorReading {
-    float celsius; // NaN unless status is Ok
+    float celsius;  // NaN unless status is Ok
     ThermistorStatus status;
 };
 
