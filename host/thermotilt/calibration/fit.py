@@ -66,11 +66,24 @@ class SurfaceFit:
 def design(temperature_c: np.ndarray, acceleration: np.ndarray,
            powers: tuple[tuple[int, ...], ...] = _POWERS, rate_c_per_s: np.ndarray | None = None) -> np.ndarray:
     """Columns T^i a^j (and dT/dt^k for a third power) on scaled variables."""
-    t = temperature_c / _TEMPERATURE_SCALE
-    a = acceleration / _ACCELERATION_SCALE
-    r = None if rate_c_per_s is None else rate_c_per_s * _RATE_SCALE
-    return np.column_stack([t**power[0] * a**power[1] * (r**power[2] if len(power) > 2 else 1.0)
-                            for power in powers])
+    variables = [temperature_c / _TEMPERATURE_SCALE, acceleration / _ACCELERATION_SCALE]
+    if rate_c_per_s is not None:
+        variables.append(rate_c_per_s * _RATE_SCALE)
+    # Each variable's powers once, by multiplication: the columns share them.
+    highest = [max((power[index] if index < len(power) else 0) for power in powers) for index in range(len(variables))]
+    tables = []
+    for variable, top in zip(variables, highest):
+        table = [np.ones_like(variable)]
+        for _ in range(top):
+            table.append(table[-1] * variable)
+        tables.append(table)
+    columns = np.empty((len(temperature_c), len(powers)))
+    for column, power in enumerate(powers):
+        product = tables[0][power[0]] * tables[1][power[1]]
+        if len(power) > 2 and power[2]:
+            product = product * tables[2][power[2]]
+        columns[:, column] = product
+    return columns
 
 
 def _unscale() -> np.ndarray:

@@ -87,7 +87,9 @@ def drift_figure(campaign: Campaign, path: Path) -> str:
         for index, position in enumerate(campaign.positions):
             # A campaign's positions are named "folder (x .. deg, y .. deg)"; the folder is the label.
             plot.plot([], [], "o", color=colours[index], label=position.split(" (")[0])
-        plot.legend(fontsize="x-small", ncol=1 + len(campaign.positions) // 10, markerscale=0.6)
+        # Beside the plot: "best" would search every point for a free corner.
+        plot.legend(fontsize="x-small", ncol=1 + len(campaign.positions) // 10, markerscale=0.6,
+                    loc="upper left", bbox_to_anchor=(1.0, 1.0))
         plot.set_xlabel("IMU temperature (°C)")
         plot.set_ylabel(f"{axis}: reading − reading at 25 °C (LSB)")
         plot.set_title(f"{axis} axis, {len(campaign.positions)} positions")
