@@ -1,5 +1,5 @@
 """calibration.newey_west against statsmodels' own hac-panel, which it
-computes faster (FFT cross-correlations instead of a pass per lag)."""
+computes faster (one FFT of the scores instead of a pass per lag)."""
 
 import numpy as np
 import pytest

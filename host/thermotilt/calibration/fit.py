@@ -123,7 +123,8 @@ def fit_surface(data: SetData, set_name: str, axis: str) -> SurfaceFit:
             f"{set_name} set, {axis} axis: temperature and acceleration do not vary enough for "
             "six coefficients (the fit needs several temperatures at several inclinations)"
         )
-    ols = sm.OLS(residual, columns).fit(method="qr")
+    # pinv: one SVD of the design, which statsmodels computes for the qr method too.
+    ols = sm.OLS(residual, columns).fit(method="pinv")
     # Newey-West within a position cannot take lags beyond its rows; many
     # short positions (37 of them in a full campaign) reach that first.
     shortest = int(np.min(np.unique(data.position, return_counts=True)[1]))

@@ -22,6 +22,7 @@ from .validate import SET_NAMES, Coefficients, Validation, format_validation, ra
 DPI = 110
 SET_COLOURS = {"W": "tab:red", "C": "tab:blue"}
 FIGURE_ROWS_PER_POSITION = 2000
+LEGEND_COLUMNS = 6
 
 
 def _save(figure: plt.Figure, path: Path) -> str:
@@ -75,7 +76,9 @@ def write_validation_report(out_dir: Path, validation: Validation, coefficients:
 def drift_figure(campaign: Campaign, path: Path) -> str:
     """Figure 10: each axis's residual (reading minus its 25 °C reading)
     against temperature, one colour per tilt position, both sets."""
-    figure, axes = plt.subplots(1, len(FIT_AXES), figsize=(6 * len(FIT_AXES), 4.2), squeeze=False)
+    legend_rows = -(-len(campaign.positions) // LEGEND_COLUMNS)
+    figure, axes = plt.subplots(1, len(FIT_AXES), figsize=(6 * len(FIT_AXES), 4.6 + 0.17 * legend_rows),
+                                squeeze=False)
     colours = plt.get_cmap("viridis")(np.linspace(0, 1, max(1, len(campaign.positions))))
     for axis, plot in zip(FIT_AXES, axes[0]):
         for data in campaign.sets.values():
@@ -87,9 +90,9 @@ def drift_figure(campaign: Campaign, path: Path) -> str:
         for index, position in enumerate(campaign.positions):
             # A campaign's positions are named "folder (x .. deg, y .. deg)"; the folder is the label.
             plot.plot([], [], "o", color=colours[index], label=position.split(" (")[0])
-        # Beside the plot: "best" would search every point for a free corner.
-        plot.legend(fontsize="x-small", ncol=1 + len(campaign.positions) // 10, markerscale=0.6,
-                    loc="upper left", bbox_to_anchor=(1.0, 1.0))
+        # Below the plot: "best" would search every point for a free corner.
+        plot.legend(fontsize="x-small", ncol=LEGEND_COLUMNS, markerscale=0.6, loc="upper center",
+                    bbox_to_anchor=(0.5, -0.16))
         plot.set_xlabel("IMU temperature (°C)")
         plot.set_ylabel(f"{axis}: reading − reading at 25 °C (LSB)")
         plot.set_title(f"{axis} axis, {len(campaign.positions)} positions")
