@@ -215,7 +215,7 @@ class RunColumns:
 
     path: str
     numbers: Mapping[str, Any]  # column -> numpy float array
-    texts: Mapping[str, Any]  # column -> numpy str array
+    texts: Mapping[str, Any]  # column -> numpy array of str (dtype object)
     unreadable: Mapping[str, int]  # column -> cells that were not numbers
 
     @property
@@ -257,7 +257,7 @@ def read_run_columns(path: str) -> RunColumns:
         else:
             unreadable[column] = 0
         numbers[column] = values.to_numpy(dtype=float, na_value=np.nan)
-    texts = {column: frame[column].to_numpy(dtype=str) for column in header if column in TEXT_COLUMNS}
+    texts = {column: frame[column].to_numpy(dtype=object) for column in header if column in TEXT_COLUMNS}
     return RunColumns(path, numbers, texts, unreadable)
 
 
@@ -285,7 +285,7 @@ def _columns_of_rows(path: str, rows: list[dict[str, str]]) -> RunColumns:
     for column in header:
         cells = [row[column] for row in rows]
         if column in TEXT_COLUMNS:
-            texts[column] = np.array(cells, dtype=str)
+            texts[column] = np.array(cells, dtype=object)
             continue
         values = np.full(len(cells), math.nan)
         bad = 0
