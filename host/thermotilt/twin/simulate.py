@@ -25,17 +25,13 @@ from ..wire.protocol import Frame, FrameReader, SequenceCounter, build_frame
 from ..run.log import ChamberState, RunLogWriter, format_number
 from .scenarios import Scenario
 from .boards import Board, Drive
+from .faults import FAULTS, INNER_THERMISTOR_CHANNEL, OUTER_THERMISTOR_CHANNEL
 
 STEP_S = 0.01
-INNER_THERMISTOR_CHANNEL = 0
-OUTER_THERMISTOR_CHANNEL = 1
 IMU = "imu_reader"
 CHAMBER = "thermal_chamber"
 IMU_EEPROM_FILE = "imu_reader_eeprom.bin"
 IMU_EEPROM_BYTES = 1024  # the ATmega328P's
-CHAMBER_FAULTS = {"inner_open", "inner_short", "outer_open", "outer_short",
-                  "peltier_disconnected", "peltier_reversed", "inner_detached",
-                  "heatsink_failed", "chamber_hang", "chamber_uart_corrupt"}
 
 
 class SimulationError(RuntimeError):
@@ -151,12 +147,22 @@ def _no_lap(_phase: str) -> None:
     pass
 
 
-class _FaultSchedule:
-    """Switches each fault on and off at its times."""
+@dataclass
+class _FaultTarget:
+    """What a fault acts on (thermotilt.twin.faults.FaultTarget)."""
 
-    def __init__(self, faults: tuple[Fault, ...], apply: Callable[[Fault, bool], None]):
+    boards: dict[str, Board]
+    chamber: Chamber | None
+    seed: int
+    peltier_reversed: bool = False
+
+
+class _FaultSchedule:
+    """Switches each fault on and off at its times (the registry says how)."""
+
+    def __init__(self, faults: tuple[Fault, ...], target: _FaultTarget):
         self._faults = faults
-        self._apply = apply
+        self._target = target
         self._active = [False] * len(faults)
 
     def update(self, t: float) -> None:
@@ -164,7 +170,20 @@ class _FaultSchedule:
             active = fault.active(t)
             if active != self._active[index]:
                 self._active[index] = active
-                self._apply(fault, active)
+                FAULTS[fault.name].apply(self._target, active, fault.rate)
+
+
+def check_faults(scenario: Scenario, model: Model) -> None:
+    """SimulationError for a fault the run cannot have: its board is not
+    in the scenario, or the physics term it acts through is off."""
+    for fault in model.faults:
+        kind = FAULTS[fault.name]
+        if kind.board == CHAMBER and not scenario.uses_chamber:
+            raise SimulationError(
+                f"fault {fault.name} needs the chamber, but {scenario.name} runs the IMU alone"
+            )
+        if kind.needs_term is not None and not model.enabled(kind.needs_term):
+            raise SimulationError(f"fault {fault.name} needs the {kind.needs_term} term enabled")
 
 
 def _truth(sample: SensorSample, chamber: Chamber | None, drive: Drive | None) -> dict[str, str]:
@@ -203,13 +222,7 @@ def run(
     the 148-byte coefficient block of `thermotilt fit` (coefficients.bin).
     realtime: no step ends before its simulated time has passed on the wall
     clock, as on a board. timing: where the steps' wall time goes."""
-    for fault in model.faults:
-        if fault.name in CHAMBER_FAULTS and not scenario.uses_chamber:
-            raise SimulationError(
-                f"fault {fault.name} needs the chamber, but {scenario.name} runs the IMU alone"
-            )
-        if fault.name == "heatsink_failed" and not model.enabled("heatsink"):
-            raise SimulationError("fault heatsink_failed needs the heatsink term enabled")
+    check_faults(scenario, model)
     serial_dir = out_dir / "serial"
     serial_dir.mkdir(parents=True, exist_ok=True)
     wall_start = time.perf_counter()
@@ -293,36 +306,8 @@ def _play(
                 on_pty(link.name, path)
     sensor = Sensor(model, seed, scenario.ambient_c(0.0))
 
-    peltier_reversed = False
-
-    def apply_fault(fault: Fault, active: bool) -> None:
-        nonlocal peltier_reversed
-        name = fault.name
-        if name == "peltier_reversed":
-            peltier_reversed = active
-        elif name == "inner_detached":
-            chamber.inner_thermistor_detached = active
-        elif name == "heatsink_failed":
-            chamber.heatsink_failed = active
-        elif name.endswith("_hang"):
-            # A deadlock cannot be undone from outside: only the watchdog ends it.
-            if active:
-                (imu if name == "imu_hang" else chamber_link).board.hang()
-        elif name in ("sensor_absent", "sensor_stuck"):
-            imu.board.set_lsm9ds0_fault(name.split("_")[1] if active else "none")
-        elif name == "data_ready_cut":
-            imu.board.wire_lsm9ds0_data_ready(not active)
-        elif name.endswith(("_open", "_short")):
-            face, kind = name.split("_")
-            channel = INNER_THERMISTOR_CHANNEL if face == "inner" else OUTER_THERMISTOR_CHANNEL
-            chamber_link.board.set_adc_fault(channel, kind if active else "none")
-        elif name == "peltier_disconnected":
-            chamber_link.board.set_l298n_disconnected(active)
-        else:
-            link = imu if name == "imu_uart_corrupt" else chamber_link
-            link.board.set_uart_corruption(fault.rate if active else 0.0, seed)
-
-    faults = _FaultSchedule(model.faults, apply_fault)
+    target = _FaultTarget({name: link.board for name, link in links.items()}, chamber, seed)
+    faults = _FaultSchedule(model.faults, target)
     commands = list(scenario.commands)
     positions = list(scenario.positions)
     position = positions.pop(0)
@@ -349,7 +334,7 @@ def _play(
         if chamber is not None:
             drive = chamber_link.board.read_l298n()
             lap("board_io")
-            current = -drive.direction if peltier_reversed else drive.direction
+            current = -drive.direction if target.peltier_reversed else drive.direction
             chamber.step(STEP_S, drive.duty, current, ambient)
             inner_mv, outer_mv = chamber.thermistor_millivolts()
             lap("physics")
