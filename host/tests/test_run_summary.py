@@ -1,11 +1,13 @@
 """summary.json: one versioned schema every producer writes, read through
-read_summary / RunFolder.summary (docs/run-log.md)."""
+read_summary / RunFolder.summary (docs/run-log.md); and the recorder's one
+rule for when a chamber program is over."""
 
 import json
 
 import pytest
 
 from thermotilt.run.folder import RunFolder
+from thermotilt.run.recorder import ProgramEnd
 from thermotilt.run.summary import (
     SCHEMA,
     BoardReport,
@@ -13,6 +15,7 @@ from thermotilt.run.summary import (
     RunSummaryError,
     read_summary,
 )
+from thermotilt.wire.protocol import parse_line, build_frame
 
 
 def twin_summary(**changes):
@@ -133,3 +136,20 @@ def test_a_run_folder_gives_its_summary(tmp_path):
     with pytest.raises(RunSummaryError, match="newer"):
         run.summary()
 
+
+def status(phase, fault="OK"):
+    return parse_line(build_frame("CHS", 0, [1000, phase, 3, 18.0, 17.9, 23.5, 0, "O", fault]))
+
+
+@pytest.mark.parametrize("phases, reasons", [
+    # Idle before START is no end; done or idle after running is.
+    (["I", "W", "C", "R", "D"], ["", "", "", "", "program done"]),
+    (["I", "W", "I"], ["", "", "program done"]),
+    (["I", "I"], ["", ""]),
+    # A fault ends it whenever it comes: it latches until CLEAR.
+    (["I", "F"], ["", "chamber fault WRONG_WAY"]),
+    (["W", "F"], ["", "chamber fault WRONG_WAY"]),
+])
+def test_when_a_program_is_over(phases, reasons):
+    program = ProgramEnd()
+    assert [program.reason(status(phase, "WRONG_WAY" if phase == "F" else "OK")) for phase in phases] == reasons

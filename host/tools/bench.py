@@ -60,6 +60,7 @@ from thermotilt.twin.boards import (
     is_runtime_routine,
 )
 from thermotilt.physics import Chamber, Model, Sensor
+from thermotilt.run.summary import BoardReport
 from thermotilt.twin.scenarios import ScenarioOptions, build
 
 COUPLED_TARGET_X_REAL_TIME = 50.0
@@ -90,8 +91,8 @@ def speed_line(label: str, simulated_s: float, wall_s: float, target: str = "") 
     return speed
 
 
-def awake_line(name: str, report: dict, doing: str, target: str = "") -> None:
-    awake, asleep = report["awake_cycles"], report["sleep_cycles"]
+def awake_line(name: str, report: BoardReport, doing: str, target: str = "") -> None:
+    awake, asleep = report.awake_cycles, report.sleep_cycles
     seconds = (awake + asleep) / DEFAULT_FREQUENCY_HZ
     print(f"{name}: awake {100 * awake / (awake + asleep):.1f} % of cycles {doing}{target}: "
           f"{awake / seconds / 1e6:.2f} M cycles executed and {asleep / seconds / 1e6:.2f} M slept "
@@ -166,27 +167,27 @@ def speed_and_awake(model: Model) -> None:
     with tempfile.TemporaryDirectory() as scratch:
         imu = simulate.run(build("field-warming", ScenarioOptions(duration_s=600)), model,
                            Path(scratch) / "field").summary
-        speed_line("imu alone, field-warming (10 min)", imu["sim_seconds"], imu["wall_seconds"])
+        speed_line("imu alone, field-warming (10 min)", imu.sim_seconds, imu.wall_seconds)
         speed_line("chamber alone, a cycle's program (10 min)", CHAMBER_ALONE_S, chamber_alone_seconds(model))
         # Timed, its laps add about 1.5 us to a step of 150-250.
         timing = simulate.StepTiming()
         fig8 = simulate.run(build("fig8", ScenarioOptions()), model, Path(scratch) / "fig8", timing=timing).summary
-        speed_line("both boards, fig8", fig8["sim_seconds"], fig8["wall_seconds"],
+        speed_line("both boards, fig8", fig8.sim_seconds, fig8.wall_seconds,
                    f" (target >= {COUPLED_TARGET_X_REAL_TIME:.0f}x on one core)")
-        step_breakdown(timing, round(fig8["sim_seconds"] / simulate.STEP_S), len(fig8["boards"]))
+        step_breakdown(timing, round(fig8.sim_seconds / simulate.STEP_S), len(fig8.boards))
         position = simulate.run(build("campaign", ScenarioOptions(hold_s=1, positions=("0",))), model,
                                 Path(scratch) / "campaign").summary
     speed = speed_line("one campaign position, 1 s holds (simulate campaign --positions 0 --hold-seconds 1)",
-                       position["sim_seconds"], position["wall_seconds"])
+                       position.sim_seconds, position.wall_seconds)
     # `thermotilt campaign --twin` runs each position as a cycle with 60 s holds, ending with its program.
     position_s = build("cycle", ScenarioOptions()).duration_s
     minutes = CAMPAIGN_POSITIONS * position_s / speed / CORES / 60
     print(f"  estimate: the paper's campaign ({CAMPAIGN_POSITIONS} positions with 60 s holds, each at most "
           f"{position_s:.0f} s simulated, at this speed, {CORES} at a time) {minutes:.0f} min "
           f"(target <= {CAMPAIGN_TARGET_MINUTES:.0f} min on a 2-core machine; estimated, not run)")
-    awake_line("imu_reader", imu["boards"][simulate.IMU], "at 100 Hz sampling, decimation 10, over a 10 min run",
+    awake_line("imu_reader", imu.boards[simulate.IMU], "at 100 Hz sampling, decimation 10, over a 10 min run",
                f" (target <= {100 * IMU_AWAKE_TARGET:.0f} %)")
-    awake_line("thermal_chamber", fig8["boards"][simulate.CHAMBER], "running fig8's program (control every 250 ms)")
+    awake_line("thermal_chamber", fig8.boards[simulate.CHAMBER], "running fig8's program (control every 250 ms)")
 
 
 # Where the IMU's awake cycles go, by the first function up a sample's stack
@@ -387,7 +388,7 @@ def scatter(model: Model, seed: int) -> None:
         summary = simulate.run(build("campaign", SCATTER_OPTIONS), model, out, seed=seed).summary
         campaign = load(out, settle_s=SCATTER_SETTLE_S)
         print(f"campaign {','.join(SCATTER_POSITIONS)}, {SCATTER_OPTIONS.hold_s} s holds: "
-              f"{summary['sim_seconds']:.0f} s simulated in {summary['wall_seconds']:.0f} s")
+              f"{summary.sim_seconds:.0f} s simulated in {summary.wall_seconds:.0f} s")
         for axis in ("X", "Y"):
             for set_name in ("W", "C"):
                 fit = fit_surface(campaign.sets[set_name], set_name, axis)
@@ -400,7 +401,7 @@ def scatter(model: Model, seed: int) -> None:
             validation = validate(out)
             low, high = validation.temperature_range_c
             print(f"{name}: the IMU read {low:.2f}..{high:.2f} degC; "
-                  f"{summary['sim_seconds']:.0f} s simulated in {summary['wall_seconds']:.0f} s")
+                  f"{summary.sim_seconds:.0f} s simulated in {summary.wall_seconds:.0f} s")
             for axis in ("X", "Y"):
                 result = validation.result(set_name, axis)
                 before, after = FIELD_RMS_LSB[(name, axis)]
