@@ -258,27 +258,33 @@ def test_the_documented_ranges_are_the_loaders():
 # --- outputs ----------------------------------------------------------------
 
 
-@pytest.mark.parametrize(("out", "raw_dir", "message"), [
-    ("{tmp}/missing/run.csv", None, "cannot write {tmp}/missing/run.csv: No such file or directory"),
-    ("{tmp}", None, "{tmp} is a folder; --out names the run.csv to write"),
-    ("{tmp}/run.csv", "{tmp}/file", "cannot create folder {tmp}/file: File exists"),
-    ("/dev/full", None, "cannot write /dev/full: No space left on device"),
+@pytest.mark.parametrize(("out", "message"), [
+    ("{tmp}/file", "cannot create folder {tmp}/file: File exists"),
+    ("{tmp}/file/run", "cannot create folder {tmp}/file/run: Not a directory"),
+    ("{tmp}/full", "cannot write {tmp}/full/run.csv: No space left on device"),
+    ("{tmp}/rig.csv", "--out {tmp}/rig.csv: a run folder's log is run.csv; give the folder, e.g. --out {tmp}/rig"),
 ])
-def test_log_outputs_that_cannot_be_written(tmp_path, out, raw_dir, message):
+def test_log_outputs_that_cannot_be_written(tmp_path, out, message):
     (tmp_path / "file").write_text("not a folder\n")
-    extra = ["--raw-dir", raw_dir.format(tmp=tmp_path)] if raw_dir else []
-    result = thermotilt("log", "--port", "loop://", "--out", out.format(tmp=tmp_path), "--force",
-                        *extra)
+    (tmp_path / "full").mkdir()
+    (tmp_path / "full" / "run.csv").symlink_to("/dev/full")
+    result = thermotilt("log", "--port", "loop://", "--out", out.format(tmp=tmp_path), "--force")
     assert_one_line_error(result, 1, message.format(tmp=tmp_path))
 
 
+def test_log_names_where_the_raw_bytes_went(tmp_path):
+    result = thermotilt("log", "--port", "loop://", "--out", tmp_path / "run", "--raw-dir", tmp_path / "raw")
+    assert_one_line_error(result, 1, "--raw-dir is gone: log keeps each port's bytes in the run folder's serial/")
+    assert not (tmp_path / "run").exists() and not (tmp_path / "raw").exists()
+
+
 def test_a_line_break_in_a_name_is_escaped(tmp_path):
-    result = thermotilt("log", "--port", "no\nport", "--out", tmp_path / "run.csv")
+    result = thermotilt("log", "--port", "no\nport", "--out", tmp_path / "run")
     assert_one_line_error(result, 1, "cannot open no\\nport: ")
 
 
 def test_a_port_url_pyserial_cannot_parse(tmp_path):
-    result = thermotilt("log", "--port", "loop://?bad", "--out", tmp_path / "run.csv")
+    result = thermotilt("log", "--port", "loop://?bad", "--out", tmp_path / "run")
     assert_one_line_error(result, 1, "cannot open loop://?bad: ")
 
 

@@ -12,6 +12,7 @@ import json
 import subprocess
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -23,6 +24,7 @@ from thermotilt.twin import simulate as simulate_module
 from thermotilt.surfaces import PAPER_DEFAULTS
 from thermotilt.wire.protocol import FrameReader, build_frame
 from thermotilt.run.log import ALL_COLUMNS, read_run_log
+from thermotilt.run.summary import read_summary
 from thermotilt.twin.scenarios import ScenarioOptions, build
 
 from twin_helpers import pty_twin
@@ -241,14 +243,13 @@ def test_simavr_executing_runs_of_instructions_simulates_the_same_cycles(tmp_pat
         out = tmp_path / name
         out.mkdir()
         summary = simulate_module.run(scenario, model, out, seed=5).summary
-        runs[name] = (out, summary)
+        # Only the wall clock may tell the two apart.
+        runs[name] = (out, replace(summary, wall_seconds=0.0, speed_x_real_time=None))
     (runs_out, runs_summary), (single_out, single_summary) = runs["runs"], runs["single"]
-    for summary in (runs_summary, single_summary):
-        del summary["wall_seconds"], summary["speed_x_real_time"]
     assert runs_summary == single_summary
-    for report in runs_summary["boards"].values():
-        assert any(error.startswith("RESET WATCHDOG") for error in report["reported_errors"])
-    assert runs_summary["boards"]["imu_reader"]["corrupted_bytes"] > 0
+    for report in runs_summary.boards.values():
+        assert any(error.startswith("RESET WATCHDOG") for error in report.reported_errors)
+    assert runs_summary.boards["imu_reader"].corrupted_bytes > 0
     for board in ("imu_reader", "thermal_chamber"):
         serial_file = Path("serial") / f"{board}.txt"
         assert (runs_out / serial_file).read_bytes() == (single_out / serial_file).read_bytes()
@@ -380,15 +381,20 @@ def test_the_twin_through_pseudo_terminals(tmp_path):
                 replies += [f for f in reader.feed(imu.read(256)) if f.type in ("VER", "ACK", "IMU")]
         assert any(f.type == "VER" and f["device"] == "imu_reader" for f in replies)
         assert any(f.type == "IMU" for f in replies)
-        logged = tmp_path / "logged.csv"
+        logged = tmp_path / "logged"
         result = subprocess.run(
             [*THERMOTILT, "log", "--port", ports["imu_reader"], "--chamber-port",
              ports["thermal_chamber"], "--out", str(logged), "--rows", "100"],
             capture_output=True, text=True, timeout=120, check=False)
         assert result.returncode == 0, result.stderr
-    assert json.loads((out / "summary.json").read_text())["interrupted"] is True
-    logged_rows = read_run_log(str(logged))
+    assert read_summary(out).interrupted is True
+    logged_rows = read_run_log(str(logged / "run.csv"))
     assert len(logged_rows) == 100
+    # The log's summary is the twin's schema, from the rig's side.
+    logged_summary = read_summary(logged)
+    assert (logged_summary.source, logged_summary.rows, logged_summary.end_reason) == ("boards", 100, "100 rows")
+    assert logged_summary.boards["imu_reader"].port == ports["imu_reader"]
+    assert logged_summary.boards["imu_reader"].frames_by_type["IMU"] >= 100
     assert "true_die_c" not in logged_rows[0] and logged_rows[-1]["chamber_c"] != ""
     # What the log wrote from the pseudo-terminals is what the twin logged itself.
     twin_rows = {row["imu_seq"]: row for row in read_run_log(str(out / "run.csv"))}

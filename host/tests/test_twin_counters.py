@@ -99,8 +99,8 @@ def test_summary_records_each_boards_awake_and_sleeping_cycles(tmp_path):
     timing = simulate.StepTiming()
     summary = simulate.run(build("idle", ScenarioOptions(duration_s=3.0)), Model.load(), tmp_path,
                            timing=timing).summary
-    for report in summary["boards"].values():
-        assert report["awake_cycles"] > 0
-        assert report["awake_cycles"] + report["sleep_cycles"] == report["cycles"]
+    for report in summary.boards.values():
+        assert report.awake_cycles > 0
+        assert report.awake_cycles + report.sleep_cycles == report.cycles
     assert set(timing.seconds) == set(simulate.StepTiming.PHASES)
-    assert sum(timing.seconds.values()) <= summary["wall_seconds"]
+    assert sum(timing.seconds.values()) <= summary.wall_seconds

@@ -73,6 +73,7 @@ from thermotilt.physics import Chamber, Model, Sensor
 from thermotilt.program import CALIBRATION_MAX_C, CALIBRATION_MIN_C, PAPER_HOLD_S, PAPER_STEP_C
 from thermotilt.run.folder import LOG_FILE
 from thermotilt.run.log import RunLogWriter
+from thermotilt.run.summary import BoardReport
 from thermotilt.surfaces import PAPER_DEFAULTS
 from thermotilt.twin.scenarios import ScenarioOptions, build, campaign_positions
 
@@ -133,8 +134,8 @@ def speed_line(figures: Figures, label: str, simulated_s: float, wall_s: float, 
     return speed
 
 
-def awake_line(figures: Figures, name: str, report: dict, doing: str, target: str = "") -> None:
-    awake, asleep = report["awake_cycles"], report["sleep_cycles"]
+def awake_line(figures: Figures, name: str, report: BoardReport, doing: str, target: str = "") -> None:
+    awake, asleep = report.awake_cycles, report.sleep_cycles
     seconds = (awake + asleep) / DEFAULT_FREQUENCY_HZ
     figures.add(f"{name} CPU awake, {doing}", f"{100 * awake / (awake + asleep):.1f} % of cycles",
                 f"{awake / seconds / 1e6:.2f} M cycles executed and {asleep / seconds / 1e6:.2f} M slept "
@@ -210,19 +211,19 @@ def speed_and_awake(figures: Figures, model: Model) -> None:
     with tempfile.TemporaryDirectory() as scratch:
         imu = simulate.run(build("field-warming", ScenarioOptions(duration_s=600)), model,
                            Path(scratch) / "field").summary
-        speed_line(figures, "IMU alone, field-warming (10 min)", imu["sim_seconds"], imu["wall_seconds"])
+        speed_line(figures, "IMU alone, field-warming (10 min)", imu.sim_seconds, imu.wall_seconds)
         speed_line(figures, "chamber alone, a cycle's program (10 min)", CHAMBER_ALONE_S,
                    chamber_alone_seconds(model))
         # Timed, its laps add about 1.5 us to a step of 150-250.
         timing = simulate.StepTiming()
         fig8 = simulate.run(build("fig8", ScenarioOptions()), model, Path(scratch) / "fig8", timing=timing).summary
-        speed_line(figures, "both boards coupled, fig8", fig8["sim_seconds"], fig8["wall_seconds"],
+        speed_line(figures, "both boards coupled, fig8", fig8.sim_seconds, fig8.wall_seconds,
                    f"; target >= {COUPLED_TARGET_X_REAL_TIME:.0f}x on one core")
-        step_breakdown(figures, timing, round(fig8["sim_seconds"] / simulate.STEP_S), len(fig8["boards"]))
+        step_breakdown(figures, timing, round(fig8.sim_seconds / simulate.STEP_S), len(fig8.boards))
         position = simulate.run(build("campaign", ScenarioOptions(hold_s=1, positions=("0",))), model,
                                 Path(scratch) / "campaign").summary
     speed = speed_line(figures, "one campaign position, 1 s holds (simulate campaign --positions 0 "
-                       "--hold-seconds 1)", position["sim_seconds"], position["wall_seconds"])
+                       "--hold-seconds 1)", position.sim_seconds, position.wall_seconds)
     # `thermotilt campaign --twin` runs each position as a cycle with 60 s holds, ending with its program.
     position_s = build("cycle", ScenarioOptions()).duration_s
     minutes = CAMPAIGN_POSITIONS * position_s / speed / CORES / 60
@@ -231,10 +232,10 @@ def speed_and_awake(figures: Figures, model: Model) -> None:
                 f"each position at most {position_s:.0f} s simulated, at the campaign position's speed, "
                 f"{CORES} at a time; estimated, not run; target <= {CAMPAIGN_TARGET_MINUTES:.0f} min on a "
                 f"2-core machine")
-    awake_line(figures, "imu_reader", imu["boards"][simulate.IMU],
+    awake_line(figures, "imu_reader", imu.boards[simulate.IMU],
                "100 Hz sampling, decimation 10, a 10 min field run from boot",
                f"; target <= {100 * IMU_AWAKE_TARGET:.0f} %")
-    awake_line(figures, "thermal_chamber", fig8["boards"][simulate.CHAMBER],
+    awake_line(figures, "thermal_chamber", fig8.boards[simulate.CHAMBER],
                "running fig8's program (control every 250 ms)")
 
 
@@ -443,7 +444,7 @@ def scatter(model: Model, seed: int) -> None:
         summary = simulate.run(build("campaign", SCATTER_OPTIONS), model, out, seed=seed).summary
         campaign = load(out, settle_s=SCATTER_SETTLE_S)
         print(f"campaign {','.join(SCATTER_POSITIONS)}, {SCATTER_OPTIONS.hold_s} s holds: "
-              f"{summary['sim_seconds']:.0f} s simulated in {summary['wall_seconds']:.0f} s")
+              f"{summary.sim_seconds:.0f} s simulated in {summary.wall_seconds:.0f} s")
         for axis in ("X", "Y"):
             for set_name in ("W", "C"):
                 fit = fit_surface(campaign.sets[set_name], set_name, axis)
@@ -456,7 +457,7 @@ def scatter(model: Model, seed: int) -> None:
             validation = validate(out)
             low, high = validation.temperature_range_c
             print(f"{name}: the IMU read {low:.2f}..{high:.2f} degC; "
-                  f"{summary['sim_seconds']:.0f} s simulated in {summary['wall_seconds']:.0f} s")
+                  f"{summary.sim_seconds:.0f} s simulated in {summary.wall_seconds:.0f} s")
             for axis in ("X", "Y"):
                 result = validation.result(set_name, axis)
                 before, after = FIELD_RMS_LSB[(name, axis)]

@@ -34,6 +34,7 @@ import generated_page  # noqa: E402
 from thermotilt.calibration.compare import compare, read_fit
 from thermotilt.calibration.paper import FIELD_RMS_LSB, FIELD_TEST_SET, TABLES
 from thermotilt.calibration.validate import SET_NAMES, load_coefficients, validate
+from thermotilt.run.summary import read_summary
 from thermotilt.twin.cli import announced_ports
 
 THERMOTILT = [sys.executable, "-m", "thermotilt"]
@@ -183,7 +184,7 @@ def field_section(fit: Path, runs: dict[str, Path]) -> list[str]:
     rows, runs_read, firmware = [], [], []
     for name, run in runs.items():
         validation = validate(run, load_coefficients(str(fit)))
-        simulated_s = json.loads((run / "summary.json").read_text())["sim_seconds"]
+        simulated_s = read_summary(run).sim_seconds
         runs_read.append(f"{name} {simulated_s:.0f} s simulated, the IMU reading "
                          "{:.1f}…{:.1f} °C".format(*validation.temperature_range_c))
         for result in validation.results:

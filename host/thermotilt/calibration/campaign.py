@@ -35,9 +35,9 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from ..wire.protocol import FrameReader
-from ..twin.scenarios import ScenarioError, ScenarioOptions, campaign_positions, cycle
 from ..program import CALIBRATION_MAX_C, CALIBRATION_MIN_C, PAPER_STEP_C
+from ..run.summary import CHAMBER_FAULT, INTERRUPTED as RUN_INTERRUPTED, PROGRAM_DONE
+from ..twin.scenarios import ScenarioError, ScenarioOptions, campaign_positions, cycle
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -132,21 +132,6 @@ def program_settings(options: ScenarioOptions) -> dict[str, Any]:
         "controller": options.controller,
         "ambient_c": options.ambient_c,
     }
-
-
-def firmware_versions(serial_dir: Path) -> dict[str, str]:
-    """Each board's first VER frame in its serial capture."""
-    versions = {}
-    for capture in sorted(serial_dir.glob("*.txt")):
-        reader = FrameReader()
-        with open(capture, "rb") as stream:
-            while (chunk := stream.read(4096)) and capture.stem not in versions:
-                for frame in reader.feed(chunk):
-                    if frame.type == "VER":
-                        versions[capture.stem] = (f"{frame['device']} {frame['firmware_version']} "
-                                                  f"protocol {frame['protocol_version']}")
-                        break
-    return versions
 
 
 class CampaignFile:
@@ -264,21 +249,24 @@ def run_twin_position(setup: TwinSetup, position: Position, out_dir: Path,
 
     scenario = position_scenario(setup.options, position)
     try:
-        result = simulate.run(scenario, setup.model(), partial, seed=record.seed, progress=progress)
+        summary = simulate.run(scenario, setup.model(), partial, seed=record.seed, progress=progress).summary
     except (TwinError, simulate.SimulationError, OSError) as error:
         record.status, record.error = FAILED, str(error)
         return record
-    if progress_queue is not None and not result.summary["interrupted"]:
+    if progress_queue is not None and not summary.interrupted:
         # The run ends with the chamber's program, before the scenario's bound.
         progress_queue.put(scenario.duration_s - reported)
-    summary = result.summary
-    record.sim_seconds = summary["sim_seconds"]
-    record.wall_seconds = summary["wall_seconds"]
-    record.firmware = firmware_versions(partial / "serial")
-    record.reported_errors = [f"{board}: {error}" for board, report in summary["boards"].items()
-                              for error in report["reported_errors"]]
-    if summary["interrupted"]:
+    record.sim_seconds = summary.sim_seconds
+    record.wall_seconds = summary.wall_seconds
+    record.firmware = {board: report.firmware for board, report in summary.boards.items()
+                       if report.firmware is not None}
+    record.reported_errors = [f"{board}: {error}" for board, report in summary.boards.items()
+                              for error in report.reported_errors]
+    if summary.interrupted:
         record.status = INTERRUPTED
+        return record
+    if summary.end_reason.startswith(CHAMBER_FAULT):
+        record.status, record.error = FAILED, f"the program ended early: {summary.end_reason}"
         return record
     _move_into_place(out_dir, position.label)
     record.status = DONE
@@ -650,8 +638,7 @@ def run_boards_position(setup: BoardsSetup, position: Position, out_dir: Path) -
     import serial
 
     from ..wire.client import CommandClient, CommandError
-    from ..wire.logger import INTERRUPTED as LOG_INTERRUPTED
-    from ..wire.logger import LogError, ProgramWatch, log_boards
+    from ..wire.logger import LogError, ProgramWatch, Rig, log_boards
     from ..wire.protocol import SequenceCounter
     from ..twin.scenarios import chamber_program
 
@@ -671,12 +658,13 @@ def run_boards_position(setup: BoardsSetup, position: Position, out_dir: Path) -
                 chamber_client.command(command.frame_type, command.values)
             chamber_client.command("SETHB", (setup.heartbeat_s,))
             chamber_client.command("START")
-            context = {"incl_x_deg": f"{position.incl_x_deg:.2f}", "incl_y_deg": f"{position.incl_y_deg:.2f}",
-                       "ambient_c": "" if setup.options.ambient_c is None else f"{setup.options.ambient_c:.3f}"}
+            rig = Rig(setup.options.ambient_c, position.incl_x_deg, position.incl_y_deg, position.label)
             watch = ProgramWatch(setup.heartbeat_s / 4 if setup.heartbeat_s else None, chamber_seq)
-            result = log_boards(imu, partial / "run.csv", chamber, raw_dir=partial / "serial",
-                                context=context, program=watch)
-            if result.end_reason != "program done":
+            options = replace(setup.options, incl_x_deg=position.incl_x_deg, incl_y_deg=position.incl_y_deg)
+            summary = log_boards(imu, partial, chamber, rig=rig, program=watch, firmware=record.firmware,
+                                 description=f"campaign position {position.label} on real boards",
+                                 scenario="cycle", options=asdict(options))
+            if summary.end_reason != PROGRAM_DONE:
                 _stop_chamber(chamber)
     except (serial.SerialException, OSError) as error:
         record.status, record.error = FAILED, f"serial port: {error}"
@@ -690,14 +678,12 @@ def run_boards_position(setup: BoardsSetup, position: Position, out_dir: Path) -
         _stop_chamber(chamber)
         return record
     record.wall_seconds = round(time.monotonic() - begin, 3)
-    summary = {"rig": "boards", "position": position.label, "rows": result.rows, "frames": result.frames,
-               "rejected": result.rejected, "gaps": result.gaps, "end_reason": result.end_reason,
-               "wall_seconds": record.wall_seconds, "firmware": record.firmware}
-    (partial / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
-    if result.end_reason == LOG_INTERRUPTED:
+    record.reported_errors = [f"{board}: {error}" for board, report in summary.boards.items()
+                              for error in report.reported_errors]
+    if summary.end_reason == RUN_INTERRUPTED:
         record.status = INTERRUPTED
-    elif result.end_reason != "program done":
-        record.status, record.error = FAILED, f"the log ended early: {result.end_reason}"
+    elif summary.end_reason != PROGRAM_DONE:
+        record.status, record.error = FAILED, f"the log ended early: {summary.end_reason}"
     else:
         _move_into_place(out_dir, position.label)
         record.status = DONE

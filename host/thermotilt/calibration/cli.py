@@ -275,6 +275,7 @@ def _compare(args: argparse.Namespace) -> int:
 
 def _validate(args: argparse.Namespace) -> int:
     from ..run.folder import RunFolder
+    from ..run.summary import RunSummaryError
     from .dataset import CalibrationDataError
     from .paper import field_rms_lsb
     from .report import write_validation_report
@@ -284,10 +285,10 @@ def _validate(args: argparse.Namespace) -> int:
     try:
         coefficients = load_coefficients(args.coefficients) if args.coefficients else None
         validation = validate(run.log, coefficients)
-    except CalibrationDataError as error:
+        summary = run.summary()
+    except (CalibrationDataError, RunSummaryError) as error:
         raise UsageError(str(error)) from None
-    summary = run.summary() or {}
-    paper = field_rms_lsb(summary.get("scenario"))
+    paper = field_rms_lsb(summary.scenario if summary is not None else None)
     print(format_validation(validation, paper))
     for warning in range_warnings(validation):
         print(f"warning: {warning}")

@@ -7,7 +7,6 @@ shows what the found model changes in a whole run."""
 
 from __future__ import annotations
 
-import json
 from dataclasses import replace
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -21,28 +20,31 @@ from .search import gap_rms
 
 def scenario_of(measured_dir: Path):
     """The scenario and seed MEASURED's summary.json says it was run with."""
+    from ..run.summary import SUMMARY_FILE, TWIN, RunSummaryError, read_summary
     from ..twin.scenarios import ScenarioError, ScenarioOptions, build
 
-    path = measured_dir / "summary.json"
+    path = measured_dir / SUMMARY_FILE
     if not path.is_file():
-        raise DiscoveryDataError(f"{measured_dir}: no summary.json, so no scenario to run the twin again")
+        raise DiscoveryDataError(f"{measured_dir}: no {SUMMARY_FILE}, so no scenario to run the twin again")
     try:
-        summary = json.loads(path.read_text(encoding="utf-8"))
-    except ValueError as error:
-        raise DiscoveryDataError(f"{path}: not JSON ({error})") from None
-    options = summary.get("options") if isinstance(summary, dict) else None
-    if not isinstance(options, dict):
+        summary = read_summary(measured_dir)
+    except RunSummaryError as error:
+        raise DiscoveryDataError(str(error)) from None
+    if summary.source != TWIN:
+        raise DiscoveryDataError(f"{path}: a run on real boards, with no seed or faults to run the twin with")
+    if summary.options is None:
         raise DiscoveryDataError(f"{path}: no scenario options (older runs did not record them), "
                                  "so no scenario to run again")
-    if summary.get("imu_eeprom_preloaded_bytes"):
+    if summary.imu_eeprom_preloaded_bytes:
         raise DiscoveryDataError(f"{path}: the run started from a preloaded EEPROM, which is not kept")
     try:
+        options = dict(summary.options)
         if options.get("positions") is not None:
             options["positions"] = tuple(options["positions"])
-        scenario = build(summary["scenario"], ScenarioOptions(**options))
-        faults = [Fault(**fault) for fault in summary["faults"]]
-        return scenario, int(summary["seed"]), faults
-    except (KeyError, TypeError, ValueError, ScenarioError) as error:
+        scenario = build(summary.scenario, ScenarioOptions(**options))
+        faults = [Fault(**fault) for fault in summary.faults]
+        return scenario, int(summary.seed), faults
+    except (TypeError, ValueError, ScenarioError) as error:
         raise DiscoveryDataError(f"{path}: no scenario to run again ({error})") from None
 
 

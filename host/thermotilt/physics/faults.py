@@ -1,5 +1,6 @@
-"""Faults injected into the twin: what they are, their command-line syntax
-and their [[faults]] tables in a model file."""
+"""Faults injected into the twin: when each is active, their command-line
+syntax and their [[faults]] tables in a model file. Which faults exist and
+what each does is the twin's registry (``thermotilt.twin.faults``)."""
 
 from __future__ import annotations
 
@@ -8,26 +9,11 @@ import re
 from dataclasses import dataclass
 from typing import Any
 
+from ..twin.faults import FAULTS
 from .parameters import ModelError, finite_number
 
-FAULT_NAMES: tuple[str, ...] = (
-    "sensor_absent",
-    "sensor_stuck",
-    "data_ready_cut",
-    "inner_open",
-    "inner_short",
-    "outer_open",
-    "outer_short",
-    "peltier_disconnected",
-    "peltier_reversed",
-    "inner_detached",
-    "heatsink_failed",
-    "chamber_hang",
-    "imu_hang",
-    "imu_uart_corrupt",
-    "chamber_uart_corrupt",
-)
-_FAULTS_WITH_RATE = frozenset({"imu_uart_corrupt", "chamber_uart_corrupt"})
+FAULT_NAMES: tuple[str, ...] = tuple(FAULTS)
+
 # What is left of the heatsink's conductance to ambient when its fan stops or
 # its thermal joint dries: free convection from fins sized for forced air is
 # of the order of a tenth of it or less (assumed; the cell overheats either way).
@@ -53,7 +39,7 @@ class Fault:
             raise ModelError(
                 f"fault '{self.name}': end {self.end_s} s must be after start {self.start_s} s"
             )
-        if self.name in _FAULTS_WITH_RATE:
+        if FAULTS[self.name].takes_rate:
             if self.rate is None or not (0.0 < self.rate <= 1.0):
                 raise ModelError(
                     f"fault '{self.name}' needs a rate, a probability per byte in (0, 1]"

@@ -10,15 +10,17 @@ Commands take a run as the folder or as its run.csv; both name the same run.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+
+from .summary import SUMMARY_FILE, RunSummary, read_summary
 
 LOG_FILE = "run.csv"
-SUMMARY_FILE = "summary.json"
 SERIAL_DIR = "serial"
 IMU_EEPROM_FILE = "imu_reader_eeprom.bin"
+# The boards, by the names their serial captures and summary reports carry.
+IMU_BOARD = "imu_reader"
+CHAMBER_BOARD = "thermal_chamber"
 
 
 class RunFolderError(ValueError):
@@ -65,13 +67,14 @@ class RunFolder:
     def imu_eeprom(self) -> Path:
         return self.path / IMU_EEPROM_FILE
 
-    def summary(self) -> dict[str, Any] | None:
-        """summary.json as written, or None for a run without one (a log
-        written by another tool, a run cut short, a log under another name)."""
-        if self.log.name != LOG_FILE:
+    def capture(self, board: str) -> Path:
+        """The serial capture of IMU_BOARD or CHAMBER_BOARD."""
+        return self.serial_dir / f"{board}.txt"
+
+    def summary(self) -> RunSummary | None:
+        """summary.json (read_summary), or None for a run without one (a
+        log written by another tool, a run killed, a log under another
+        name); RunSummaryError for one that cannot be read."""
+        if self.log.name != LOG_FILE or not self.summary_path.exists():
             return None
-        try:
-            document = json.loads(self.summary_path.read_text())
-        except (OSError, ValueError):
-            return None
-        return document if isinstance(document, dict) else None
+        return read_summary(self.path)

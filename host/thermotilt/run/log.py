@@ -1,10 +1,11 @@
 """The run log, ``run.csv``: one row per IMU output frame (docs/run-log.md).
 
 The same schema comes from the twin (``thermotilt simulate``) and from real
-boards (``thermotilt log``), so every later tool reads both. Columns the
-source cannot know stay empty: a real rig knows no ``true_*`` value, and the
-chamber columns are empty when no chamber board is logged. Values that came
-from a frame are written as the board sent them, so nothing is rounded twice.
+boards (``thermotilt log``), so every later tool reads both; both write
+their rows through ``thermotilt.run.recorder``. Columns the source cannot
+know stay empty: a real rig knows no ``true_*`` value, and the chamber
+columns are empty when no chamber board is logged. Values that came from a
+frame are written as the board sent them, so nothing is rounded twice.
 """
 
 from __future__ import annotations
@@ -14,8 +15,6 @@ import io
 import math
 from dataclasses import dataclass
 from typing import IO, Any, Mapping
-
-from ..wire.protocol import FRAMES, Frame
 
 COLUMNS: tuple[str, ...] = (
     "time_s",
@@ -66,33 +65,6 @@ TRUE_COLUMNS: tuple[str, ...] = (
 
 ALL_COLUMNS: tuple[str, ...] = COLUMNS + TRUE_COLUMNS
 
-# (IMU frame field, run.csv column): copied as the board wrote them.
-_IMU_FIELDS = (
-    ("temp_c", "imu_temp_c"),
-    ("ax_raw", "ax_raw"),
-    ("ay_raw", "ay_raw"),
-    ("az_raw", "az_raw"),
-    ("ax_filt", "ax_filt"),
-    ("ay_filt", "ay_filt"),
-    ("az_filt", "az_filt"),
-    ("ax_comp", "ax_comp"),
-    ("ay_comp", "ay_comp"),
-    ("az_comp", "az_comp"),
-    ("comp_set", "comp_set"),
-    ("coef_source", "coef_source"),
-)
-
-_CHS_FIELDS = (
-    ("setpoint_c", "setpoint_c"),
-    ("inner_c", "chamber_c"),
-    ("outer_c", "outer_c"),
-    ("pwm", "pwm"),
-    ("dir", "direction"),
-    ("phase", "phase"),
-    ("fault", "chamber_fault"),
-)
-
-
 def format_number(value: float | None, decimals: int) -> str:
     """Fixed decimals, so the same run always writes the same bytes; NaN and
     None (unknown) are empty cells."""
@@ -101,33 +73,6 @@ def format_number(value: float | None, decimals: int) -> str:
     text = f"{value:.{decimals}f}"
     # "-0.000" and "0.000" are the same number; write it one way.
     return text[1:] if text.startswith("-") and float(text) == 0 else text
-
-
-# Where each field sits in its frame, looked up once rather than per row.
-_FIELD_INDEX = {
-    frame_type: {name: index for index, name in enumerate(FRAMES[frame_type].field_names)}
-    for frame_type in ("IMU", "CHS")
-}
-
-
-def _raw_field(frame: Frame, name: str) -> str:
-    text = frame.raw_fields[_FIELD_INDEX[frame.type][name]]
-    return "" if text.lower() == "nan" else text
-
-
-@dataclass
-class ChamberState:
-    """The chamber's latest CHS frame, as text cells."""
-
-    cells: dict[str, str]
-
-    @classmethod
-    def unknown(cls) -> ChamberState:
-        return cls({column: "" for _, column in _CHS_FIELDS})
-
-    def update(self, frame: Frame) -> None:
-        for field_name, column in _CHS_FIELDS:
-            self.cells[column] = _raw_field(frame, field_name)
 
 
 class RunLogWriter:
@@ -145,33 +90,8 @@ class RunLogWriter:
         self.rows = 0
 
     def write_row(self, cells: Mapping[str, str]) -> None:
-        """One row from its cells as text; a column not given is empty."""
+        """One row of text cells by column; a column left out is empty."""
         self._writer.writerow(cells)
-        if self._flush_each_row:
-            self._stream.flush()
-        self.rows += 1
-
-    def write_imu_frame(
-        self,
-        frame: Frame,
-        chamber: ChamberState,
-        context: Mapping[str, str],
-        truth: Mapping[str, str] | None = None,
-    ) -> None:
-        """One row for an IMU frame. ``context`` holds ``ambient_c``,
-        ``incl_x_deg``, ``incl_y_deg`` and ``since_move_s`` as text (empty
-        when unknown)."""
-        row: dict[str, Any] = {column: "" for column in self.columns}
-        row["time_s"] = format_number(frame["t_ms"] / 1000.0, 3)
-        row["imu_seq"] = str(frame.seq)
-        for field_name, column in _IMU_FIELDS:
-            row[column] = _raw_field(frame, field_name)
-        row.update(chamber.cells)
-        for column in ("ambient_c", "incl_x_deg", "incl_y_deg", "since_move_s"):
-            row[column] = context.get(column, "")
-        if truth is not None:
-            row.update(truth)
-        self._writer.writerow(row)
         if self._flush_each_row:
             self._stream.flush()
         self.rows += 1

@@ -68,8 +68,9 @@ def _eeprom_block(path: str) -> bytes:
     """The --eeprom file: a coefficient block (coefficients.bin) or the whole
     EEPROM a twin run saved (imu_reader_eeprom.bin). What it holds is the
     firmware's to judge at boot, as with a real EEPROM."""
+    from ..run.folder import IMU_EEPROM_FILE
     from ..wire.coefficients import BLOCK_SIZE
-    from .simulate import IMU_EEPROM_BYTES, IMU_EEPROM_FILE
+    from .simulate import IMU_EEPROM_BYTES
 
     data = read_at_most(path, IMU_EEPROM_BYTES)
     if len(data) not in (BLOCK_SIZE, IMU_EEPROM_BYTES):
@@ -132,15 +133,15 @@ def _simulate(args: argparse.Namespace) -> int:
         except OSError as error:
             raise UsageError(f"cannot write {out_dir}: {error.strerror or error}") from None
     summary = result.summary
-    print(f"rows: {summary['rows']}  simulated: {summary['sim_seconds']:.0f} s  "
-          f"wall: {summary['wall_seconds']:.1f} s  ({summary['speed_x_real_time']}x real time)")
-    for board, report in summary["boards"].items():
-        print(f"{board}: {report['frames']} frames, {report['rejected']} rejected, {report['cycles']} cycles")
-        for refusal in report["refused_commands"]:
+    print(f"rows: {summary.rows}  simulated: {summary.sim_seconds:.0f} s  "
+          f"wall: {summary.wall_seconds:.1f} s  ({summary.speed_x_real_time}x real time)  ({summary.end_reason})")
+    for board, report in summary.boards.items():
+        print(f"{board}: {report.frames} frames, {report.rejected} rejected, {report.cycles} cycles")
+        for refusal in report.refused_commands or ():
             print(f"{board} refused {refusal}")
-        for error in report["reported_errors"]:
+        for error in report.reported_errors:
             print(f"{board} reported {error}")
-    if summary["interrupted"]:
+    if summary.interrupted:
         return interrupted()
     try:
         rows = read_run_log(str(out_dir / "run.csv"))

@@ -5,8 +5,11 @@ Per step: the chamber physics advances with the drive the L298N observer saw
 during the last step, the thermistor voltages and the LSM9DS0 registers are
 set from the new physical state, both boards run to the end of the step, and
 every byte they sent is saved, parsed and logged. The host side is the same
-code path as with real boards: commands go out as frames, run.csv rows come
-from IMU frames and the chamber's latest CHS frame.
+code path as with real boards: commands go out as frames, and run.csv rows
+come from IMU frames and the chamber's latest CHS frame through the recorder
+``thermotilt log`` uses (``thermotilt.run.recorder``), which also says when
+a chamber program is over. Faults act through their registry
+(``thermotilt.twin.faults``).
 
 A run races (as fast as the host can step it) unless it is paced to the wall
 clock (``realtime``), as a client of the ``pty`` ports expects of a board.
@@ -14,28 +17,25 @@ clock (``realtime``), as a client of the ``pty`` ports expects of a board.
 
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import BinaryIO, Callable
 
 from ..physics import Chamber, Fault, Model, Sensor, SensorSample
-from ..wire.protocol import Frame, FrameReader, SequenceCounter, build_frame
-from ..run.log import ChamberState, RunLogWriter, format_number
-from .scenarios import Scenario
+from ..run.folder import CHAMBER_BOARD, IMU_BOARD, RunFolder
+from ..run.log import RunLogWriter, format_number
+from ..run.recorder import BoardStream, FrameRecorder
+from ..run.summary import INTERRUPTED, TWIN, BoardReport, RunSummary
+from ..wire.protocol import Frame, SequenceCounter, build_frame
 from .boards import Board, Drive
+from .faults import FAULTS, INNER_THERMISTOR_CHANNEL, OUTER_THERMISTOR_CHANNEL
+from .scenarios import Scenario
 
 STEP_S = 0.01
-INNER_THERMISTOR_CHANNEL = 0
-OUTER_THERMISTOR_CHANNEL = 1
-IMU = "imu_reader"
-CHAMBER = "thermal_chamber"
-IMU_EEPROM_FILE = "imu_reader_eeprom.bin"
+IMU = IMU_BOARD
+CHAMBER = CHAMBER_BOARD
 IMU_EEPROM_BYTES = 1024  # the ATmega328P's
-CHAMBER_FAULTS = {"inner_open", "inner_short", "outer_open", "outer_short",
-                  "peltier_disconnected", "peltier_reversed", "inner_detached",
-                  "heatsink_failed", "chamber_hang", "chamber_uart_corrupt"}
 
 
 class SimulationError(RuntimeError):
@@ -44,28 +44,26 @@ class SimulationError(RuntimeError):
 
 @dataclass
 class BoardLink:
-    """One board with the host's end of its serial line."""
+    """One board with the host's end of its serial line: what the board
+    sends goes through its stream (capture, frames, what it reported); the
+    commands the host sent wait here for their ACK or ERR."""
 
     name: str
     board: Board
     capture: BinaryIO
-    reader: FrameReader = field(default_factory=FrameReader)
+    stream: BoardStream
     host_seq: SequenceCounter = field(default_factory=SequenceCounter)
     pending: dict[int, str] = field(default_factory=dict)
     refused: list[str] = field(default_factory=list)
-    # What the board reported on its own (faults, resets), with the time.
-    reported: list[str] = field(default_factory=list)
+
+    @classmethod
+    def open(cls, name: str, board: Board, capture: BinaryIO) -> BoardLink:
+        return cls(name, board, capture, BoardStream(name, capture, lambda: board.seconds))
 
     def receive(self) -> list[Frame]:
-        data = self.board.read_uart()
-        if not data:
-            return []
-        self.capture.write(data)
-        frames = self.reader.feed(data)
+        frames = self.stream.feed(self.board.read_uart())
         for frame in frames:
-            if frame.type == "ERR" and frame["cmd_seq"] == -1:
-                self.reported.append(f"{frame['code']} {frame['detail']} at {self.board.seconds:.2f} s")
-            elif frame.type in ("ACK", "ERR"):
+            if frame.type in ("ACK", "ERR") and frame["cmd_seq"] != -1:
                 command = self.pending.pop(frame["cmd_seq"], None)
                 if frame.type == "ERR" and command is not None:
                     self.refused.append(f"{command}: {frame['code']} {frame['detail']}")
@@ -76,28 +74,22 @@ class BoardLink:
         self.pending[seq] = frame_type
         self.board.write_uart(build_frame(frame_type, seq, values).encode("ascii"))
 
-    def report(self) -> dict:
+    def report(self) -> BoardReport:
         awake, asleep = self.board.cycle_counts()
-        return {
-            "cycles": self.board.cycles,
-            "awake_cycles": awake,
-            "sleep_cycles": asleep,
-            "frames": self.reader.frames,
-            "frames_by_type": dict(sorted(self.reader.frames_by_type.items())),
-            "rejected": self.reader.malformed,
-            "rejected_by_reason": dict(sorted(self.reader.malformed_by_reason.items())),
-            "sequence_gaps": self.reader.gaps,
-            "corrupted_bytes": self.board.uart_corrupted_bytes,
-            "unanswered_commands": sorted(self.pending.values()),
-            "refused_commands": self.refused,
-            "reported_errors": self.reported,
-        }
+        return self.stream.report(
+            refused_commands=self.refused,
+            unanswered_commands=sorted(self.pending.values()),
+            cycles=self.board.cycles,
+            awake_cycles=awake,
+            sleep_cycles=asleep,
+            corrupted_bytes=self.board.uart_corrupted_bytes,
+        )
 
 
 @dataclass(frozen=True)
 class RunResult:
     out_dir: Path
-    summary: dict
+    summary: RunSummary
 
 
 class WallClockPacer:
@@ -152,11 +144,11 @@ def _no_lap(_phase: str) -> None:
 
 
 class _FaultSchedule:
-    """Switches each fault on and off at its times."""
+    """Switches each fault on and off at its times (the registry says how)."""
 
-    def __init__(self, faults: tuple[Fault, ...], apply: Callable[[Fault, bool], None]):
+    def __init__(self, faults: tuple[Fault, ...], target: Lockstep):
         self._faults = faults
-        self._apply = apply
+        self._target = target
         self._active = [False] * len(faults)
 
     def update(self, t: float) -> None:
@@ -164,7 +156,20 @@ class _FaultSchedule:
             active = fault.active(t)
             if active != self._active[index]:
                 self._active[index] = active
-                self._apply(fault, active)
+                FAULTS[fault.name].apply(self._target, active, fault.rate)
+
+
+def check_faults(scenario: Scenario, model: Model) -> None:
+    """SimulationError for a fault the run cannot have: its board is not
+    in the scenario, or the physics term it acts through is off."""
+    for fault in model.faults:
+        kind = FAULTS[fault.name]
+        if kind.board == CHAMBER and not scenario.uses_chamber:
+            raise SimulationError(
+                f"fault {fault.name} needs the chamber, but {scenario.name} runs the IMU alone"
+            )
+        if kind.needs_term is not None and not model.enabled(kind.needs_term):
+            raise SimulationError(f"fault {fault.name} needs the {kind.needs_term} term enabled")
 
 
 def _truth(sample: SensorSample, chamber: Chamber | None, drive: Drive | None) -> dict[str, str]:
@@ -203,20 +208,14 @@ def run(
     the 148-byte coefficient block of `thermotilt fit` (coefficients.bin).
     realtime: no step ends before its simulated time has passed on the wall
     clock, as on a board. timing: where the steps' wall time goes."""
-    for fault in model.faults:
-        if fault.name in CHAMBER_FAULTS and not scenario.uses_chamber:
-            raise SimulationError(
-                f"fault {fault.name} needs the chamber, but {scenario.name} runs the IMU alone"
-            )
-        if fault.name == "heatsink_failed" and not model.enabled("heatsink"):
-            raise SimulationError("fault heatsink_failed needs the heatsink term enabled")
-    serial_dir = out_dir / "serial"
-    serial_dir.mkdir(parents=True, exist_ok=True)
+    check_faults(scenario, model)
+    folder = RunFolder.at(out_dir)
+    folder.serial_dir.mkdir(parents=True, exist_ok=True)
     wall_start = time.perf_counter()
     links: dict[str, BoardLink] = {}
-    with open(out_dir / "run.csv", "w", newline="") as csv_stream:
+    with open(folder.log, "w", newline="") as csv_stream:
         try:
-            links[IMU] = BoardLink(IMU, Board.imu_reader(), open(serial_dir / f"{IMU}.txt", "wb"))
+            links[IMU] = BoardLink.open(IMU, Board.imu_reader(), open(folder.capture(IMU), "wb"))
             if eeprom is not None:
                 imu_eeprom_bytes = links[IMU].board.eeprom_size
                 if len(eeprom) > imu_eeprom_bytes:
@@ -224,171 +223,145 @@ def run(
                         f"{len(eeprom)} bytes do not fit the IMU's EEPROM of {imu_eeprom_bytes} bytes")
                 links[IMU].board.write_eeprom(eeprom)
             if scenario.uses_chamber:
-                links[CHAMBER] = BoardLink(
-                    CHAMBER, Board.thermal_chamber(), open(serial_dir / f"{CHAMBER}.txt", "wb")
-                )
-            writer = RunLogWriter(csv_stream, with_truth=True, flush_each_row=False)
+                links[CHAMBER] = BoardLink.open(CHAMBER, Board.thermal_chamber(),
+                                                open(folder.capture(CHAMBER), "wb"))
+            recorder = FrameRecorder(RunLogWriter(csv_stream, with_truth=True, flush_each_row=False),
+                                     watch_program=scenario.ends_with_program)
+            lockstep = Lockstep(scenario, model, seed, links, recorder)
             try:
-                _play(scenario, model, seed, links, writer, pty, on_pty, progress, realtime, timing)
-                interrupted = False
+                if pty:
+                    lockstep.open_ptys(on_pty)
+                end_reason = lockstep.play(progress, realtime, timing)
             except KeyboardInterrupt:
                 # Ctrl-C keeps what was simulated so far, summary included.
-                interrupted = True
+                end_reason = INTERRUPTED
             simulated = links[IMU].board.seconds
             reports = {name: link.report() for name, link in links.items()}
             # What the IMU saved (SAVECOE), as a real board would keep it: the
             # next run can start from it with eeprom=.
-            (out_dir / IMU_EEPROM_FILE).write_bytes(links[IMU].board.read_eeprom())
+            folder.imu_eeprom.write_bytes(links[IMU].board.read_eeprom())
         finally:
             for link in links.values():
                 link.capture.close()
                 link.board.close()
     wall = time.perf_counter() - wall_start
-    summary = {
-        "scenario": scenario.name,
-        "description": scenario.description,
-        "options": asdict(scenario.options) if scenario.options is not None else None,
-        "seed": seed,
-        "model": model.source,
-        "terms": {name: model.enabled(name) for name in model.terms},
-        "faults": [vars(fault) for fault in model.faults],
-        "imu_eeprom_preloaded_bytes": len(eeprom) if eeprom is not None else 0,
-        "interrupted": interrupted,
-        "realtime": realtime,
-        "sim_seconds": round(simulated, 3),
-        "wall_seconds": round(wall, 3),
-        "speed_x_real_time": round(simulated / wall, 2) if wall > 0 else None,
-        "rows": writer.rows,
-        "marks": scenario.marks,
-        "positions": [vars(position) for position in scenario.positions],
-        "boards": reports,
-    }
-    (out_dir / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    summary = RunSummary(
+        source=TWIN,
+        scenario=scenario.name,
+        description=scenario.description,
+        options=asdict(scenario.options) if scenario.options is not None else None,
+        seed=seed,
+        model=model.source,
+        terms={name: model.enabled(name) for name in model.terms},
+        faults=[vars(fault) for fault in model.faults],
+        imu_eeprom_preloaded_bytes=len(eeprom) if eeprom is not None else 0,
+        end_reason=end_reason,
+        realtime=realtime,
+        sim_seconds=round(simulated, 3),
+        wall_seconds=round(wall, 3),
+        speed_x_real_time=round(simulated / wall, 2) if wall > 0 else None,
+        rows=recorder.rows,
+        marks=scenario.marks,
+        positions=[vars(position) for position in scenario.positions],
+        boards=reports,
+    )
+    summary.write(out_dir)
     return RunResult(out_dir, summary)
 
 
-def _play(
-    scenario: Scenario,
-    model: Model,
-    seed: int,
-    links: dict[str, BoardLink],
-    writer: RunLogWriter,
-    pty: bool,
-    on_pty: Callable[[str, str], None] | None,
-    progress: Callable[[float], None] | None,
-    realtime: bool,
-    timing: StepTiming | None,
-) -> None:
-    imu = links[IMU]
-    chamber_link = links.get(CHAMBER)
-    imu.board.attach_lsm9ds0()
-    chamber = None
-    if chamber_link is not None:
-        chamber_link.board.attach_l298n()
-        chamber = Chamber(model, scenario.ambient_c(0.0))
-    if pty:
-        for link in links.values():
+class Lockstep:
+    """The twin's loop over its 10 ms steps, and what a fault acts on
+    (``thermotilt.twin.faults.FaultTarget``): the boards by name, the
+    chamber physics, the Peltier's leads and the seed."""
+
+    def __init__(self, scenario: Scenario, model: Model, seed: int, links: dict[str, BoardLink],
+                 recorder: FrameRecorder) -> None:
+        self.scenario = scenario
+        self.seed = seed
+        self.links = links
+        self.boards = {name: link.board for name, link in links.items()}
+        self.recorder = recorder
+        self.peltier_reversed = False
+        self.boards[IMU].attach_lsm9ds0()
+        self.chamber: Chamber | None = None
+        if CHAMBER in links:
+            self.boards[CHAMBER].attach_l298n()
+            self.chamber = Chamber(model, scenario.ambient_c(0.0))
+        self.sensor = Sensor(model, seed, scenario.ambient_c(0.0))
+        self._faults = _FaultSchedule(model.faults, self)
+
+    def open_ptys(self, on_pty: Callable[[str, str], None] | None) -> None:
+        for link in self.links.values():
             path = link.board.open_pty()
             if on_pty:
                 on_pty(link.name, path)
-    sensor = Sensor(model, seed, scenario.ambient_c(0.0))
 
-    peltier_reversed = False
-
-    def apply_fault(fault: Fault, active: bool) -> None:
-        nonlocal peltier_reversed
-        name = fault.name
-        if name == "peltier_reversed":
-            peltier_reversed = active
-        elif name == "inner_detached":
-            chamber.inner_thermistor_detached = active
-        elif name == "heatsink_failed":
-            chamber.heatsink_failed = active
-        elif name.endswith("_hang"):
-            # A deadlock cannot be undone from outside: only the watchdog ends it.
-            if active:
-                (imu if name == "imu_hang" else chamber_link).board.hang()
-        elif name in ("sensor_absent", "sensor_stuck"):
-            imu.board.set_lsm9ds0_fault(name.split("_")[1] if active else "none")
-        elif name == "data_ready_cut":
-            imu.board.wire_lsm9ds0_data_ready(not active)
-        elif name.endswith(("_open", "_short")):
-            face, kind = name.split("_")
-            channel = INNER_THERMISTOR_CHANNEL if face == "inner" else OUTER_THERMISTOR_CHANNEL
-            chamber_link.board.set_adc_fault(channel, kind if active else "none")
-        elif name == "peltier_disconnected":
-            chamber_link.board.set_l298n_disconnected(active)
-        else:
-            link = imu if name == "imu_uart_corrupt" else chamber_link
-            link.board.set_uart_corruption(fault.rate if active else 0.0, seed)
-
-    faults = _FaultSchedule(model.faults, apply_fault)
-    commands = list(scenario.commands)
-    positions = list(scenario.positions)
-    position = positions.pop(0)
-    chamber_state = ChamberState.unknown()
-    program_ran = program_over = False
-    drive = None
-    steps = round(scenario.duration_s / STEP_S)
-    pacer = WallClockPacer() if realtime else None
-    lap = _no_lap
-    if timing is not None:
-        lap = timing.lap
-        timing.start()
-    for step in range(steps):
-        t = step * STEP_S
-        faults.update(t)
-        while positions and positions[0].at_s <= t:
-            position = positions.pop(0)
-        while commands and commands[0].at_s <= t:
-            command = commands.pop(0)
-            links[command.board].send(command.frame_type, command.values)
-        ambient = scenario.ambient_c(t)
-        environment = ambient
-        lap("other")
-        if chamber is not None:
-            drive = chamber_link.board.read_l298n()
-            lap("board_io")
-            current = -drive.direction if peltier_reversed else drive.direction
-            chamber.step(STEP_S, drive.duty, current, ambient)
-            inner_mv, outer_mv = chamber.thermistor_millivolts()
-            lap("physics")
-            chamber_link.board.set_adc_millivolts(INNER_THERMISTOR_CHANNEL, inner_mv)
-            chamber_link.board.set_adc_millivolts(OUTER_THERMISTOR_CHANNEL, outer_mv)
-            environment = chamber.inner_c
-            lap("board_io")
-        sample = sensor.step(STEP_S, environment, position.incl_x_deg, position.incl_y_deg)
-        lap("physics")
-        imu.board.set_lsm9ds0(sample.ax, sample.ay, sample.az, sample.temperature_raw)
-        lap("board_io")
-
-        end = (step + 1) * STEP_S
-        for link in links.values():
-            link.board.run_until(end)
-        lap("boards")
-        if pacer is not None:
-            pacer.wait_until(end)
+    def play(self, progress: Callable[[float], None] | None = None, realtime: bool = False,
+             timing: StepTiming | None = None) -> str:
+        """Steps to the scenario's end, or to the end of its chamber program
+        (ends_with_program); returns why it stopped (the summary's end_reason)."""
+        scenario, recorder, links = self.scenario, self.recorder, self.links
+        imu = links[IMU]
+        chamber_link = links.get(CHAMBER)
+        chamber, sensor, faults = self.chamber, self.sensor, self._faults
+        commands = list(scenario.commands)
+        positions = list(scenario.positions)
+        position = positions.pop(0)
+        recorder.move_table(position.incl_x_deg, position.incl_y_deg, position.at_s)
+        drive = None
+        steps = round(scenario.duration_s / STEP_S)
+        pacer = WallClockPacer() if realtime else None
+        lap = _no_lap
+        if timing is not None:
+            lap = timing.lap
+            timing.start()
+        for step in range(steps):
+            t = step * STEP_S
+            faults.update(t)
+            while positions and positions[0].at_s <= t:
+                position = positions.pop(0)
+                recorder.move_table(position.incl_x_deg, position.incl_y_deg, position.at_s)
+            while commands and commands[0].at_s <= t:
+                command = commands.pop(0)
+                links[command.board].send(command.frame_type, command.values)
+            ambient = scenario.ambient_c(t)
+            environment = ambient
             lap("other")
-        if chamber_link is not None:
-            for frame in chamber_link.receive():
-                if frame.type == "CHS":
-                    chamber_state.update(frame)
-                    program_ran |= frame["phase"] in ("W", "C", "R")
-                    program_over = program_ran and frame["phase"] in ("D", "I")
-        imu_frames = [frame for frame in imu.receive() if frame.type == "IMU"]
-        lap("frames")
-        if imu_frames:
-            context = {
-                "ambient_c": format_number(ambient, 3),
-                "incl_x_deg": format_number(position.incl_x_deg, 2),
-                "incl_y_deg": format_number(position.incl_y_deg, 2),
-                "since_move_s": format_number(end - position.at_s, 2),
-            }
-            truth = _truth(sample, chamber, drive)
-            for frame in imu_frames:
-                writer.write_imu_frame(frame, chamber_state, context, truth)
-        lap("csv")
-        if progress is not None and step % 100 == 99:
-            progress(end)
-        if scenario.ends_with_program and program_over:
-            break
+            if chamber is not None:
+                drive = chamber_link.board.read_l298n()
+                lap("board_io")
+                current = -drive.direction if self.peltier_reversed else drive.direction
+                chamber.step(STEP_S, drive.duty, current, ambient)
+                inner_mv, outer_mv = chamber.thermistor_millivolts()
+                lap("physics")
+                chamber_link.board.set_adc_millivolts(INNER_THERMISTOR_CHANNEL, inner_mv)
+                chamber_link.board.set_adc_millivolts(OUTER_THERMISTOR_CHANNEL, outer_mv)
+                environment = chamber.inner_c
+                lap("board_io")
+            sample = sensor.step(STEP_S, environment, position.incl_x_deg, position.incl_y_deg)
+            lap("physics")
+            imu.board.set_lsm9ds0(sample.ax, sample.ay, sample.az, sample.temperature_raw)
+            lap("board_io")
+
+            end = (step + 1) * STEP_S
+            for link in links.values():
+                link.board.run_until(end)
+            lap("boards")
+            if pacer is not None:
+                pacer.wait_until(end)
+                lap("other")
+            if chamber_link is not None:
+                recorder.record_chamber(chamber_link.receive())
+            imu_frames = [frame for frame in imu.receive() if frame.type == "IMU"]
+            lap("frames")
+            if imu_frames:
+                recorder.set_ambient(ambient)
+                truth = _truth(sample, chamber, drive)
+                for frame in imu_frames:
+                    recorder.record_imu(frame, end, truth)
+            lap("csv")
+            if progress is not None and step % 100 == 99:
+                progress(end)
+            if recorder.end_reason:
+                return recorder.end_reason
+        return f"{scenario.duration_s:g} s simulated"

@@ -1,6 +1,6 @@
 """The commands of the serial line: ``frames`` (count a capture's frames),
 ``coefficients`` (a coefficient block as SETCOE frames) and ``log`` (real
-boards, or the twin's pseudo-terminals, to run.csv)."""
+boards, or the twin's pseudo-terminals, to a run folder)."""
 
 from __future__ import annotations
 
@@ -34,18 +34,20 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     coefficients.add_argument("--write-block", help="also write the block to this file")
     coefficients.set_defaults(run=_coefficients)
 
-    log = commands.add_parser("log", help="log real boards (or the twin's --pty ports) to run.csv")
+    log = commands.add_parser("log", help="log real boards (or the twin's --pty ports) to a run folder")
     log.add_argument("--port", required=True, help="the IMU reader's serial port")
-    log.add_argument("--out", required=True, help="run.csv to write")
+    log.add_argument("--out", required=True, metavar="FOLDER",
+                     help="run folder to write (run.csv, serial/, summary.json); FOLDER/run.csv names it too")
     log.add_argument("--chamber-port", help="the thermal chamber's serial port, if logged too")
     log.add_argument("--baud", type=int, default=115200, help="line speed (default 115200)")
     log.add_argument("--duration", type=board_seconds, help="stop after this many seconds of board time")
     log.add_argument("--rows", type=within(int, 1), help="stop after this many rows")
-    log.add_argument("--raw-dir", help="also save the raw bytes of each port in this folder")
+    # Before run folders the raw bytes went to their own folder; now to FOLDER/serial/.
+    log.add_argument("--raw-dir", help=argparse.SUPPRESS)
     log.add_argument("--ambient", type=ambient, help="ambient temperature to record, degC")
     log.add_argument("--incl-x", type=inclination, help="table angle on X to record, degrees")
     log.add_argument("--incl-y", type=inclination, help="table angle on Y to record, degrees")
-    log.add_argument("--force", action="store_true", help="overwrite an existing --out")
+    log.add_argument("--force", action="store_true", help="overwrite a run already in --out")
     log.set_defaults(run=_log)
 
 
@@ -98,28 +100,43 @@ def _coefficients(args: argparse.Namespace) -> int:
     return 0
 
 
-def _log(args: argparse.Namespace) -> int:
-    from ..run.log import format_number
-    from .logger import INTERRUPTED, LogError, log_boards
+def _log_folder(out: str) -> Path:
+    """--out: the run folder, or its run.csv (how --out named the log before
+    it named a folder)."""
+    from ..run.folder import LOG_FILE
 
+    path = Path(out)
+    if path.suffix.lower() != ".csv":
+        return path
+    if path.name != LOG_FILE:
+        raise UsageError(f"--out {out}: a run folder's log is {LOG_FILE}; give the folder, "
+                         f"e.g. --out {path.with_suffix('')}")
+    return path.parent
+
+
+def _log(args: argparse.Namespace) -> int:
+    from .logger import LogError, Rig, log_boards
+
+    if args.raw_dir is not None:
+        raise UsageError("--raw-dir is gone: log keeps each port's bytes in the run folder's serial/")
     try:
-        result = log_boards(
+        summary = log_boards(
             imu_port=args.port,
-            out_path=Path(args.out),
+            out_dir=_log_folder(args.out),
             chamber_port=args.chamber_port,
             baud=args.baud,
             duration_s=args.duration,
             max_rows=args.rows,
-            raw_dir=Path(args.raw_dir) if args.raw_dir else None,
-            context={
-                "ambient_c": format_number(args.ambient, 3),
-                "incl_x_deg": format_number(args.incl_x, 2),
-                "incl_y_deg": format_number(args.incl_y, 2),
-            },
+            rig=Rig(ambient_c=args.ambient, incl_x_deg=args.incl_x, incl_y_deg=args.incl_y),
             force=args.force,
         )
     except LogError as error:
         raise UsageError(str(error)) from None
-    print(f"rows: {result.rows}  frames: {result.frames}  rejected: {result.rejected}  "
-          f"gaps: {result.gaps}  ({result.end_reason})")
-    return interrupted() if result.end_reason == INTERRUPTED else 0
+    boards = summary.boards.values()
+    print(f"rows: {summary.rows}  frames: {sum(report.frames for report in boards)}  "
+          f"rejected: {sum(report.rejected for report in boards)}  "
+          f"gaps: {sum(report.sequence_gaps for report in boards)}  ({summary.end_reason})")
+    for name, report in summary.boards.items():
+        for error in report.reported_errors:
+            print(f"{name} reported {error}")
+    return interrupted() if summary.interrupted else 0

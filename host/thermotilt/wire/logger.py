@@ -1,10 +1,12 @@
-"""``thermotilt log``: real boards (or the twin's pseudo-terminals) to run.csv.
+"""``thermotilt log``: real boards (or the twin's pseudo-terminals) to a
+run folder: run.csv, serial/ and summary.json (docs/run-log.md).
 
 The IMU reader's frames make the rows; the chamber's CHS frames, when its
-port is given, fill the chamber columns. Each row, and each chunk of raw
-bytes when they are kept, is flushed as it is written, so stopping with
-Ctrl-C, the board going away or the logger being killed loses nothing
-already received.
+port is given, fill the chamber columns; both go through the recorder the
+twin uses (``thermotilt.run.recorder``). Each row, and each chunk of raw
+bytes, is flushed as it is written, so stopping with Ctrl-C, the board going
+away or the logger being killed loses nothing already received; the summary
+is written when the log ends, which a kill does not let it do.
 """
 
 from __future__ import annotations
@@ -19,13 +21,15 @@ from typing import Any, Iterator, Mapping
 
 import serial
 
-from .protocol import Frame, FrameReader, SequenceCounter, build_frame
-from ..run.log import ChamberState, RunLogWriter
+from ..run.folder import CHAMBER_BOARD, IMU_BOARD, RunFolder
+from ..run.log import RunLogWriter
+from ..run.recorder import BoardStream, FrameRecorder
+from ..run.summary import BOARDS, INTERRUPTED, BoardReport, RunSummary
+from .protocol import SequenceCounter, build_frame
 
 # Long enough for a 10 Hz stream to fill a read; short enough to watch both ports.
 READ_TIMEOUT_S = 0.05
 SILENCE_WARNING_S = 5.0
-INTERRUPTED = "interrupted"
 
 
 class LogError(RuntimeError):
@@ -33,12 +37,22 @@ class LogError(RuntimeError):
 
 
 @dataclass(frozen=True)
-class LogResult:
-    rows: int
-    frames: int
-    rejected: int
-    gaps: int
-    end_reason: str
+class Rig:
+    """What the host knows of the rig it logs (None: not known), for the
+    rows and the summary. ``position``: the table was set to this position,
+    and the IMU's filters restarted, right before the log began, so
+    since_move_s counts from the first IMU frame."""
+
+    ambient_c: float | None = None
+    incl_x_deg: float | None = None
+    incl_y_deg: float | None = None
+    position: str | None = None
+
+    def positions(self) -> list[dict[str, Any]]:
+        if self.position is None and self.incl_x_deg is None and self.incl_y_deg is None:
+            return []
+        return [{"at_s": 0.0, "label": self.position, "incl_x_deg": self.incl_x_deg,
+                 "incl_y_deg": self.incl_y_deg}]
 
 
 def _open_port(port: str, baud: int) -> serial.Serial:
@@ -94,92 +108,114 @@ def _read_available(port: serial.Serial, wait: bool) -> bytes:
 
 def log_boards(
     imu_port: str | serial.Serial,
-    out_path: Path,
+    out_dir: Path,
     chamber_port: str | serial.Serial | None = None,
     baud: int = 115200,
     duration_s: float | None = None,
     max_rows: int | None = None,
-    raw_dir: Path | None = None,
-    context: Mapping[str, str] | None = None,
+    rig: Rig = Rig(),
     force: bool = False,
     program: ProgramWatch | None = None,
-) -> LogResult:
-    """Logs until the duration, the row count, a closed port, Ctrl-C or, with
-    ``program``, the chamber's program ending. A port given open stays open."""
+    firmware: Mapping[str, str] | None = None,
+    description: str = "thermotilt log",
+    scenario: str | None = None,
+    options: Mapping[str, Any] | None = None,
+) -> RunSummary:
+    """Logs into the run folder out_dir until the duration, the row count,
+    a closed port, Ctrl-C or, with ``program``, the chamber's program
+    ending (done, or a fault: ProgramEnd). A port given open stays open.
+    ``firmware``: each board's VER as the caller asked it, for boards that
+    sent theirs before the log began; ``description``, ``scenario`` and
+    ``options`` go to the summary as they are."""
+    folder = RunFolder.at(out_dir)
     # os.path answers False where pathlib raises (a parent that cannot be
-    # searched); opening the file then says why.
-    if os.path.isdir(out_path):
-        raise LogError(f"{out_path} is a folder; --out names the run.csv to write")
-    if os.path.exists(out_path) and not force:
-        raise LogError(f"{out_path} exists; choose another --out or add --force")
-    context = dict(context or {})
-    imu_reader, chamber_reader = FrameReader(), FrameReader()
-    chamber_state = ChamberState.unknown()
-    first_ms: int | None = None
-    last_ms = 0
-    stop = end_reason = ""
+    # searched); creating the folder then says why.
+    if os.path.exists(folder.log) and not force:
+        raise LogError(f"{folder.log} exists; choose another --out or add --force")
     started = time.monotonic()
+
+    def clock() -> float:
+        return time.monotonic() - started
+
+    first_ms: int | None = None
+    end_reason = ""
     warned = False
     with ExitStack() as stack:
         imu = _opened(stack, imu_port, baud)
         chamber = _opened(stack, chamber_port, baud) if chamber_port is not None else None
-        raw_imu = raw_chamber = None
-        if raw_dir is not None:
+        for made in (folder.path, folder.serial_dir):
             try:
-                raw_dir.mkdir(parents=True, exist_ok=True)
+                made.mkdir(parents=True, exist_ok=True)
             except OSError as error:
-                raise LogError(f"cannot create folder {raw_dir}: {error.strerror or error}") from None
-            raw_imu = _open_output(stack, raw_dir / "imu_reader.txt", "ab")
-            if chamber is not None:
-                raw_chamber = _open_output(stack, raw_dir / "thermal_chamber.txt", "ab")
-        writer = RunLogWriter(_open_output(stack, out_path, "w", newline=""), with_truth=False)
+                raise LogError(f"cannot create folder {made}: {error.strerror or error}") from None
+        imu_stream = BoardStream(IMU_BOARD, _open_output(stack, folder.capture(IMU_BOARD), "wb"),
+                                 clock, flush=True)
+        chamber_stream = None
+        if chamber is not None:
+            chamber_stream = BoardStream(CHAMBER_BOARD, _open_output(stack, folder.capture(CHAMBER_BOARD), "wb"),
+                                         clock, flush=True)
+        recorder = FrameRecorder(RunLogWriter(_open_output(stack, folder.log, "w", newline=""), with_truth=False),
+                                 watch_program=program is not None)
+        recorder.set_ambient(rig.ambient_c)
+        recorder.move_table(rig.incl_x_deg, rig.incl_y_deg, first_frame=rig.position is not None)
         try:
             while True:
                 if chamber is not None:
-                    data = _read_available(chamber, wait=False)
-                    _save_raw(raw_chamber, data)
-                    for frame in chamber_reader.feed(data):
-                        if frame.type == "CHS":
-                            chamber_state.update(frame)
-                            if program is not None:
-                                stop = program.ended(frame) or stop
+                    recorder.record_chamber(chamber_stream.feed(_read_available(chamber, wait=False)))
                     if program is not None:
                         program.keep_alive(chamber)
-                data = _read_available(imu, wait=True)
-                _save_raw(raw_imu, data)
-                for frame in imu_reader.feed(data):
+                stop = recorder.end_reason
+                for frame in imu_stream.feed(_read_available(imu, wait=True)):
                     if frame.type != "IMU":
                         continue
-                    last_ms = frame["t_ms"]
-                    first_ms = last_ms if first_ms is None else first_ms
-                    if program is not None:
-                        # The table was set and the filters restarted just before the log began.
-                        context["since_move_s"] = f"{(last_ms - first_ms) / 1000.0:.2f}"
-                    if duration_s is not None and (last_ms - first_ms) / 1000.0 > duration_s:
+                    first_ms = frame["t_ms"] if first_ms is None else first_ms
+                    if duration_s is not None and (frame["t_ms"] - first_ms) / 1000.0 > duration_s:
                         stop = f"{duration_s:g} s of board time"
                         break
-                    writer.write_imu_frame(frame, chamber_state, context)
-                    if max_rows is not None and writer.rows >= max_rows:
+                    recorder.record_imu(frame)
+                    if max_rows is not None and recorder.rows >= max_rows:
                         stop = f"{max_rows} rows"
                         break
                 if stop:
                     end_reason = stop
                     break
-                if not warned and writer.rows == 0 and time.monotonic() - started > SILENCE_WARNING_S:
+                if not warned and recorder.rows == 0 and clock() > SILENCE_WARNING_S:
                     warned = True
                     print(f"thermotilt: no IMU frames from {imu_port} yet "
-                          f"({imu_reader.malformed} malformed; is the baud rate {baud}?)",
+                          f"({imu_stream.reader.malformed} malformed; is the baud rate {baud}?)",
                           file=sys.stderr)
         except EOFError:
             end_reason = "port closed"
         except KeyboardInterrupt:
             end_reason = INTERRUPTED
-    if writer.rows == 0 and end_reason != INTERRUPTED:
+    streams = [(imu_stream, imu)] + ([(chamber_stream, chamber)] if chamber is not None else [])
+    summary = RunSummary(
+        source=BOARDS,
+        scenario=scenario,
+        description=description,
+        options=dict(options) if options is not None else None,
+        end_reason=end_reason,
+        realtime=True,
+        wall_seconds=round(clock(), 3),
+        rows=recorder.rows,
+        positions=rig.positions(),
+        boards={stream.name: _board_report(stream, port, firmware) for stream, port in streams},
+    )
+    try:
+        summary.write(folder.path)
+    except OSError as error:
+        raise LogError(f"cannot write {folder.summary_path}: {error.strerror or error}") from None
+    if recorder.rows == 0 and end_reason != INTERRUPTED:
         raise LogError(f"no IMU frames received from {imu_port} ({end_reason}); "
-                       f"{imu_reader.malformed} malformed lines")
-    return LogResult(writer.rows, imu_reader.frames + chamber_reader.frames,
-                     imu_reader.malformed + chamber_reader.malformed,
-                     imu_reader.gaps + chamber_reader.gaps, end_reason)
+                       f"{imu_stream.reader.malformed} malformed lines")
+    return summary
+
+
+def _board_report(stream: BoardStream, port: serial.Serial, firmware: Mapping[str, str] | None) -> BoardReport:
+    report = stream.report(port=port.port)
+    if report.firmware is None and firmware is not None:
+        report.firmware = firmware.get(stream.name)
+    return report
 
 
 def _opened(stack: ExitStack, port: str | serial.Serial, baud: int) -> serial.Serial:
@@ -187,25 +223,14 @@ def _opened(stack: ExitStack, port: str | serial.Serial, baud: int) -> serial.Se
 
 
 class ProgramWatch:
-    """For a chamber program the host started: ends the log when the CHS
-    phase reaches done (D) or idle (I) after running, or a fault (F), and
-    sends the chamber a STATUS every ``heartbeat_s`` wall seconds so that
-    its heartbeat (SETHB) sees the host alive."""
+    """For a chamber program the host started: the log ends with it
+    (ProgramEnd), and the chamber gets a STATUS every ``heartbeat_s`` wall
+    seconds so that its heartbeat (SETHB) sees the host alive."""
 
     def __init__(self, heartbeat_s: float | None, seq: SequenceCounter):
         self.heartbeat_s = heartbeat_s
         self._seq = seq
         self._last_beat = time.monotonic()
-        self._ran = False
-        self.fault = ""
-
-    def ended(self, frame: Frame) -> str:
-        phase = frame["phase"]
-        if phase == "F":
-            self.fault = frame["fault"]
-            return f"chamber fault {self.fault}"
-        self._ran |= phase in ("W", "C", "R")
-        return "program done" if self._ran and phase in ("D", "I") else ""
 
     def keep_alive(self, chamber: serial.Serial) -> None:
         if self.heartbeat_s is None or time.monotonic() - self._last_beat < self.heartbeat_s:
@@ -221,9 +246,3 @@ def _open_output(stack: ExitStack, path: Path, mode: str, **options: Any) -> _Ou
     output = _OutputFile(path, mode, **options)
     stack.callback(output.close)
     return output
-
-
-def _save_raw(capture: _OutputFile | None, data: bytes) -> None:
-    if capture is not None and data:
-        capture.write(data)
-        capture.flush()
