@@ -1,11 +1,11 @@
 """Twin runs more than one test module reads, made once per session."""
 
 import subprocess
-import sys
 
 import pytest
 
-THERMOTILT = [sys.executable, "-m", "thermotilt"]
+from child_process import THERMOTILT, popen
+
 # The scatter terms change each mounting's drift by design
 # (host/tests/test_scatter.py bounds them by the paper's RMS errors).
 SCATTER_OFF = ("--disable", "drift_repeatability", "--disable", "bias_instability")
@@ -22,7 +22,7 @@ def cycle_runs(tmp_path_factory):
     for angle in (0, 30):
         out = tmp_path_factory.mktemp(f"cycle{angle}")
         runs[angle] = out
-        processes.append(subprocess.Popen(
+        processes.append(popen(
             [*THERMOTILT, "simulate", "cycle", "--out", str(out), "--incl-x", str(angle),
              "--rest-seconds", "60", *SCATTER_OFF],
             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True))

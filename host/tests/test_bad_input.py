@@ -37,21 +37,15 @@ from thermotilt.physics import (
 from thermotilt.protocol import FRAMES, FrameReader, build_frame, format_value, parse_line
 from thermotilt.runlog import ALL_COLUMNS, COLUMNS, RunLogError, read_run_log
 
+from child_process import THERMOTILT, popen, run, thermotilt
 from test_log import imu_frame, rows_of, wait_for, wait_until_opened
 
-THERMOTILT = [sys.executable, "-m", "thermotilt"]
 DEFAULT_TOML = Path(__file__).resolve().parents[1] / "thermotilt" / "models" / "default.toml"
 PHYSICS_DOC = Path(__file__).resolve().parents[2] / "docs" / "physics-model.md"
 PROPERTY = settings(max_examples=150, deadline=None)
 SEED_RANGE = "must be from 0 to 18446744073709551615"
 BOARD_SECONDS = "must be from 0.001 to 4294967.295 s"
 AMBIENT = "must be from -40 to 85 degC"
-
-
-def thermotilt(*args, **options):
-    options.setdefault("stdout", subprocess.PIPE)
-    return subprocess.run([*THERMOTILT, *map(str, args)], stderr=subprocess.PIPE, text=True,
-                          timeout=60, check=False, **options)
 
 
 def assert_one_line_error(result, code, message=""):
@@ -298,8 +292,8 @@ def test_a_full_disk_on_stdout(args):
 def test_a_closed_pipe_on_stdout_ends_quietly():
     """`thermotilt coefficients | head -c 20` once head has gone: the standard
     recipe, exit 1 and nothing on stderr (nobody reads what follows)."""
-    process = subprocess.Popen([*THERMOTILT, "coefficients"], stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE, text=True)
+    process = popen([*THERMOTILT, "coefficients"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                    text=True)
     process.stdout.close()
     stderr = process.stderr.read()
     assert process.wait(timeout=60) == 1
@@ -314,12 +308,25 @@ def test_inputs_that_cannot_be_read(tmp_path):
                           f"cannot read {tmp_path}: Is a directory")
     assert_one_line_error(thermotilt("coefficients", "--block", "/dev/zero"), 1,
                           "/dev/zero: coefficient block is")
-    closed_stdin = subprocess.run(["sh", "-c", 'exec "$0" -m thermotilt frames - <&-',
-                                   sys.executable], capture_output=True, text=True, timeout=60)
+    closed_stdin = run(["sh", "-c", 'exec "$0" -m thermotilt frames - <&-', sys.executable],
+                       capture_output=True, text=True, timeout=60)
     assert_one_line_error(closed_stdin, 1, "standard input is closed")
 
 
 # --- Ctrl-C -----------------------------------------------------------------
+
+
+def test_children_take_ctrl_c_whatever_this_test_run_inherited():
+    """A test run started with SIGINT ignored (`nohup make test &`) still
+    starts each child with it at its default: Python there raises
+    KeyboardInterrupt on Ctrl-C."""
+    inherited = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        child = run([sys.executable, "-c", "import signal; print(signal.getsignal(signal.SIGINT))"],
+                    capture_output=True, text=True, timeout=60)
+    finally:
+        signal.signal(signal.SIGINT, inherited)
+    assert child.stdout == f"{signal.default_int_handler}\n", child.stderr
 
 
 def assert_interrupted(process):
@@ -335,8 +342,8 @@ def unread_bytes(pipe):
 
 def test_ctrl_c_in_frames_prints_the_counts_so_far():
     read_end, write_end = os.pipe()
-    process = subprocess.Popen([*THERMOTILT, "frames", "-"], stdin=read_end,
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    process = popen([*THERMOTILT, "frames", "-"], stdin=read_end,
+                    stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         os.write(write_end, imu_frame(0, 1000).encode() + imu_frame(1, 1100).encode())
         # The frames command is reading once the pipe is empty again.
@@ -353,8 +360,8 @@ def test_ctrl_c_in_frames_prints_the_counts_so_far():
 def test_ctrl_c_in_log_keeps_the_rows(tmp_path):
     master, slave = os.openpty()
     out = tmp_path / "run.csv"
-    process = subprocess.Popen([*THERMOTILT, "log", "--port", os.ttyname(slave), "--out", out],
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    process = popen([*THERMOTILT, "log", "--port", os.ttyname(slave), "--out", out],
+                    stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         wait_until_opened(master)
         os.write(master, "".join(imu_frame(seq, 1000 + 100 * seq) for seq in range(3)).encode())
@@ -371,8 +378,8 @@ def test_ctrl_c_in_log_keeps_the_rows(tmp_path):
 @pytest.mark.twin
 def test_ctrl_c_in_simulate_keeps_the_run(tmp_path):
     out = tmp_path / "run"
-    process = subprocess.Popen([*THERMOTILT, "simulate", "fig8", "--out", out],
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    process = popen([*THERMOTILT, "simulate", "fig8", "--out", out],
+                    stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
     def running():
         assert process.poll() is None, process.communicate()

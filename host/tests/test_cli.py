@@ -1,3 +1,5 @@
+import signal
+
 import pytest
 
 from thermotilt import __version__
@@ -5,8 +7,8 @@ from thermotilt.cli import main
 from thermotilt.coefficients import PAPER_DEFAULTS, decode_block, encode_block
 from thermotilt.protocol import PROTOCOL_VERSION, build_frame
 
+from child_process import thermotilt as run
 from test_bad_input import assert_one_line_error
-from test_bad_input import thermotilt as run
 
 
 def test_version():
@@ -90,12 +92,21 @@ def test_coefficients_corrupted_block(tmp_path):
     assert "CRC" in result.stderr
 
 
+@pytest.fixture
+def ctrl_c_raises_keyboard_interrupt():
+    """SIGINT as Python sets it up when started in the foreground, whatever
+    this test run inherited (`nohup make test &` starts it ignored)."""
+    inherited = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, inherited)
+
+
+@pytest.mark.usefixtures("ctrl_c_raises_keyboard_interrupt")
 def test_ctrl_c_while_a_position_is_reported_waits_for_the_report(monkeypatch, capsys):
     """tqdm.write turns a KeyboardInterrupt inside its lock into a RuntimeError
     (a traceback instead of exit 130, seen once in CI): the report finishes,
     then the Ctrl-C is raised."""
     import os
-    import signal
 
     from thermotilt import cli
     from thermotilt.calibration.campaign import DONE, PositionRecord

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -17,6 +16,8 @@ from thermotilt.discovery.replay import load_measured
 from thermotilt.discovery.search import Search
 from thermotilt.physics import Model
 from thermotilt.physics.document import with_values, write_model
+
+from child_process import THERMOTILT, run
 
 # Every candidate on the channel it is sized on, on staircase_inputs' three
 # positions (X +30, X -30, Y +30 deg), so that each is excited somewhere
@@ -36,7 +37,7 @@ WIDE_INTERVAL = stats.norm.isf(0.0005) / stats.norm.isf(0.025)
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "thermotilt", *args], capture_output=True, text=True)
+    return run([*THERMOTILT, *args], capture_output=True, text=True)
 
 
 @pytest.fixture(scope="module")

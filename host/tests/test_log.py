@@ -5,7 +5,6 @@ counted and skipped, and bad use ends with one readable line."""
 import os
 import signal
 import subprocess
-import sys
 import termios
 import threading
 import time
@@ -15,6 +14,8 @@ import pytest
 from thermotilt.cli import main
 from thermotilt.protocol import build_frame
 from thermotilt.runlog import COLUMNS, read_run_log
+
+from child_process import THERMOTILT, popen
 
 
 def imu_frame(seq, t_ms, ax=-1650):
@@ -155,8 +156,8 @@ def test_a_killed_log_keeps_every_byte_it_received(pty_pair, tmp_path):
     imu_bytes = b"boot noise\r\n" + "".join(
         imu_frame(seq, 1000 + 100 * seq) for seq in range(40)).encode()
     chamber_bytes = "".join(chs_frame(seq, 900 + 1000 * seq, 18.0 + seq, 17.5) for seq in range(5))
-    logger = subprocess.Popen(
-        [sys.executable, "-m", "thermotilt", "log", "--port", imu_port, "--chamber-port",
+    logger = popen(
+        [*THERMOTILT, "log", "--port", imu_port, "--chamber-port",
          chamber_port, "--out", str(out), "--raw-dir", str(raw)],
         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:

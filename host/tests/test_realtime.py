@@ -10,8 +10,8 @@ import pytest
 from thermotilt.cli import main
 from thermotilt.simulate import STEP_S, WallClockPacer
 
+from child_process import thermotilt as run
 from test_bad_input import assert_one_line_error
-from test_bad_input import thermotilt as run
 
 SIMULATED_S = 2.0
 

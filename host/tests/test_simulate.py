@@ -9,8 +9,6 @@ through a pseudo-terminal with pyserial and with `thermotilt log`.
 """
 
 import json
-import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -24,17 +22,17 @@ from thermotilt.protocol import FrameReader, build_frame
 from thermotilt.runlog import ALL_COLUMNS, read_run_log
 from thermotilt.scenarios import ScenarioOptions, build
 
+from child_process import THERMOTILT, run
 from twin_helpers import pty_twin
 
-THERMOTILT = [sys.executable, "-m", "thermotilt"]
 # Stated in the README: the cycle's compensated X and Y stay within this many
 # LSB of the tilt and the measuring offset once each hold has settled.
 COMPENSATED_TOLERANCE_LSB = 10.0
 
 
 def simulate(*arguments, timeout=900):
-    result = subprocess.run([*THERMOTILT, "simulate", *map(str, arguments)],
-                            capture_output=True, text=True, timeout=timeout, check=False)
+    result = run([*THERMOTILT, "simulate", *map(str, arguments)],
+                 capture_output=True, text=True, timeout=timeout, check=False)
     assert result.returncode == 0, result.stderr
     return result
 
@@ -358,8 +356,8 @@ def test_bad_use_is_one_readable_line(tmp_path):
         (["fig8", "--model", tmp_path / "missing.toml"], "missing.toml"),
         (["fig8", "--disable", "no_such_term"], "no_such_term"),
     ):
-        result = subprocess.run([*THERMOTILT, "simulate", *map(str, arguments), "--out", tmp_path / "x"],
-                                capture_output=True, text=True, timeout=120, check=False)
+        result = run([*THERMOTILT, "simulate", *map(str, arguments), "--out", tmp_path / "x"],
+                     capture_output=True, text=True, timeout=120, check=False)
         assert result.returncode == 1, arguments
         assert result.stderr.count("\n") == 1 and message in result.stderr, result.stderr
 
@@ -380,7 +378,7 @@ def test_the_twin_through_pseudo_terminals(tmp_path):
         assert any(f.type == "VER" and f["device"] == "imu_reader" for f in replies)
         assert any(f.type == "IMU" for f in replies)
         logged = tmp_path / "logged.csv"
-        result = subprocess.run(
+        result = run(
             [*THERMOTILT, "log", "--port", ports["imu_reader"], "--chamber-port",
              ports["thermal_chamber"], "--out", str(logged), "--rows", "100"],
             capture_output=True, text=True, timeout=120, check=False)

@@ -12,8 +12,6 @@ significant digits, the 148-byte block) and from the fit written here.
 import json
 import os
 import struct
-import subprocess
-import sys
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -33,12 +31,11 @@ from thermotilt.scenarios import ScenarioOptions, build
 from thermotilt.simulate import SimulationError
 from thermotilt.twin import Board
 
+from child_process import thermotilt as run
 from firmware_helpers import of_type
 from twin_helpers import pty_twin
 from test_bad_input import assert_one_line_error
-from test_bad_input import thermotilt as run
 
-THERMOTILT = [sys.executable, "-m", "thermotilt"]
 # -1700 / -400 / 16000 LSB, raw temperature 32 -> 25.000 degC.
 SENSOR = (-1700, -400, 16000, 32)
 # A twin-campaign-like fit: near the paper's surfaces, with more digits than
