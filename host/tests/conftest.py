@@ -1,10 +1,12 @@
-"""Twin runs more than one test module reads, made once per session."""
+"""What more than one test module takes: twin runs, made once per
+session, and the CLI run in this process."""
 
 import subprocess
 
 import pytest
 
 from child_process import THERMOTILT, popen
+from thermotilt import cli
 
 # The scatter terms change each mounting's drift by design
 # (host/tests/test_scatter.py bounds them by the paper's RMS errors).
@@ -30,6 +32,23 @@ def cycle_runs(tmp_path_factory):
         _, stderr = process.communicate(timeout=1800)
         assert process.returncode == 0, stderr
     return runs
+
+
+@pytest.fixture
+def cli_in_process(capsys):
+    """`thermotilt ARGS` as cli.main in this process, its status and output
+    as subprocess.run gives them (--help, --version and usage errors end in
+    argparse's SystemExit). child_process.thermotilt runs the real command."""
+
+    def run(*args):
+        try:
+            status = cli.main([str(arg) for arg in args])
+        except SystemExit as exit:
+            status = exit.code
+        out, err = capsys.readouterr()
+        return subprocess.CompletedProcess(args, status, out, err)
+
+    return run
 
 
 # Fixtures that take 2 s or more (twin runs, emulated campaigns): every

@@ -56,6 +56,16 @@ def assert_one_line_error(result, code, message=""):
     assert result.returncode == code
 
 
+def test_the_command_exits_with_mains_status_and_one_line():
+    """Bad input is tested on cli.main in this process, but where only a
+    process will do (a full disk or a closed pipe on stdout, a closed stdin,
+    Ctrl-C); this test runs `python -m thermotilt` as a shell does: main's
+    status is the exit code and the error is one line on stderr."""
+    result = thermotilt("frames", "/nonexistent/capture.txt")
+    assert_one_line_error(result, 1, "cannot read /nonexistent/capture.txt: No such file or directory")
+    assert result.stdout == ""
+
+
 # --- arguments --------------------------------------------------------------
 
 
@@ -89,15 +99,15 @@ def assert_one_line_error(result, code, message=""):
          "argument --incl-y: must be from -90 to 90 deg, got inf"),
     ],
 )
-def test_bad_numbers_are_refused_before_anything_runs(tmp_path, args, message):
+def test_bad_numbers_are_refused_before_anything_runs(cli_in_process, tmp_path, args, message):
     out = tmp_path / "out"
-    result = thermotilt(*args, "--out", out)
+    result = cli_in_process(*args, "--out", out)
     assert_one_line_error(result, 2, message)
     assert result.stdout == "" and not out.exists()
 
 
-def test_an_unknown_campaign_position_is_refused(tmp_path):
-    result = thermotilt("simulate", "campaign", "--positions", "0,Z+5", "--out", tmp_path / "run")
+def test_an_unknown_campaign_position_is_refused(cli_in_process, tmp_path):
+    result = cli_in_process("simulate", "campaign", "--positions", "0,Z+5", "--out", tmp_path / "run")
     assert_one_line_error(result, 1, "unknown position(s) Z+5")
 
 
@@ -127,10 +137,10 @@ def with_parameter(text, section, name, value):
         (b'"a\\nb" = 1\n', "unknown section [a\\nb]"),
     ],
 )
-def test_bad_model_files_are_refused_before_the_twin_starts(tmp_path, content, message):
+def test_bad_model_files_are_refused_before_the_twin_starts(cli_in_process, tmp_path, content, message):
     model = tmp_path / "model.toml"
     model.write_bytes(content)
-    result = thermotilt("simulate", "fig8", "--model", model, "--out", tmp_path / "run")
+    result = cli_in_process("simulate", "fig8", "--model", model, "--out", tmp_path / "run")
     assert_one_line_error(result, 1, f"{model}: {message}")
     assert not (tmp_path / "run").exists()
 
@@ -139,9 +149,9 @@ def test_bad_model_files_are_refused_before_the_twin_starts(tmp_path, content, m
     ("{tmp}", "cannot read: Is a directory"),
     ("/dev/zero", "larger than 1048576 bytes, not a model file"),
 ])
-def test_a_model_that_is_no_file_is_refused(tmp_path, path, message):
-    result = thermotilt("simulate", "fig8", "--model", path.format(tmp=tmp_path),
-                        "--out", tmp_path / "run")
+def test_a_model_that_is_no_file_is_refused(cli_in_process, tmp_path, path, message):
+    result = cli_in_process("simulate", "fig8", "--model", path.format(tmp=tmp_path),
+                            "--out", tmp_path / "run")
     assert_one_line_error(result, 1, message)
 
 
@@ -257,28 +267,28 @@ def test_the_documented_ranges_are_the_loaders():
     ("{tmp}/run.csv", "{tmp}/file", "cannot create folder {tmp}/file: File exists"),
     ("/dev/full", None, "cannot write /dev/full: No space left on device"),
 ])
-def test_log_outputs_that_cannot_be_written(tmp_path, out, raw_dir, message):
+def test_log_outputs_that_cannot_be_written(cli_in_process, tmp_path, out, raw_dir, message):
     (tmp_path / "file").write_text("not a folder\n")
     extra = ["--raw-dir", raw_dir.format(tmp=tmp_path)] if raw_dir else []
-    result = thermotilt("log", "--port", "loop://", "--out", out.format(tmp=tmp_path), "--force",
-                        *extra)
+    result = cli_in_process("log", "--port", "loop://", "--out", out.format(tmp=tmp_path), "--force",
+                            *extra)
     assert_one_line_error(result, 1, message.format(tmp=tmp_path))
 
 
-def test_a_line_break_in_a_name_is_escaped(tmp_path):
-    result = thermotilt("log", "--port", "no\nport", "--out", tmp_path / "run.csv")
+def test_a_line_break_in_a_name_is_escaped(cli_in_process, tmp_path):
+    result = cli_in_process("log", "--port", "no\nport", "--out", tmp_path / "run.csv")
     assert_one_line_error(result, 1, "cannot open no\\nport: ")
 
 
-def test_a_port_url_pyserial_cannot_parse(tmp_path):
-    result = thermotilt("log", "--port", "loop://?bad", "--out", tmp_path / "run.csv")
+def test_a_port_url_pyserial_cannot_parse(cli_in_process, tmp_path):
+    result = cli_in_process("log", "--port", "loop://?bad", "--out", tmp_path / "run.csv")
     assert_one_line_error(result, 1, "cannot open loop://?bad: ")
 
 
-def test_a_simulation_folder_that_is_a_file(tmp_path):
+def test_a_simulation_folder_that_is_a_file(cli_in_process, tmp_path):
     out = tmp_path / "file"
     out.write_text("not a folder\n")
-    result = thermotilt("simulate", "fig8", "--out", out)
+    result = cli_in_process("simulate", "fig8", "--out", out)
     assert_one_line_error(result, 1, f"cannot write {out}: Not a directory")
 
 
@@ -303,11 +313,14 @@ def test_a_closed_pipe_on_stdout_ends_quietly():
 # --- inputs -----------------------------------------------------------------
 
 
-def test_inputs_that_cannot_be_read(tmp_path):
-    assert_one_line_error(thermotilt("frames", tmp_path), 1,
+def test_inputs_that_cannot_be_read(cli_in_process, tmp_path):
+    assert_one_line_error(cli_in_process("frames", tmp_path), 1,
                           f"cannot read {tmp_path}: Is a directory")
-    assert_one_line_error(thermotilt("coefficients", "--block", "/dev/zero"), 1,
+    assert_one_line_error(cli_in_process("coefficients", "--block", "/dev/zero"), 1,
                           "/dev/zero: coefficient block is")
+
+
+def test_a_closed_standard_input():
     closed_stdin = run(["sh", "-c", 'exec "$0" -m thermotilt frames - <&-', sys.executable],
                        capture_output=True, text=True, timeout=60)
     assert_one_line_error(closed_stdin, 1, "standard input is closed")

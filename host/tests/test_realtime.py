@@ -10,7 +10,6 @@ import pytest
 from thermotilt.cli import main
 from thermotilt.simulate import STEP_S, WallClockPacer
 
-from child_process import thermotilt as run
 from test_bad_input import assert_one_line_error
 
 SIMULATED_S = 2.0
@@ -93,8 +92,8 @@ def test_pty_runs_paced_by_default_and_other_runs_race(tmp_path, capsys, options
         assert summary["wall_seconds"] < SIMULATED_S / 2
 
 
-def test_a_bad_realtime_value_is_one_line(tmp_path):
+def test_a_bad_realtime_value_is_one_line(cli_in_process, tmp_path):
     out = tmp_path / "run"
-    result = run("simulate", "idle", "--pty", "--realtime", "yes", "--out", out)
+    result = cli_in_process("simulate", "idle", "--pty", "--realtime", "yes", "--out", out)
     assert_one_line_error(result, 2, "--realtime")
     assert result.stdout == "" and not out.exists()

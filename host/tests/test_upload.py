@@ -344,7 +344,7 @@ def test_read_table_fills_the_surfaces_a_fit_did_not_make_with_zero(tmp_path):
 
 def assert_one_line(capsys, status: int, message: str) -> None:
     """What cli.main printed for a command that failed (in-process; the
-    subprocess cases above and test_bad_input run the installed CLI)."""
+    uploads through the twin's ports above run the real command)."""
     err = capsys.readouterr().err
     assert status == 1 and err.count("\n") == 1, err
     assert err.startswith("thermotilt: error: ") and message in err, err
@@ -395,11 +395,11 @@ def test_a_bad_fit_dir_is_one_line(tmp_path, capsys, make, message):
 
 
 @pytest.mark.slow
-def test_a_missing_port_and_a_silent_board_are_one_line(fit_dir, tmp_path):
-    assert_one_line_error(run("upload", fit_dir, "--port", tmp_path / "ttyUSB9"), 1, "cannot open")
+def test_a_missing_port_and_a_silent_board_are_one_line(cli_in_process, fit_dir, tmp_path):
+    assert_one_line_error(cli_in_process("upload", fit_dir, "--port", tmp_path / "ttyUSB9"), 1, "cannot open")
     master, slave = os.openpty()
     try:
-        silent = run("upload", fit_dir, "--port", os.ttyname(slave))
+        silent = cli_in_process("upload", fit_dir, "--port", os.ttyname(slave))
     finally:
         os.close(slave)
         os.close(master)
