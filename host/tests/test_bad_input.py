@@ -200,9 +200,17 @@ def test_a_drift_surface_term_is_held_to_its_range(tmp_path):
         Model.load(path)
 
 
-def test_the_extremes_of_the_ranges_step_quickly(tmp_path):
+# The fastest chamber the ranges allow (docs/physics-model.md, "Parameter
+# ranges"): the heatsink's 4 J/K between 10 W/K to the inner face and 50 W/K
+# to the room, a time constant of 67 ms. The integrator splits a step at 5 %
+# of the shortest time constant, 3.3 ms: a 10 ms step in 3.
+FASTEST_CHAMBER_SUBSTEPS = 3
+
+
+def test_the_extremes_of_the_ranges_take_a_few_substeps_a_step(tmp_path):
     """The fastest chamber the ranges allow: smallest heat capacities, largest
-    conductances, the integrator still takes a few substeps per 10 ms."""
+    conductances, the integrator still takes a few substeps per 10 ms and
+    stays finite."""
     text = default_text()
     for section, name, value in [
         ("chamber", "inner_heat_capacity_j_per_k", 4.0),
@@ -216,10 +224,9 @@ def test_the_extremes_of_the_ranges_step_quickly(tmp_path):
     path = tmp_path / "fast.toml"
     path.write_text(text, encoding="utf-8")
     chamber = Chamber(Model.load(path), 22.0)
-    started = time.perf_counter()
+    assert chamber.substeps(0.01) == FASTEST_CHAMBER_SUBSTEPS
     for _ in range(1000):
         chamber.step(0.01, 1.0, -1, 22.0)
-    assert time.perf_counter() - started < 1.0
     assert math.isfinite(chamber.inner_c)
 
 
@@ -589,12 +596,11 @@ def test_any_values_within_the_ranges_make_a_model_that_steps(tmp_path_factory, 
                                 toml_document(document))
     assert model is not None
     chamber, sensor = Chamber(model, 22.0), Sensor(model, 1, 22.0)
-    started = time.perf_counter()
+    assert chamber.substeps(0.01) <= FASTEST_CHAMBER_SUBSTEPS
     for direction in (1, -1):
         for _ in range(10):
             chamber.step(0.01, 1.0, direction, 22.0)
             sample = sensor.step(0.01, chamber.inner_c, 45.0, -45.0)
-    assert time.perf_counter() - started < 0.5
     assert all(map(math.isfinite, chamber.thermistor_millivolts()))
     assert all(-32768 <= value <= 32767 for value in (sample.ax, sample.ay, sample.az))
 
