@@ -77,7 +77,7 @@ def _assert_named_at_snr_4(inputs: Path, tmp_path: Path, effect: str, channel: s
     # The gap left is the noise: at SNR 4 the hidden effect is 4x the noise
     # RMS, so the residual before is sqrt(17) x the noise, and the fitted
     # effect takes at least 80 % of what separates that from the noise
-    # (issue 9's target for gap shrink relative to the true model).
+    # (docs/discovery.md, "Benchmark": the gap shrink against the true model).
     before, after = outcome.gap[channel]["before"], outcome.gap[channel]["after"]
     assert before - after >= 0.8 * (before - truth.noise_rms)
 

@@ -1,11 +1,12 @@
 """The digital twin end to end, run as a user runs it (`thermotilt simulate`):
 both real firmware images in simavr against the physics model.
 
-Checks the issue's "done when" (Figure 8 feature by feature is in
-test_figure8.py): a cycle at 0 deg and at 30 deg on X whose raw drift follows the
-model's surfaces and whose compensated output is flat; byte-identical
-run.csv for the same seed; faults visible in the frames; the twin read
-through a pseudo-terminal with pyserial and with `thermotilt log`.
+Checks what docs/architecture.md ("Verification", item 4) lists for the
+twin (Figure 8 feature by feature is in test_figure8.py): a cycle at 0 deg
+and at 30 deg on X whose raw drift follows the model's surfaces and whose
+compensated output is flat; byte-identical run.csv for the same seed;
+faults visible in the frames; the twin read through a pseudo-terminal with
+pyserial and with `thermotilt log`.
 """
 
 import json
@@ -173,9 +174,10 @@ SETTLED_ERROR_BOUND_C = 255 / 350
 @pytest.mark.twin
 @pytest.mark.parametrize("angle", [0, 30])
 def test_each_half_of_a_cycle_spans_minus_10_to_45_degc(cycle_runs, angle):
-    # Issue 7: the warming half once began at about 0 degC (its first holds
-    # were the chamber still cooling from the room) and the cold end reached
-    # -6 to -7 degC; the paper's calibration spans -10..45 in both halves.
+    # The paper's calibration spans -10..45 degC in both halves (Sensors 2018,
+    # 18, 2536, section 3.1). A twin cycle once began its warming half at
+    # about 0 degC (its first holds were the chamber still cooling from the
+    # room) and reached only -6 to -7 degC at the cold end.
     rows = read_run_log(str(cycle_runs[angle] / "run.csv"))
     for phase in ("W", "C"):
         inner = [number(row["chamber_c"]) for row in rows if row["phase"] == phase and row["chamber_c"] != ""]
