@@ -1,14 +1,61 @@
-"""Twin runs more than one test module reads, made once per session."""
+"""What more than one test module takes: twin runs, made once per test
+run, and the CLI run in this process."""
 
+import fcntl
+import os
+import shutil
 import subprocess
-import sys
 
 import pytest
 
-THERMOTILT = [sys.executable, "-m", "thermotilt"]
+from child_process import THERMOTILT, popen
+from thermotilt import cli
+
 # The scatter terms change each mounting's drift by design
 # (host/tests/test_scatter.py bounds them by the paper's RMS errors).
 SCATTER_OFF = ("--disable", "drift_repeatability", "--disable", "bias_instability")
+CYCLE_ANGLES = (0, 30)
+
+
+def made_once_per_test_run(tmp_path_factory, name, make):
+    """The folder `make(folder)` fills, made once per test run: without
+    pytest-xdist in this process; with it by the first worker that asks,
+    while the others wait for it on a lock and then read the same folder
+    (the pattern pytest-xdist documents for session fixtures: the workers'
+    temporary folders share a parent). A failure is reported by every worker
+    that asks, not tried again."""
+    if "PYTEST_XDIST_WORKER" not in os.environ:
+        folder = tmp_path_factory.mktemp(name)
+        make(folder)
+        return folder
+    shared = tmp_path_factory.getbasetemp().parent
+    folder, made, failed = shared / name, shared / f"{name}.made", shared / f"{name}.failed"
+    with open(shared / f"{name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if failed.exists():
+            pytest.fail(f"another worker failed to make {name}: {failed.read_text()}")
+        if not made.exists():
+            shutil.rmtree(folder, ignore_errors=True)
+            folder.mkdir()
+            try:
+                make(folder)
+            except (Exception, pytest.fail.Exception) as error:
+                failed.write_text(str(error))
+                raise
+            made.touch()
+    return folder
+
+
+def run_cycles(folder):
+    processes = [
+        popen([*THERMOTILT, "simulate", "cycle", "--out", str(folder / str(angle)), "--incl-x", str(angle),
+               "--rest-seconds", "60", *SCATTER_OFF],
+              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        for angle in CYCLE_ANGLES
+    ]
+    for process in processes:
+        _, stderr = process.communicate(timeout=1800)
+        assert process.returncode == 0, stderr
 
 
 @pytest.fixture(scope="session")
@@ -16,20 +63,26 @@ def cycle_runs(tmp_path_factory):
     """`simulate cycle` at 0 deg and at 30 deg on X, run side by side (two
     cores), with the scatter terms off: the drift bounds of test_simulate
     do not cover them, and discovery's tests take only the chamber's side
-    and the angles of these runs."""
-    runs = {}
-    processes = []
-    for angle in (0, 30):
-        out = tmp_path_factory.mktemp(f"cycle{angle}")
-        runs[angle] = out
-        processes.append(subprocess.Popen(
-            [*THERMOTILT, "simulate", "cycle", "--out", str(out), "--incl-x", str(angle),
-             "--rest-seconds", "60", *SCATTER_OFF],
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True))
-    for process in processes:
-        _, stderr = process.communicate(timeout=1800)
-        assert process.returncode == 0, stderr
-    return runs
+    and the angles of these runs. {angle: run folder}, read only."""
+    folder = made_once_per_test_run(tmp_path_factory, "cycle_runs", run_cycles)
+    return {angle: folder / str(angle) for angle in CYCLE_ANGLES}
+
+
+@pytest.fixture
+def cli_in_process(capsys):
+    """`thermotilt ARGS` as cli.main in this process, its status and output
+    as subprocess.run gives them (--help, --version and usage errors end in
+    argparse's SystemExit). child_process.thermotilt runs the real command."""
+
+    def run(*args):
+        try:
+            status = cli.main([str(arg) for arg in args])
+        except SystemExit as exit:
+            status = exit.code
+        out, err = capsys.readouterr()
+        return subprocess.CompletedProcess(args, status, out, err)
+
+    return run
 
 
 # Fixtures that take 2 s or more (twin runs, emulated campaigns): every

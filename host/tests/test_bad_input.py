@@ -38,9 +38,9 @@ from thermotilt.physics import (
 from thermotilt.wire.protocol import FRAMES, FrameReader, build_frame, format_value, parse_line
 from thermotilt.run.log import ALL_COLUMNS, COLUMNS, RunLogError, read_run_log
 
+from child_process import THERMOTILT, popen, run, thermotilt
 from test_log import imu_frame, rows_of, wait_for, wait_until_opened
 
-THERMOTILT = [sys.executable, "-m", "thermotilt"]
 DEFAULT_TOML = Path(__file__).resolve().parents[1] / "thermotilt" / "models" / "default.toml"
 PHYSICS_DOC = Path(__file__).resolve().parents[2] / "docs" / "physics-model.md"
 PROPERTY = settings(max_examples=150, deadline=None)
@@ -49,18 +49,22 @@ BOARD_SECONDS = "must be from 0.001 to 4294967.295 s"
 AMBIENT = "must be from -40 to 85 degC"
 
 
-def thermotilt(*args, **options):
-    options.setdefault("stdout", subprocess.PIPE)
-    return subprocess.run([*THERMOTILT, *map(str, args)], stderr=subprocess.PIPE, text=True,
-                          timeout=60, check=False, **options)
-
-
 def assert_one_line_error(result, code, message=""):
     assert "Traceback" not in result.stderr, result.stderr
     lines = result.stderr.splitlines()
     assert len(lines) == 1, result.stderr
     assert lines[0].startswith("thermotilt: error: ") and message in lines[0], lines[0]
     assert result.returncode == code
+
+
+def test_the_command_exits_with_mains_status_and_one_line():
+    """Bad input is tested on cli.main in this process, but where only a
+    process will do (a full disk or a closed pipe on stdout, a closed stdin,
+    Ctrl-C); this test runs `python -m thermotilt` as a shell does: main's
+    status is the exit code and the error is one line on stderr."""
+    result = thermotilt("frames", "/nonexistent/capture.txt")
+    assert_one_line_error(result, 1, "cannot read /nonexistent/capture.txt: No such file or directory")
+    assert result.stdout == ""
 
 
 # --- arguments --------------------------------------------------------------
@@ -96,15 +100,15 @@ def assert_one_line_error(result, code, message=""):
          "argument --incl-y: must be from -90 to 90 deg, got inf"),
     ],
 )
-def test_bad_numbers_are_refused_before_anything_runs(tmp_path, args, message):
+def test_bad_numbers_are_refused_before_anything_runs(cli_in_process, tmp_path, args, message):
     out = tmp_path / "out"
-    result = thermotilt(*args, "--out", out)
+    result = cli_in_process(*args, "--out", out)
     assert_one_line_error(result, 2, message)
     assert result.stdout == "" and not out.exists()
 
 
-def test_an_unknown_campaign_position_is_refused(tmp_path):
-    result = thermotilt("simulate", "campaign", "--positions", "0,Z+5", "--out", tmp_path / "run")
+def test_an_unknown_campaign_position_is_refused(cli_in_process, tmp_path):
+    result = cli_in_process("simulate", "campaign", "--positions", "0,Z+5", "--out", tmp_path / "run")
     assert_one_line_error(result, 1, "unknown position(s) Z+5")
 
 
@@ -134,10 +138,10 @@ def with_parameter(text, section, name, value):
         (b'"a\\nb" = 1\n', "unknown section [a\\nb]"),
     ],
 )
-def test_bad_model_files_are_refused_before_the_twin_starts(tmp_path, content, message):
+def test_bad_model_files_are_refused_before_the_twin_starts(cli_in_process, tmp_path, content, message):
     model = tmp_path / "model.toml"
     model.write_bytes(content)
-    result = thermotilt("simulate", "fig8", "--model", model, "--out", tmp_path / "run")
+    result = cli_in_process("simulate", "fig8", "--model", model, "--out", tmp_path / "run")
     assert_one_line_error(result, 1, f"{model}: {message}")
     assert not (tmp_path / "run").exists()
 
@@ -146,9 +150,9 @@ def test_bad_model_files_are_refused_before_the_twin_starts(tmp_path, content, m
     ("{tmp}", "cannot read: Is a directory"),
     ("/dev/zero", "larger than 1048576 bytes, not a model file"),
 ])
-def test_a_model_that_is_no_file_is_refused(tmp_path, path, message):
-    result = thermotilt("simulate", "fig8", "--model", path.format(tmp=tmp_path),
-                        "--out", tmp_path / "run")
+def test_a_model_that_is_no_file_is_refused(cli_in_process, tmp_path, path, message):
+    result = cli_in_process("simulate", "fig8", "--model", path.format(tmp=tmp_path),
+                            "--out", tmp_path / "run")
     assert_one_line_error(result, 1, message)
 
 
@@ -197,9 +201,17 @@ def test_a_drift_surface_term_is_held_to_its_range(tmp_path):
         Model.load(path)
 
 
-def test_the_extremes_of_the_ranges_step_quickly(tmp_path):
+# The fastest chamber the ranges allow (docs/physics-model.md, "Parameter
+# ranges"): the heatsink's 4 J/K between 10 W/K to the inner face and 50 W/K
+# to the room, a time constant of 67 ms. The integrator splits a step at 5 %
+# of the shortest time constant, 3.3 ms: a 10 ms step in 3.
+FASTEST_CHAMBER_SUBSTEPS = 3
+
+
+def test_the_extremes_of_the_ranges_take_a_few_substeps_a_step(tmp_path):
     """The fastest chamber the ranges allow: smallest heat capacities, largest
-    conductances, the integrator still takes a few substeps per 10 ms."""
+    conductances, the integrator still takes a few substeps per 10 ms and
+    stays finite."""
     text = default_text()
     for section, name, value in [
         ("chamber", "inner_heat_capacity_j_per_k", 4.0),
@@ -213,10 +225,9 @@ def test_the_extremes_of_the_ranges_step_quickly(tmp_path):
     path = tmp_path / "fast.toml"
     path.write_text(text, encoding="utf-8")
     chamber = Chamber(Model.load(path), 22.0)
-    started = time.perf_counter()
+    assert chamber.substeps(0.01) == FASTEST_CHAMBER_SUBSTEPS
     for _ in range(1000):
         chamber.step(0.01, 1.0, -1, 22.0)
-    assert time.perf_counter() - started < 1.0
     assert math.isfinite(chamber.inner_c)
 
 
@@ -264,34 +275,34 @@ def test_the_documented_ranges_are_the_loaders():
     ("{tmp}/full", "cannot write {tmp}/full/run.csv: No space left on device"),
     ("{tmp}/rig.csv", "--out {tmp}/rig.csv: a run folder's log is run.csv; give the folder, e.g. --out {tmp}/rig"),
 ])
-def test_log_outputs_that_cannot_be_written(tmp_path, out, message):
+def test_log_outputs_that_cannot_be_written(cli_in_process, tmp_path, out, message):
     (tmp_path / "file").write_text("not a folder\n")
     (tmp_path / "full").mkdir()
     (tmp_path / "full" / "run.csv").symlink_to("/dev/full")
-    result = thermotilt("log", "--port", "loop://", "--out", out.format(tmp=tmp_path), "--force")
+    result = cli_in_process("log", "--port", "loop://", "--out", out.format(tmp=tmp_path), "--force")
     assert_one_line_error(result, 1, message.format(tmp=tmp_path))
 
 
-def test_log_names_where_the_raw_bytes_went(tmp_path):
-    result = thermotilt("log", "--port", "loop://", "--out", tmp_path / "run", "--raw-dir", tmp_path / "raw")
+def test_log_names_where_the_raw_bytes_went(cli_in_process, tmp_path):
+    result = cli_in_process("log", "--port", "loop://", "--out", tmp_path / "run", "--raw-dir", tmp_path / "raw")
     assert_one_line_error(result, 1, "--raw-dir is gone: log keeps each port's bytes in the run folder's serial/")
     assert not (tmp_path / "run").exists() and not (tmp_path / "raw").exists()
 
 
-def test_a_line_break_in_a_name_is_escaped(tmp_path):
-    result = thermotilt("log", "--port", "no\nport", "--out", tmp_path / "run")
+def test_a_line_break_in_a_name_is_escaped(cli_in_process, tmp_path):
+    result = cli_in_process("log", "--port", "no\nport", "--out", tmp_path / "run")
     assert_one_line_error(result, 1, "cannot open no\\nport: ")
 
 
-def test_a_port_url_pyserial_cannot_parse(tmp_path):
-    result = thermotilt("log", "--port", "loop://?bad", "--out", tmp_path / "run")
+def test_a_port_url_pyserial_cannot_parse(cli_in_process, tmp_path):
+    result = cli_in_process("log", "--port", "loop://?bad", "--out", tmp_path / "run")
     assert_one_line_error(result, 1, "cannot open loop://?bad: ")
 
 
-def test_a_simulation_folder_that_is_a_file(tmp_path):
+def test_a_simulation_folder_that_is_a_file(cli_in_process, tmp_path):
     out = tmp_path / "file"
     out.write_text("not a folder\n")
-    result = thermotilt("simulate", "fig8", "--out", out)
+    result = cli_in_process("simulate", "fig8", "--out", out)
     assert_one_line_error(result, 1, f"cannot write {out}: Not a directory")
 
 
@@ -305,8 +316,8 @@ def test_a_full_disk_on_stdout(args):
 def test_a_closed_pipe_on_stdout_ends_quietly():
     """`thermotilt coefficients | head -c 20` once head has gone: the standard
     recipe, exit 1 and nothing on stderr (nobody reads what follows)."""
-    process = subprocess.Popen([*THERMOTILT, "coefficients"], stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE, text=True)
+    process = popen([*THERMOTILT, "coefficients"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                    text=True)
     process.stdout.close()
     stderr = process.stderr.read()
     assert process.wait(timeout=60) == 1
@@ -316,17 +327,33 @@ def test_a_closed_pipe_on_stdout_ends_quietly():
 # --- inputs -----------------------------------------------------------------
 
 
-def test_inputs_that_cannot_be_read(tmp_path):
-    assert_one_line_error(thermotilt("frames", tmp_path), 1,
+def test_inputs_that_cannot_be_read(cli_in_process, tmp_path):
+    assert_one_line_error(cli_in_process("frames", tmp_path), 1,
                           f"cannot read {tmp_path}: Is a directory")
-    assert_one_line_error(thermotilt("coefficients", "--block", "/dev/zero"), 1,
+    assert_one_line_error(cli_in_process("coefficients", "--block", "/dev/zero"), 1,
                           "/dev/zero: coefficient block is")
-    closed_stdin = subprocess.run(["sh", "-c", 'exec "$0" -m thermotilt frames - <&-',
-                                   sys.executable], capture_output=True, text=True, timeout=60)
+
+
+def test_a_closed_standard_input():
+    closed_stdin = run(["sh", "-c", 'exec "$0" -m thermotilt frames - <&-', sys.executable],
+                       capture_output=True, text=True, timeout=60)
     assert_one_line_error(closed_stdin, 1, "standard input is closed")
 
 
 # --- Ctrl-C -----------------------------------------------------------------
+
+
+def test_children_take_ctrl_c_whatever_this_test_run_inherited():
+    """A test run started with SIGINT ignored (`nohup make test &`) still
+    starts each child with it at its default: Python there raises
+    KeyboardInterrupt on Ctrl-C."""
+    inherited = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        child = run([sys.executable, "-c", "import signal; print(signal.getsignal(signal.SIGINT))"],
+                    capture_output=True, text=True, timeout=60)
+    finally:
+        signal.signal(signal.SIGINT, inherited)
+    assert child.stdout == f"{signal.default_int_handler}\n", child.stderr
 
 
 def assert_interrupted(process):
@@ -342,8 +369,8 @@ def unread_bytes(pipe):
 
 def test_ctrl_c_in_frames_prints_the_counts_so_far():
     read_end, write_end = os.pipe()
-    process = subprocess.Popen([*THERMOTILT, "frames", "-"], stdin=read_end,
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    process = popen([*THERMOTILT, "frames", "-"], stdin=read_end,
+                    stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         os.write(write_end, imu_frame(0, 1000).encode() + imu_frame(1, 1100).encode())
         # The frames command is reading once the pipe is empty again.
@@ -360,8 +387,8 @@ def test_ctrl_c_in_frames_prints_the_counts_so_far():
 def test_ctrl_c_in_log_keeps_the_rows(tmp_path):
     master, slave = os.openpty()
     out = tmp_path / "run.csv"
-    process = subprocess.Popen([*THERMOTILT, "log", "--port", os.ttyname(slave), "--out", out],
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    process = popen([*THERMOTILT, "log", "--port", os.ttyname(slave), "--out", out],
+                    stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         wait_until_opened(master)
         os.write(master, "".join(imu_frame(seq, 1000 + 100 * seq) for seq in range(3)).encode())
@@ -378,8 +405,8 @@ def test_ctrl_c_in_log_keeps_the_rows(tmp_path):
 @pytest.mark.twin
 def test_ctrl_c_in_simulate_keeps_the_run(tmp_path):
     out = tmp_path / "run"
-    process = subprocess.Popen([*THERMOTILT, "simulate", "fig8", "--out", out],
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    process = popen([*THERMOTILT, "simulate", "fig8", "--out", out],
+                    stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
     def running():
         assert process.poll() is None, process.communicate()
@@ -576,12 +603,11 @@ def test_any_values_within_the_ranges_make_a_model_that_steps(tmp_path_factory, 
                                 toml_document(document))
     assert model is not None
     chamber, sensor = Chamber(model, 22.0), Sensor(model, 1, 22.0)
-    started = time.perf_counter()
+    assert chamber.substeps(0.01) <= FASTEST_CHAMBER_SUBSTEPS
     for direction in (1, -1):
         for _ in range(10):
             chamber.step(0.01, 1.0, direction, 22.0)
             sample = sensor.step(0.01, chamber.inner_c, 45.0, -45.0)
-    assert time.perf_counter() - started < 0.5
     assert all(map(math.isfinite, chamber.thermistor_millivolts()))
     assert all(-32768 <= value <= 32767 for value in (sample.ax, sample.ay, sample.az))
 

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import csv
 import json
-import subprocess
 import sys
 
 from importlib import resources
@@ -21,6 +20,8 @@ from thermotilt.calibration.paper import PRINTING_ERRORS, TABLES
 from thermotilt.wire.coefficients import BLOCK_SIZE, decode_block
 from thermotilt.surfaces import PAPER_DEFAULTS, COEFFICIENT_NAMES, Surface
 from thermotilt.run.log import COLUMNS
+
+from child_process import THERMOTILT, run
 
 # A drift surface that is zero at 25 degC for every acceleration, as the
 # residuals against a 25 degC reading are: Table 2's warming X temperature
@@ -199,8 +200,8 @@ def test_the_fit_command_writes_coefficients_block_and_header(tmp_path):
     for angle in ANGLES_DEG:
         write_run_log(campaign / f"{angle}.csv", angle, temperatures, sets, blank_every=50)
     out = tmp_path / "fit"
-    result = subprocess.run([sys.executable, "-m", "thermotilt", "fit", str(campaign), "--out", str(out)],
-                            capture_output=True, text=True, timeout=120, check=False)
+    result = run([*THERMOTILT, "fit", str(campaign), "--out", str(out)],
+                 capture_output=True, text=True, timeout=120, check=False)
     assert result.returncode == 0, result.stderr
     assert "7 positions" in result.stdout and "rows with empty cells skipped" in result.stdout
     assert "p11" in result.stdout and "RMSE" in result.stdout
@@ -244,8 +245,8 @@ def test_the_fit_command_writes_coefficients_block_and_header(tmp_path):
 def test_bad_campaign_folders_are_one_line(tmp_path, make, message):
     folder = tmp_path / "campaign"
     make(folder)
-    result = subprocess.run([sys.executable, "-m", "thermotilt", "fit", str(folder), "--out", str(tmp_path / "o")],
-                            capture_output=True, text=True, timeout=120, check=False)
+    result = run([*THERMOTILT, "fit", str(folder), "--out", str(tmp_path / "o")],
+                 capture_output=True, text=True, timeout=120, check=False)
     assert result.returncode == 1
     assert result.stderr.count("\n") == 1 and "Traceback" not in result.stderr
     assert message in result.stderr
@@ -291,8 +292,8 @@ def test_compare_against_the_model_that_made_the_data_finds_no_gap(tmp_path):
     for angle in ANGLES_DEG:
         write_run_log(campaign / f"{angle}.csv", angle, temperatures, sets)
     fit_dir = tmp_path / "fit"
-    assert subprocess.run([sys.executable, "-m", "thermotilt", "fit", str(campaign), "--out", str(fit_dir)],
-                          capture_output=True, text=True, timeout=120).returncode == 0
+    assert run([*THERMOTILT, "fit", str(campaign), "--out", str(fit_dir)],
+               capture_output=True, text=True, timeout=120).returncode == 0
     model = tmp_path / "model.toml"
     model_with_drift(model, TRUE)
     comparisons = {c.key: c for c in compare(read_fit(fit_dir), str(model))}
@@ -323,8 +324,8 @@ def test_compare_uses_the_consistent_reading_of_table_2s_misprints():
 
 def test_compare_refuses_what_fit_did_not_write(tmp_path):
     (tmp_path / "coefficients.json").write_text('{"fits": {"WX": {}}}')
-    result = subprocess.run([sys.executable, "-m", "thermotilt", "compare", str(tmp_path)],
-                            capture_output=True, text=True, timeout=60, check=False)
+    result = run([*THERMOTILT, "compare", str(tmp_path)],
+                 capture_output=True, text=True, timeout=60, check=False)
     assert result.returncode == 1 and result.stderr.count("\n") == 1
     assert "not a coefficients.json written by thermotilt fit" in result.stderr
 

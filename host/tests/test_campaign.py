@@ -5,7 +5,6 @@ only the others, and bad input as one line (docs/calibration.md)."""
 import json
 import signal
 import subprocess
-import sys
 
 import pytest
 
@@ -14,10 +13,10 @@ from thermotilt.calibration.campaign import select_positions
 from thermotilt.run.log import read_run_log
 from thermotilt.twin.scenarios import campaign_positions
 
+from child_process import THERMOTILT, popen, run
 from test_log import wait_for
 from twin_helpers import pty_twin
 
-THERMOTILT = [sys.executable, "-m", "thermotilt"]
 # 1 s timed holds: a 58 s cycle, about 2 wall seconds per position.
 SHORT = ["--hold-seconds", "1", "--rest-seconds", "0", "--hold-start", "T"]
 
@@ -34,7 +33,7 @@ def interrupt_once_a_position_is_done(command, out):
     """Runs the campaign command and sends Ctrl-C once a position is done;
     it must exit 130 keeping that position. Returns the statuses then and
     each finished position's run.csv."""
-    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    process = popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
     def first_done():
         assert process.poll() is None, process.communicate()
@@ -161,10 +160,10 @@ def idle_twin(tmp_path):
 
 def boards_campaign(ports, out, answers, *extra):
     # The twin races ahead of the wall clock, so a wall-clock heartbeat would trip: off.
-    return subprocess.run([*THERMOTILT, "campaign", "--imu-port", ports["imu_reader"],
-                           "--chamber-port", ports["thermal_chamber"], "--out", str(out),
-                           "--heartbeat-seconds", "0", *SHORT, *extra],
-                          input=answers, capture_output=True, text=True, timeout=180, check=False)
+    return run([*THERMOTILT, "campaign", "--imu-port", ports["imu_reader"],
+                "--chamber-port", ports["thermal_chamber"], "--out", str(out),
+                "--heartbeat-seconds", "0", *SHORT, *extra],
+               input=answers, capture_output=True, text=True, timeout=180, check=False)
 
 
 @pytest.mark.slow
@@ -195,10 +194,10 @@ def test_boards_campaign_asks_for_each_position_and_logs_its_program(idle_twin, 
 
 
 def test_boards_campaign_without_a_board_is_one_line(tmp_path):
-    result = subprocess.run([*THERMOTILT, "campaign", "--imu-port", str(tmp_path / "ttyNONE"),
-                             "--chamber-port", str(tmp_path / "ttyNONE2"), "--out", str(tmp_path / "c"),
-                             "--positions", "0", *SHORT], input="\n", capture_output=True, text=True,
-                            timeout=60, check=False)
+    result = run([*THERMOTILT, "campaign", "--imu-port", str(tmp_path / "ttyNONE"),
+                  "--chamber-port", str(tmp_path / "ttyNONE2"), "--out", str(tmp_path / "c"),
+                  "--positions", "0", *SHORT], input="\n", capture_output=True, text=True,
+                 timeout=60, check=False)
     assert result.returncode == 1
     assert result.stderr.count("\n") == 1 and "1 position(s) failed: 0: serial port:" in result.stderr
     assert campaign_file(tmp_path / "c")["positions"][0]["status"] == "failed"

@@ -5,7 +5,6 @@ same way; an unreachable scheduler or a worker without the build is one
 line (docs/calibration.md)."""
 
 import json
-import subprocess
 
 import pytest
 from distributed import Client, Event, LocalCluster
@@ -19,7 +18,8 @@ from thermotilt.calibration.campaign import (
 )
 from thermotilt.twin.scenarios import ScenarioOptions
 
-from test_campaign import SHORT, THERMOTILT, campaign_file, interrupt_once_a_position_is_done, statuses
+from child_process import THERMOTILT, run
+from test_campaign import SHORT, campaign_file, interrupt_once_a_position_is_done, statuses
 
 TIMES = ("started_utc", "wall_seconds")
 
@@ -70,7 +70,7 @@ def test_ctrl_c_on_a_cluster_keeps_finished_positions_and_resume_runs_the_others
     before, kept = interrupt_once_a_position_is_done(command, out)
     assert set(before.values()) == {"done", "pending"}
 
-    result = subprocess.run([*command, "--resume"], capture_output=True, text=True, timeout=180, check=False)
+    result = run([*command, "--resume"], capture_output=True, text=True, timeout=180, check=False)
     assert result.returncode == 0, result.stderr
     assert set(statuses(out).values()) == {"done"}
     for label, data in kept.items():
@@ -96,9 +96,9 @@ def test_a_position_on_a_worker_stops_at_the_campaigns_stop_event_and_ships_what
 @pytest.mark.slow
 def test_an_unreachable_scheduler_is_one_line(tmp_path):
     out = tmp_path / "campaign"
-    result = subprocess.run([*THERMOTILT, "campaign", "--twin", "--out", str(out), "--positions", "0",
-                             "--scheduler", "tcp://127.0.0.1:1", *SHORT],
-                            capture_output=True, text=True, timeout=60, check=False)
+    result = run([*THERMOTILT, "campaign", "--twin", "--out", str(out), "--positions", "0",
+                  "--scheduler", "tcp://127.0.0.1:1", *SHORT],
+                 capture_output=True, text=True, timeout=60, check=False)
     assert result.returncode == 1
     assert result.stderr.count("\n") == 1, result.stderr
     assert "cannot reach the Dask scheduler at tcp://127.0.0.1:1" in result.stderr
@@ -121,9 +121,9 @@ def test_a_worker_without_the_build_is_one_line_before_anything_is_written(tmp_p
     missing = tmp_path / "no-build"
     with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address="127.0.0.1:0",
                       env={"THERMOTILT_BUILD_DIR": str(missing)}) as unbuilt:
-        result = subprocess.run([*THERMOTILT, "campaign", "--twin", "--out", str(out), "--positions", "0",
-                                 "--scheduler", unbuilt.scheduler_address, *SHORT],
-                                capture_output=True, text=True, timeout=60, check=False)
+        result = run([*THERMOTILT, "campaign", "--twin", "--out", str(out), "--positions", "0",
+                      "--scheduler", unbuilt.scheduler_address, *SHORT],
+                     capture_output=True, text=True, timeout=60, check=False)
     assert result.returncode == 1
     assert result.stderr.count("\n") == 1, result.stderr
     assert "cannot run the twin" in result.stderr and str(missing) in result.stderr
@@ -135,9 +135,9 @@ def test_a_worker_without_the_build_is_one_line_before_anything_is_written(tmp_p
 def test_a_scheduler_without_workers_is_one_line(tmp_path):
     out = tmp_path / "campaign"
     with LocalCluster(n_workers=0, processes=True, dashboard_address="127.0.0.1:0") as empty:
-        result = subprocess.run([*THERMOTILT, "campaign", "--twin", "--out", str(out), "--positions", "0",
-                                 "--scheduler", empty.scheduler_address, *SHORT],
-                                capture_output=True, text=True, timeout=60, check=False)
+        result = run([*THERMOTILT, "campaign", "--twin", "--out", str(out), "--positions", "0",
+                      "--scheduler", empty.scheduler_address, *SHORT],
+                     capture_output=True, text=True, timeout=60, check=False)
     assert result.returncode == 1
     assert result.stderr.count("\n") == 1, result.stderr
     assert "has no workers" in result.stderr and f"dask worker {empty.scheduler_address}" in result.stderr

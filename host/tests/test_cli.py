@@ -1,3 +1,6 @@
+import signal
+import sys
+
 import pytest
 
 from thermotilt import __version__
@@ -7,11 +10,10 @@ from thermotilt.wire.coefficients import decode_block, encode_block
 from thermotilt.wire.protocol import PROTOCOL_VERSION, build_frame
 
 from test_bad_input import assert_one_line_error
-from test_bad_input import thermotilt as run
 
 
-def test_version():
-    result = run("--version")
+def test_version(cli_in_process):
+    result = cli_in_process("--version")
     assert result.returncode == 0
     assert result.stdout.strip() == f"thermotilt {__version__} (protocol {PROTOCOL_VERSION})"
 
@@ -44,59 +46,72 @@ def test_frames_counts(tmp_path, capsys):
     ]
 
 
-def test_frames_from_stdin():
-    result = run("frames", "-", input=build_frame("START", 1))
+def test_frames_from_stdin(cli_in_process, tmp_path, monkeypatch):
+    capture = tmp_path / "capture.txt"
+    capture.write_text(build_frame("START", 1))
+    with open(capture) as stdin:
+        monkeypatch.setattr(sys, "stdin", stdin)
+        result = cli_in_process("frames", "-")
     assert result.returncode == 0
     assert "  START: 1" in result.stdout.splitlines()
 
 
-def test_frames_missing_file(tmp_path):
-    result = run("frames", str(tmp_path / "absent.txt"))
+def test_frames_missing_file(cli_in_process, tmp_path):
+    result = cli_in_process("frames", str(tmp_path / "absent.txt"))
     assert_one_line_error(result, 1)
     assert "cannot read" in result.stderr and "No such file" in result.stderr
 
 
-def test_frames_without_valid_frames(tmp_path):
+def test_frames_without_valid_frames(cli_in_process, tmp_path):
     capture = tmp_path / "junk.bin"
     corrupted = build_frame("ACK", 0, [13, "STOP"]).replace("STOP", "STOQ")
     capture.write_bytes(corrupted.encode() + b"hello\r\n")
-    result = run("frames", str(capture))
+    result = cli_in_process("frames", str(capture))
     assert_one_line_error(result, 1)
     assert "no valid frames (1 malformed)" in result.stderr
 
 
 @pytest.mark.parametrize("args", [[], ["bogus"], ["frames"], ["frames", "a", "b"]])
-def test_usage_errors_are_one_line(args):
-    assert_one_line_error(run(*args), 2)
+def test_usage_errors_are_one_line(cli_in_process, args):
+    assert_one_line_error(cli_in_process(*args), 2)
 
 
-def test_coefficients_defaults_and_block(tmp_path):
+def test_coefficients_defaults_and_block(cli_in_process, tmp_path):
     block = tmp_path / "coef.bin"
-    result = run("coefficients", "--write-block", str(block))
+    result = cli_in_process("coefficients", "--write-block", str(block))
     assert result.returncode == 0
     lines = result.stdout.splitlines()
     assert len(lines) == 6 and all(line.startswith("$SETCOE,") for line in lines)
     assert decode_block(block.read_bytes()) == PAPER_DEFAULTS.to_float32()
-    again = run("coefficients", "--block", str(block))
+    again = cli_in_process("coefficients", "--block", str(block))
     assert again.returncode == 0 and len(again.stdout.splitlines()) == 6
 
 
-def test_coefficients_corrupted_block(tmp_path):
+def test_coefficients_corrupted_block(cli_in_process, tmp_path):
     block = tmp_path / "bad.bin"
     data = bytearray(encode_block(PAPER_DEFAULTS))
     data[10] ^= 0xFF
     block.write_bytes(bytes(data))
-    result = run("coefficients", "--block", str(block))
+    result = cli_in_process("coefficients", "--block", str(block))
     assert_one_line_error(result, 1)
     assert "CRC" in result.stderr
 
 
+@pytest.fixture
+def ctrl_c_raises_keyboard_interrupt():
+    """SIGINT as Python sets it up when started in the foreground, whatever
+    this test run inherited (`nohup make test &` starts it ignored)."""
+    inherited = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, inherited)
+
+
+@pytest.mark.usefixtures("ctrl_c_raises_keyboard_interrupt")
 def test_ctrl_c_while_a_position_is_reported_waits_for_the_report(monkeypatch, capsys):
     """tqdm.write turns a KeyboardInterrupt inside its lock into a RuntimeError
     (a traceback instead of exit 130, seen once in CI): the report finishes,
     then the Ctrl-C is raised."""
     import os
-    import signal
 
     from tqdm import tqdm
 

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -17,6 +16,8 @@ from thermotilt.discovery.replay import load_measured
 from thermotilt.discovery.search import Search
 from thermotilt.physics import Model
 from thermotilt.physics.document import with_values, write_model
+
+from child_process import THERMOTILT, run
 
 # Every candidate on the channel it is sized on, on staircase_inputs' three
 # positions (X +30, X -30, Y +30 deg), so that each is excited somewhere
@@ -36,7 +37,7 @@ WIDE_INTERVAL = stats.norm.isf(0.0005) / stats.norm.isf(0.025)
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "thermotilt", *args], capture_output=True, text=True)
+    return run([*THERMOTILT, *args], capture_output=True, text=True)
 
 
 @pytest.fixture(scope="module")
@@ -76,7 +77,7 @@ def _assert_named_at_snr_4(inputs: Path, tmp_path: Path, effect: str, channel: s
     # The gap left is the noise: at SNR 4 the hidden effect is 4x the noise
     # RMS, so the residual before is sqrt(17) x the noise, and the fitted
     # effect takes at least 80 % of what separates that from the noise
-    # (issue 9's target for gap shrink relative to the true model).
+    # (docs/discovery.md, "Benchmark": the gap shrink against the true model).
     before, after = outcome.gap[channel]["before"], outcome.gap[channel]["after"]
     assert before - after >= 0.8 * (before - truth.noise_rms)
 

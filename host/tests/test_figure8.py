@@ -8,7 +8,6 @@ Also the default hold start: every hold is hold_s at its setpoint.
 """
 
 import subprocess
-import sys
 
 import pytest
 
@@ -18,7 +17,8 @@ from thermotilt.run.log import read_run_log
 from thermotilt.twin.scenarios import FIG8_AMBIENT_C
 from thermotilt.program import PAPER_HOLD_S
 
-THERMOTILT = [sys.executable, "-m", "thermotilt"]
+from child_process import THERMOTILT, popen, run
+
 CONTROLLERS = ("float", "rounded-error")
 
 # (a) The README's tolerance for the paper's "approximately 13 s"; the
@@ -55,7 +55,7 @@ def fig8_runs(tmp_path_factory):
     runs, processes = {}, {}
     for controller in CONTROLLERS:
         out = tmp_path_factory.mktemp(controller)
-        processes[controller] = (out, subprocess.Popen(
+        processes[controller] = (out, popen(
             [*THERMOTILT, "simulate", "fig8", "--seed", "7", "--controller", controller, "--out", str(out)],
             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True))
     for controller, (out, process) in processes.items():
@@ -171,9 +171,9 @@ def test_each_hold_lasts_a_minute_from_reaching_its_setpoint(fig8_runs, controll
 @pytest.mark.slow
 @pytest.mark.twin
 def test_holds_too_short_to_settle_are_said_so_not_printed_as_nan(tmp_path):
-    result = subprocess.run([sys.executable, "-m", "thermotilt", "simulate", "fig8", "--hold-seconds", "10",
-                             "--out", str(tmp_path / "short")], capture_output=True, text=True, timeout=600,
-                            check=False)
+    result = run([*THERMOTILT, "simulate", "fig8", "--hold-seconds", "10",
+                  "--out", str(tmp_path / "short")], capture_output=True, text=True, timeout=600,
+                 check=False)
     assert result.returncode == 0, result.stderr
     assert "nan" not in result.stdout and "Warning" not in result.stderr
     assert f"no hold lasted {2 * figures.SETTLED_WINDOW_S:g} s" in result.stdout

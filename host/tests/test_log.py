@@ -7,7 +7,6 @@ faulted, and bad use ends with one readable line."""
 import os
 import signal
 import subprocess
-import sys
 import termios
 import threading
 import time
@@ -19,6 +18,8 @@ from thermotilt.run.log import COLUMNS, read_run_log
 from thermotilt.run.summary import read_summary
 from thermotilt.wire.logger import ProgramWatch, log_boards
 from thermotilt.wire.protocol import SequenceCounter, build_frame
+
+from child_process import THERMOTILT, popen
 
 
 def imu_frame(seq, t_ms, ax=-1650):
@@ -215,8 +216,8 @@ def test_a_killed_log_keeps_every_byte_it_received(pty_pair, tmp_path):
     imu_bytes = b"boot noise\r\n" + "".join(
         imu_frame(seq, 1000 + 100 * seq) for seq in range(40)).encode()
     chamber_bytes = "".join(chs_frame(seq, 900 + 1000 * seq, 18.0 + seq, 17.5) for seq in range(5))
-    logger = subprocess.Popen(
-        [sys.executable, "-m", "thermotilt", "log", "--port", imu_port, "--chamber-port",
+    logger = popen(
+        [*THERMOTILT, "log", "--port", imu_port, "--chamber-port",
          chamber_port, "--out", str(out)],
         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:

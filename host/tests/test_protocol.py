@@ -60,8 +60,8 @@ def test_checksum_by_hand():
     assert checksum(b"START,1") == 0x80BD
 
 
-def test_table_matches_brief():
-    # Field lists typed from the project brief, independently of the .def file.
+def test_frame_table_has_the_fields_and_directions_of_docs_protocol():
+    # Field lists typed from docs/protocol.md, independently of the .def file.
     assert FRAMES["IMU"].field_names == (
         "t_ms",
         "ax_raw",

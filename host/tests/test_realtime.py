@@ -7,11 +7,11 @@ import time
 
 import pytest
 
+from thermotilt.twin import simulate
 from thermotilt.cli import main
 from thermotilt.twin.simulate import STEP_S, WallClockPacer
 
 from test_bad_input import assert_one_line_error
-from test_bad_input import thermotilt as run
 
 SIMULATED_S = 2.0
 
@@ -63,6 +63,20 @@ def test_a_twin_behind_the_wall_clock_runs_flat_out_until_it_is_level():
     assert clock.sleeps == [pytest.approx(0.005)]
 
 
+@pytest.fixture
+def waits_for_the_wall_clock(monkeypatch):
+    """The simulated times at which a run's steps waited for the wall clock."""
+    waited = []
+
+    class RecordingPacer(WallClockPacer):
+        def wait_until(self, simulated_s):
+            waited.append(simulated_s)
+            super().wait_until(simulated_s)
+
+    monkeypatch.setattr(simulate, "WallClockPacer", RecordingPacer)
+    return waited
+
+
 def simulate_idle(tmp_path, *options):
     """(summary.json, wall seconds) of an idle run of SIMULATED_S."""
     out = tmp_path / "run"
@@ -81,20 +95,24 @@ def simulate_idle(tmp_path, *options):
     (["--pty", "--realtime", "off"], False),
     (["--realtime", "on"], True),
 ])
-def test_pty_runs_paced_by_default_and_other_runs_race(tmp_path, capsys, options, paced):
+def test_pty_runs_paced_by_default_and_other_runs_race(tmp_path, capsys, waits_for_the_wall_clock,
+                                                        options, paced):
     summary, wall_s = simulate_idle(tmp_path, *options)
     assert summary["realtime"] is paced
     assert summary["sim_seconds"] == SIMULATED_S
     if paced:
+        # Every step waits for its end on the wall clock, however fast the machine.
+        steps = round(SIMULATED_S / STEP_S)
+        assert waits_for_the_wall_clock == pytest.approx([step * STEP_S for step in range(1, steps + 1)])
         assert wall_s >= SIMULATED_S
         assert "s simulated in real time ->" in capsys.readouterr().out
     else:
-        # The twin races at about 20x real time: half of real time is far off.
-        assert summary["wall_seconds"] < SIMULATED_S / 2
+        # No step waits for the wall clock, however busy the machine.
+        assert waits_for_the_wall_clock == []
 
 
-def test_a_bad_realtime_value_is_one_line(tmp_path):
+def test_a_bad_realtime_value_is_one_line(cli_in_process, tmp_path):
     out = tmp_path / "run"
-    result = run("simulate", "idle", "--pty", "--realtime", "yes", "--out", out)
+    result = cli_in_process("simulate", "idle", "--pty", "--realtime", "yes", "--out", out)
     assert_one_line_error(result, 2, "--realtime")
     assert result.stdout == "" and not out.exists()

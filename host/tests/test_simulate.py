@@ -1,16 +1,15 @@
 """The digital twin end to end, run as a user runs it (`thermotilt simulate`):
 both real firmware images in simavr against the physics model.
 
-Checks the issue's "done when" (Figure 8 feature by feature is in
-test_figure8.py): a cycle at 0 deg and at 30 deg on X whose raw drift follows the
-model's surfaces and whose compensated output is flat; byte-identical
-run.csv for the same seed; faults visible in the frames; the twin read
-through a pseudo-terminal with pyserial and with `thermotilt log`.
+Checks what docs/architecture.md ("Verification", item 4) lists for the
+twin (Figure 8 feature by feature is in test_figure8.py): a cycle at 0 deg
+and at 30 deg on X whose raw drift follows the model's surfaces and whose
+compensated output is flat; byte-identical run.csv for the same seed;
+faults visible in the frames; the twin read through a pseudo-terminal with
+pyserial and with `thermotilt log`.
 """
 
 import json
-import subprocess
-import sys
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -18,7 +17,8 @@ from pathlib import Path
 import pytest
 import serial
 
-from thermotilt.twin import figures, boards as twin
+from thermotilt.twin import boards as twin
+from thermotilt.twin import figures
 from thermotilt import physics
 from thermotilt.twin import simulate as simulate_module
 from thermotilt.surfaces import PAPER_DEFAULTS
@@ -27,17 +27,17 @@ from thermotilt.run.log import ALL_COLUMNS, read_run_log
 from thermotilt.run.summary import read_summary
 from thermotilt.twin.scenarios import ScenarioOptions, build
 
+from child_process import THERMOTILT, run
 from twin_helpers import pty_twin
 
-THERMOTILT = [sys.executable, "-m", "thermotilt"]
 # Stated in the README: the cycle's compensated X and Y stay within this many
 # LSB of the tilt and the measuring offset once each hold has settled.
 COMPENSATED_TOLERANCE_LSB = 10.0
 
 
 def simulate(*arguments, timeout=900):
-    result = subprocess.run([*THERMOTILT, "simulate", *map(str, arguments)],
-                            capture_output=True, text=True, timeout=timeout, check=False)
+    result = run([*THERMOTILT, "simulate", *map(str, arguments)],
+                 capture_output=True, text=True, timeout=timeout, check=False)
     assert result.returncode == 0, result.stderr
     return result
 
@@ -178,9 +178,10 @@ SETTLED_ERROR_BOUND_C = 255 / 350
 @pytest.mark.twin
 @pytest.mark.parametrize("angle", [0, 30])
 def test_each_half_of_a_cycle_spans_minus_10_to_45_degc(cycle_runs, angle):
-    # Issue 7: the warming half once began at about 0 degC (its first holds
-    # were the chamber still cooling from the room) and the cold end reached
-    # -6 to -7 degC; the paper's calibration spans -10..45 in both halves.
+    # The paper's calibration spans -10..45 degC in both halves (Sensors 2018,
+    # 18, 2536, section 3.1). A twin cycle once began its warming half at
+    # about 0 degC (its first holds were the chamber still cooling from the
+    # room) and reached only -6 to -7 degC at the cold end.
     rows = read_run_log(str(cycle_runs[angle] / "run.csv"))
     for phase in ("W", "C"):
         inner = [number(row["chamber_c"]) for row in rows if row["phase"] == phase and row["chamber_c"] != ""]
@@ -360,8 +361,8 @@ def test_bad_use_is_one_readable_line(tmp_path):
         (["fig8", "--model", tmp_path / "missing.toml"], "missing.toml"),
         (["fig8", "--disable", "no_such_term"], "no_such_term"),
     ):
-        result = subprocess.run([*THERMOTILT, "simulate", *map(str, arguments), "--out", tmp_path / "x"],
-                                capture_output=True, text=True, timeout=120, check=False)
+        result = run([*THERMOTILT, "simulate", *map(str, arguments), "--out", tmp_path / "x"],
+                     capture_output=True, text=True, timeout=120, check=False)
         assert result.returncode == 1, arguments
         assert result.stderr.count("\n") == 1 and message in result.stderr, result.stderr
 
@@ -382,7 +383,7 @@ def test_the_twin_through_pseudo_terminals(tmp_path):
         assert any(f.type == "VER" and f["device"] == "imu_reader" for f in replies)
         assert any(f.type == "IMU" for f in replies)
         logged = tmp_path / "logged"
-        result = subprocess.run(
+        result = run(
             [*THERMOTILT, "log", "--port", ports["imu_reader"], "--chamber-port",
              ports["thermal_chamber"], "--out", str(logged), "--rows", "100"],
             capture_output=True, text=True, timeout=120, check=False)

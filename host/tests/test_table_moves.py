@@ -4,9 +4,6 @@ table moved, so no tool fits settling data by accident."""
 
 from __future__ import annotations
 
-import subprocess
-import sys
-
 import pytest
 
 from thermotilt.physics import Model
@@ -14,6 +11,7 @@ from thermotilt.wire.protocol import FrameReader, build_frame
 from thermotilt.run.log import read_run_log
 from thermotilt.twin.boards import Board
 
+from child_process import THERMOTILT, run
 from firmware_helpers import of_type
 
 pytestmark = pytest.mark.twin
@@ -51,8 +49,8 @@ def test_reseed_restarts_the_filters_from_the_next_sample():
 @pytest.mark.slow
 def test_the_campaign_reseeds_at_every_move_and_logs_the_time_since(tmp_path):
     out = tmp_path / "campaign"
-    result = subprocess.run(
-        [sys.executable, "-m", "thermotilt", "simulate", "campaign", "--positions", "0,X+45",
+    result = run(
+        [*THERMOTILT, "simulate", "campaign", "--positions", "0,X+45",
          "--hold-seconds", "2", "--rest-seconds", "0", "--hold-start", "T", "--out", str(out)],
         capture_output=True, text=True, timeout=900, check=False,
     )

@@ -12,7 +12,6 @@ significant digits, the 148-byte block) and from the fit written here.
 import json
 import os
 import struct
-import sys
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -33,12 +32,11 @@ from thermotilt.twin.scenarios import ScenarioOptions, build
 from thermotilt.twin.simulate import SimulationError
 from thermotilt.twin.boards import Board
 
+from child_process import thermotilt as run
 from firmware_helpers import of_type
 from twin_helpers import pty_twin
 from test_bad_input import assert_one_line_error
-from test_bad_input import thermotilt as run
 
-THERMOTILT = [sys.executable, "-m", "thermotilt"]
 # -1700 / -400 / 16000 LSB, raw temperature 32 -> 25.000 degC.
 SENSOR = (-1700, -400, 16000, 32)
 # A twin-campaign-like fit: near the paper's surfaces, with more digits than
@@ -347,7 +345,7 @@ def test_read_table_fills_the_surfaces_a_fit_did_not_make_with_zero(tmp_path):
 
 def assert_one_line(capsys, status: int, message: str) -> None:
     """What cli.main printed for a command that failed (in-process; the
-    subprocess cases above and test_bad_input run the installed CLI)."""
+    uploads through the twin's ports above run the real command)."""
     err = capsys.readouterr().err
     assert status == 1 and err.count("\n") == 1, err
     assert err.startswith("thermotilt: error: ") and message in err, err
@@ -398,11 +396,11 @@ def test_a_bad_fit_dir_is_one_line(tmp_path, capsys, make, message):
 
 
 @pytest.mark.slow
-def test_a_missing_port_and_a_silent_board_are_one_line(fit_dir, tmp_path):
-    assert_one_line_error(run("upload", fit_dir, "--port", tmp_path / "ttyUSB9"), 1, "cannot open")
+def test_a_missing_port_and_a_silent_board_are_one_line(cli_in_process, fit_dir, tmp_path):
+    assert_one_line_error(cli_in_process("upload", fit_dir, "--port", tmp_path / "ttyUSB9"), 1, "cannot open")
     master, slave = os.openpty()
     try:
-        silent = run("upload", fit_dir, "--port", os.ttyname(slave))
+        silent = cli_in_process("upload", fit_dir, "--port", os.ttyname(slave))
     finally:
         os.close(slave)
         os.close(master)

@@ -4,8 +4,6 @@ as one line, and the host's surface evaluation against the firmware's."""
 
 import csv
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -15,7 +13,8 @@ from thermotilt.calibration.validate import AxisResult, Validation, format_valid
 from thermotilt.surfaces import PAPER_DEFAULTS
 from thermotilt.run.log import COLUMNS, read_run_log
 
-THERMOTILT = [sys.executable, "-m", "thermotilt"]
+from child_process import THERMOTILT, run
+
 WARMING_X = PAPER_DEFAULTS.surface("W", "X")
 OFFSET_X, OFFSET_Y = -1823.0, -143.0
 
@@ -106,8 +105,8 @@ def test_bad_validate_input_is_one_line(tmp_path, make, arguments, status, messa
     folder = tmp_path / "run"
     folder.mkdir()
     make(folder)
-    result = subprocess.run([*THERMOTILT, "validate", str(folder), *arguments], capture_output=True,
-                            text=True, timeout=60, check=False, cwd=tmp_path)
+    result = run([*THERMOTILT, "validate", str(folder), *arguments], capture_output=True,
+                 text=True, timeout=60, check=False, cwd=tmp_path)
     assert result.returncode == status
     assert result.stderr.count("\n") == 1 and "Traceback" not in result.stderr
     assert message in result.stderr
@@ -120,8 +119,8 @@ def test_host_compensation_equals_the_firmwares(tmp_path):
     (lib/Compensation, float32, with the paper's defaults) and the host's
     (float64) on the same printed rows."""
     out = tmp_path / "field"
-    result = subprocess.run([*THERMOTILT, "simulate", "field-warming", "--duration", "300", "--out", str(out)],
-                            capture_output=True, text=True, timeout=300, check=False)
+    result = run([*THERMOTILT, "simulate", "field-warming", "--duration", "300", "--out", str(out)],
+                 capture_output=True, text=True, timeout=300, check=False)
     assert result.returncode == 0, result.stderr
     firmware = validate(out)
     host = validate(out, load_coefficients("paper"))

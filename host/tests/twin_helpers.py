@@ -3,7 +3,6 @@
 
 import signal
 import subprocess
-import sys
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -11,7 +10,7 @@ import pytest
 
 from thermotilt.twin.cli import announced_ports
 
-THERMOTILT = [sys.executable, "-m", "thermotilt"]
+from child_process import THERMOTILT, popen
 
 
 @contextmanager
@@ -19,9 +18,9 @@ def pty_twin(out: Path, scenario: str = "idle", *options):
     """Yields {"imu_reader": path, "thermal_chamber": path}. The twin races
     (`--realtime off`): the clients under test take simulated time as it
     comes, and test_realtime.py covers the pacing a user gets by default."""
-    process = subprocess.Popen([*THERMOTILT, "simulate", scenario, "--pty", "--realtime", "off",
-                                "--out", str(out), *map(str, options)],
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    process = popen([*THERMOTILT, "simulate", scenario, "--pty", "--realtime", "off",
+                     "--out", str(out), *map(str, options)],
+                    stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         try:
             ports = announced_ports(process.stdout)

@@ -133,7 +133,7 @@ class Chamber:
             inner_drive_w += inner_w
             outer_drive_w += outer_w
 
-        substeps = 1 if dt_s <= self._max_substep else math.ceil(dt_s / self._max_substep)
+        substeps = self.substeps(dt_s)
         h = dt_s / substeps
         inner = self.inner_c
         outer_node = self._outer_node
@@ -163,6 +163,10 @@ class Chamber:
         else:
             self.inner_thermistor_c = inner_sensed
             self.outer_thermistor_c = outer
+
+    def substeps(self, dt_s: float) -> int:
+        """How many Euler steps step() splits dt_s into."""
+        return 1 if dt_s <= self._max_substep else math.ceil(dt_s / self._max_substep)
 
     def readings_c(self) -> tuple[float, float]:
         """The temperatures the inner and outer thermistors stand for: their
