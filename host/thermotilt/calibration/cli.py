@@ -175,8 +175,10 @@ def _campaign(args: argparse.Namespace) -> int:
 def _ctrl_c_after_block() -> Iterator[None]:
     """Ctrl-C during the block is raised when it ends. tqdm.write turns a
     KeyboardInterrupt that lands while it takes its lock into a
-    RuntimeError, a traceback instead of exit 130."""
-    if threading.current_thread() is not threading.main_thread():
+    RuntimeError, a traceback instead of exit 130. A Ctrl-C this process
+    ignores (a background job's) stays ignored."""
+    if (threading.current_thread() is not threading.main_thread()
+            or signal.getsignal(signal.SIGINT) is signal.SIG_IGN):
         yield
         return
     pressed: list[int] = []
