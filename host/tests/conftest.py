@@ -7,8 +7,8 @@ import shutil
 import subprocess
 
 import pytest
-
 from child_process import THERMOTILT, popen
+
 from thermotilt import cli
 
 # The scatter terms change each mounting's drift by design

@@ -3,8 +3,8 @@ with its thermistors set, a program to start, and frame picking."""
 
 import math
 
-from thermotilt.wire.protocol import build_frame
 from thermotilt.twin.boards import Board
+from thermotilt.wire.protocol import build_frame
 
 
 def divider_millivolts(celsius: float) -> float:

@@ -19,11 +19,12 @@ import tomllib
 from pathlib import Path
 
 import pytest
+from child_process import THERMOTILT, popen, run, thermotilt
 from hypothesis import given, reject, settings
 from hypothesis import strategies as st
+from test_log import imu_frame, rows_of, wait_for, wait_until_opened
 
 from thermotilt import cli
-from thermotilt.wire import coefficients as wire_coefficients
 from thermotilt.physics import (
     CONSTANT_PARAMETERS,
     FAULT_NAMES,
@@ -35,11 +36,9 @@ from thermotilt.physics import (
     PerAxis,
     Sensor,
 )
-from thermotilt.wire.protocol import FRAMES, FrameReader, build_frame, format_value, parse_line
 from thermotilt.run.log import ALL_COLUMNS, COLUMNS, RunLogError, read_run_log
-
-from child_process import THERMOTILT, popen, run, thermotilt
-from test_log import imu_frame, rows_of, wait_for, wait_until_opened
+from thermotilt.wire import coefficients as wire_coefficients
+from thermotilt.wire.protocol import FRAMES, FrameReader, build_frame, format_value, parse_line
 
 DEFAULT_TOML = Path(__file__).resolve().parents[1] / "thermotilt" / "models" / "default.toml"
 PHYSICS_DOC = Path(__file__).resolve().parents[2] / "docs" / "physics-model.md"

@@ -7,21 +7,19 @@ from __future__ import annotations
 import csv
 import json
 import sys
-
 from importlib import resources
 
 import numpy as np
 import pytest
+from child_process import THERMOTILT, run
 
 from thermotilt.calibration.compare import compare, format_comparison, read_fit, reference_surfaces
 from thermotilt.calibration.dataset import CalibrationDataError, SetData, load
 from thermotilt.calibration.fit import fit_surface
 from thermotilt.calibration.paper import PRINTING_ERRORS, TABLES
-from thermotilt.wire.coefficients import BLOCK_SIZE, decode_block
-from thermotilt.surfaces import PAPER_DEFAULTS, COEFFICIENT_NAMES, Surface
 from thermotilt.run.log import COLUMNS
-
-from child_process import THERMOTILT, run
+from thermotilt.surfaces import COEFFICIENT_NAMES, PAPER_DEFAULTS, Surface
+from thermotilt.wire.coefficients import BLOCK_SIZE, decode_block
 
 # A drift surface that is zero at 25 degC for every acceleration, as the
 # residuals against a 25 degC reading are: Table 2's warming X temperature

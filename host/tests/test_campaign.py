@@ -7,15 +7,14 @@ import signal
 import subprocess
 
 import pytest
+from child_process import THERMOTILT, popen, run
+from test_log import wait_for
+from twin_helpers import pty_twin
 
 from thermotilt import cli
 from thermotilt.calibration.campaign import select_positions
 from thermotilt.run.log import read_run_log
 from thermotilt.twin.scenarios import campaign_positions
-
-from child_process import THERMOTILT, popen, run
-from test_log import wait_for
-from twin_helpers import pty_twin
 
 # 1 s timed holds: a 58 s cycle, about 2 wall seconds per position.
 SHORT = ["--hold-seconds", "1", "--rest-seconds", "0", "--hold-start", "T"]

@@ -7,7 +7,9 @@ line (docs/calibration.md)."""
 import json
 
 import pytest
+from child_process import THERMOTILT, run
 from distributed import Client, Event, LocalCluster
+from test_campaign import SHORT, campaign_file, interrupt_once_a_position_is_done, statuses
 
 from thermotilt import cli
 from thermotilt.calibration.campaign import (
@@ -17,9 +19,6 @@ from thermotilt.calibration.campaign import (
     select_positions,
 )
 from thermotilt.twin.scenarios import ScenarioOptions
-
-from child_process import THERMOTILT, run
-from test_campaign import SHORT, campaign_file, interrupt_once_a_position_is_done, statuses
 
 TIMES = ("started_utc", "wall_seconds")
 

@@ -10,12 +10,11 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from test_physics import CANDIDATES, SENSOR_EFFECTS_OFF
 
-from thermotilt.surfaces import PAPER_DEFAULTS
 from thermotilt.physics import DECLARATIONS, TERMS, Model, ModelError, Sensor
 from thermotilt.physics.terms import REGISTRY, SENSOR_STAGES, SensorContext
-
-from test_physics import CANDIDATES, SENSOR_EFFECTS_OFF
+from thermotilt.surfaces import PAPER_DEFAULTS
 
 DEFAULT_TOML = Path(__file__).resolve().parents[1] / "thermotilt" / "models" / "default.toml"
 PROPERTY = settings(max_examples=60, deadline=None)

@@ -2,14 +2,13 @@ import signal
 import sys
 
 import pytest
+from test_bad_input import assert_one_line_error
 
 from thermotilt import __version__
 from thermotilt.cli import main
 from thermotilt.surfaces import PAPER_DEFAULTS
 from thermotilt.wire.coefficients import decode_block, encode_block
 from thermotilt.wire.protocol import PROTOCOL_VERSION, build_frame
-
-from test_bad_input import assert_one_line_error
 
 
 def test_version(cli_in_process):

@@ -11,13 +11,12 @@ import threading
 
 import pytest
 import serial
+from firmware_helpers import chamber, of_type
 
-from thermotilt.surfaces import AXES, PAPER_DEFAULTS, SETS, COEFFICIENT_NAMES
+from thermotilt.surfaces import AXES, COEFFICIENT_NAMES, PAPER_DEFAULTS, SETS
+from thermotilt.twin.boards import Board
 from thermotilt.wire.client import CommandClient, CommandRefused, CommandTimeout
 from thermotilt.wire.protocol import FrameReader, build_frame, parse_line
-from thermotilt.twin.boards import Board
-
-from firmware_helpers import chamber, of_type
 
 # -1700 / -400 / 16000 LSB, raw temperature 32 -> 25.000 degC.
 SENSOR = (-1700, -400, 16000, 32)

@@ -8,6 +8,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
+from child_process import THERMOTILT, run
 from scipy import stats
 
 from thermotilt.discovery.candidates import BY_NAME
@@ -16,8 +17,6 @@ from thermotilt.discovery.replay import load_measured
 from thermotilt.discovery.search import Search
 from thermotilt.physics import Model
 from thermotilt.physics.document import with_values, write_model
-
-from child_process import THERMOTILT, run
 
 # Every candidate on the channel it is sized on, on staircase_inputs' three
 # positions (X +30, X -30, Y +30 deg), so that each is excited somewhere

@@ -5,6 +5,7 @@ import json
 
 import numpy as np
 import pytest
+from test_calibration_fit import ANGLES_DEG, LSB_PER_G, TRUE, cycle, smooth_noise, write_run_log
 
 from thermotilt import cli
 from thermotilt.calibration.dataset import Campaign, SetData
@@ -16,10 +17,7 @@ from thermotilt.calibration.families import (
     recommend,
     score,
 )
-from thermotilt.calibration.fit import design
-from thermotilt.calibration.fit import _POWERS
-
-from test_calibration_fit import ANGLES_DEG, LSB_PER_G, TRUE, cycle, smooth_noise, write_run_log
+from thermotilt.calibration.fit import _POWERS, design
 
 
 def synthetic_campaign(rate_lsb_per_c_per_min: float, seed: int = 2) -> Campaign:

@@ -10,14 +10,13 @@ Also the default hold start: every hold is hold_s at its setpoint.
 import subprocess
 
 import pytest
-
-from thermotilt.twin import figures
-from thermotilt.wire.protocol import FrameReader
-from thermotilt.run.log import read_run_log
-from thermotilt.twin.scenarios import FIG8_AMBIENT_C
-from thermotilt.program import PAPER_HOLD_S
-
 from child_process import THERMOTILT, popen, run
+
+from thermotilt.program import PAPER_HOLD_S
+from thermotilt.run.log import read_run_log
+from thermotilt.twin import figures
+from thermotilt.twin.scenarios import FIG8_AMBIENT_C
+from thermotilt.wire.protocol import FrameReader
 
 CONTROLLERS = ("float", "rounded-error")
 

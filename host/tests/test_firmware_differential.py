@@ -23,12 +23,12 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from thermotilt import native
-from thermotilt.surfaces import AXES, PAPER_DEFAULTS, SETS, Surface
 from thermotilt.physics import Model
 from thermotilt.physics.sensor import Sensor
 from thermotilt.physics.terms.sensor import INT16_MAX, INT16_MIN, OPERATING_C, SURFACE_TERM_BOUNDS, _surface
-from thermotilt.twin.scenarios import program_steps
 from thermotilt.program import CALIBRATION_MAX_C, CALIBRATION_MIN_C
+from thermotilt.surfaces import AXES, PAPER_DEFAULTS, SETS, Surface
+from thermotilt.twin.scenarios import program_steps
 
 pytestmark = pytest.mark.twin
 

@@ -15,11 +15,10 @@ import subprocess
 from pathlib import Path
 
 import pytest
+from firmware_helpers import divider_millivolts, of_type
 
 from thermotilt.surfaces import PAPER_DEFAULTS
 from thermotilt.wire.protocol import PROTOCOL_VERSION, FrameReader, build_frame
-
-from firmware_helpers import divider_millivolts, of_type
 
 pytestmark = pytest.mark.twin
 

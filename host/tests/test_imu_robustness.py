@@ -16,15 +16,14 @@ import subprocess
 from pathlib import Path
 
 import pytest
-
-from thermotilt.surfaces import PAPER_DEFAULTS, COEFFICIENT_NAMES, table_from_values
-from thermotilt.wire.coefficients import crc16_xmodem, encode_block
-from thermotilt.physics import Model, Sensor
-from thermotilt.wire.protocol import MAX_LINE, Frame, FrameReader, build_frame, parse_line
-from thermotilt.twin.simulate import STEP_S
-from thermotilt.twin.boards import Board, firmware_elf
-
 from firmware_helpers import of_type
+
+from thermotilt.physics import Model, Sensor
+from thermotilt.surfaces import COEFFICIENT_NAMES, PAPER_DEFAULTS, table_from_values
+from thermotilt.twin.boards import Board, firmware_elf
+from thermotilt.twin.simulate import STEP_S
+from thermotilt.wire.coefficients import crc16_xmodem, encode_block
+from thermotilt.wire.protocol import MAX_LINE, Frame, FrameReader, build_frame, parse_line
 
 pytestmark = pytest.mark.twin
 

@@ -12,14 +12,13 @@ import threading
 import time
 
 import pytest
+from child_process import THERMOTILT, popen
 
 from thermotilt.cli import main
 from thermotilt.run.log import COLUMNS, read_run_log
 from thermotilt.run.summary import read_summary
 from thermotilt.wire.logger import ProgramWatch, log_boards
 from thermotilt.wire.protocol import SequenceCounter, build_frame
-
-from child_process import THERMOTILT, popen
 
 
 def imu_frame(seq, t_ms, ax=-1650):

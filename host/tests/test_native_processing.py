@@ -38,12 +38,12 @@ import numpy as np
 import pytest
 
 from thermotilt import native
-from thermotilt.twin import simulate
-from thermotilt.surfaces import PAPER_DEFAULTS, CoefficientTable, Surface
 from thermotilt.physics import Model
-from thermotilt.wire.protocol import FRAMES, FrameReader, build_frame
-from thermotilt.twin.scenarios import ScenarioOptions, build
+from thermotilt.surfaces import PAPER_DEFAULTS, CoefficientTable, Surface
+from thermotilt.twin import simulate
 from thermotilt.twin.boards import Board
+from thermotilt.twin.scenarios import ScenarioOptions, build
+from thermotilt.wire.protocol import FRAMES, FrameReader, build_frame
 
 STEP_S = simulate.STEP_S
 DECIMATION = 10

@@ -10,9 +10,6 @@ import numpy as np
 import pytest
 
 from thermotilt import native
-from thermotilt.surfaces import PAPER_DEFAULTS
-from thermotilt.physics import docs
-from thermotilt.physics.terms import REGISTRY
 from thermotilt.physics import (
     DECLARATIONS,
     FAULT_NAMES,
@@ -22,8 +19,11 @@ from thermotilt.physics import (
     Model,
     ModelError,
     Sensor,
+    docs,
     parse_fault,
 )
+from thermotilt.physics.terms import REGISTRY
+from thermotilt.surfaces import PAPER_DEFAULTS
 
 DEFAULT_TOML = Path(__file__).resolve().parents[1] / "thermotilt" / "models" / "default.toml"
 LSB_PER_G = 1 / 0.061e-3  # LSM9DS0 at +-2 g

@@ -6,12 +6,11 @@ import json
 import time
 
 import pytest
-
-from thermotilt.twin import simulate
-from thermotilt.cli import main
-from thermotilt.twin.simulate import STEP_S, WallClockPacer
-
 from test_bad_input import assert_one_line_error
+
+from thermotilt.cli import main
+from thermotilt.twin import simulate
+from thermotilt.twin.simulate import STEP_S, WallClockPacer
 
 SIMULATED_S = 2.0
 

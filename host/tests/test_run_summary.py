@@ -15,7 +15,7 @@ from thermotilt.run.summary import (
     RunSummaryError,
     read_summary,
 )
-from thermotilt.wire.protocol import parse_line, build_frame
+from thermotilt.wire.protocol import build_frame, parse_line
 
 
 def twin_summary(**changes):

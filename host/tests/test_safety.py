@@ -10,14 +10,13 @@ import math
 from pathlib import Path
 
 import pytest
-
-from thermotilt.twin import simulate
-from thermotilt.physics import Model, parse_fault
-from thermotilt.wire.protocol import FrameReader, build_frame
-from thermotilt.twin.scenarios import Command, Scenario, TablePosition
-from thermotilt.twin.boards import Board, Drive
-
 from firmware_helpers import chamber, of_type, start_program
+
+from thermotilt.physics import Model, parse_fault
+from thermotilt.twin import simulate
+from thermotilt.twin.boards import Board, Drive
+from thermotilt.twin.scenarios import Command, Scenario, TablePosition
+from thermotilt.wire.protocol import FrameReader, build_frame
 
 pytestmark = pytest.mark.twin
 

@@ -10,20 +10,19 @@ import statistics
 
 import numpy as np
 import pytest
+from child_process import THERMOTILT, run
 from scipy.signal import lfilter
+from test_physics import SCATTER_OFF, SENSOR_EFFECTS_OFF
 
 from thermotilt.calibration.dataset import load as load_campaign
 from thermotilt.calibration.fit import fit_surface
 from thermotilt.calibration.paper import FIELD_RMS_LSB, TABLES
-from thermotilt.surfaces import PAPER_DEFAULTS
 from thermotilt.physics import Model, Sensor
 from thermotilt.physics.terms.sensor import FLICKER_TIME_CONSTANTS_S, FLICKER_VARIANCE_PER_FLOOR
-from thermotilt.run.log import COLUMNS, read_run_log
-from thermotilt.twin.scenarios import ScenarioOptions, build, campaign_positions
 from thermotilt.program import CALIBRATION_MAX_C, CALIBRATION_MIN_C, PAPER_HOLD_S, PAPER_STEP_C
-
-from child_process import THERMOTILT, run
-from test_physics import SCATTER_OFF, SENSOR_EFFECTS_OFF
+from thermotilt.run.log import COLUMNS, read_run_log
+from thermotilt.surfaces import PAPER_DEFAULTS
+from thermotilt.twin.scenarios import ScenarioOptions, build, campaign_positions
 
 # The twin's scatter is of the order of the paper's RMS errors (Tables 2-3,
 # section 4.3): within a factor of two, as the README's table of the paper's

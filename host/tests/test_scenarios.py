@@ -4,7 +4,6 @@ ambient profiles (no simulation runs here)."""
 import pytest
 
 from thermotilt.physics import Model
-from thermotilt.wire.protocol import build_frame, parse_line
 from thermotilt.twin.scenarios import (
     FIELD_SENSOR_OFFSET_C,
     ScenarioError,
@@ -14,6 +13,7 @@ from thermotilt.twin.scenarios import (
     program_steps,
     reach_allowance_s,
 )
+from thermotilt.wire.protocol import build_frame, parse_line
 
 
 def test_program_steps_match_the_firmware_staircase():

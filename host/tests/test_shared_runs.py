@@ -3,7 +3,6 @@ share is made by the first worker that asks, and its failure is every
 worker's."""
 
 import pytest
-
 from conftest import made_once_per_test_run
 
 

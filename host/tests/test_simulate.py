@@ -16,19 +16,18 @@ from pathlib import Path
 
 import pytest
 import serial
-
-from thermotilt.twin import boards as twin
-from thermotilt.twin import figures
-from thermotilt import physics
-from thermotilt.twin import simulate as simulate_module
-from thermotilt.surfaces import PAPER_DEFAULTS
-from thermotilt.wire.protocol import FrameReader, build_frame
-from thermotilt.run.log import ALL_COLUMNS, read_run_log
-from thermotilt.run.summary import read_summary
-from thermotilt.twin.scenarios import ScenarioOptions, build
-
 from child_process import THERMOTILT, run
 from twin_helpers import pty_twin
+
+from thermotilt import physics
+from thermotilt.run.log import ALL_COLUMNS, read_run_log
+from thermotilt.run.summary import read_summary
+from thermotilt.surfaces import PAPER_DEFAULTS
+from thermotilt.twin import boards as twin
+from thermotilt.twin import figures
+from thermotilt.twin import simulate as simulate_module
+from thermotilt.twin.scenarios import ScenarioOptions, build
+from thermotilt.wire.protocol import FrameReader, build_frame
 
 # Stated in the README: the cycle's compensated X and Y stay within this many
 # LSB of the tilt and the measuring offset once each hold has settled.

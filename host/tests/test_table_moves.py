@@ -5,14 +5,13 @@ table moved, so no tool fits settling data by accident."""
 from __future__ import annotations
 
 import pytest
-
-from thermotilt.physics import Model
-from thermotilt.wire.protocol import FrameReader, build_frame
-from thermotilt.run.log import read_run_log
-from thermotilt.twin.boards import Board
-
 from child_process import THERMOTILT, run
 from firmware_helpers import of_type
+
+from thermotilt.physics import Model
+from thermotilt.run.log import read_run_log
+from thermotilt.twin.boards import Board
+from thermotilt.wire.protocol import FrameReader, build_frame
 
 pytestmark = pytest.mark.twin
 

@@ -14,13 +14,12 @@ import math
 import numpy as np
 import pytest
 import serial
+from firmware_helpers import chamber, divider_millivolts, of_type, start_program
 
 from thermotilt.surfaces import PAPER_DEFAULTS, table_from_values
+from thermotilt.twin.boards import Board, Drive, TwinError, build_dir, firmware_elf
 from thermotilt.wire.coefficients import encode_block
 from thermotilt.wire.protocol import FrameReader, build_frame
-from thermotilt.twin.boards import Board, Drive, TwinError, build_dir, firmware_elf
-
-from firmware_helpers import chamber, divider_millivolts, of_type, start_program
 
 pytestmark = pytest.mark.twin
 

@@ -3,13 +3,12 @@ CPU executed and slept, and the sampling profiler. Deterministic facts
 only; how fast anything runs is `make bench`'s to print, not a test's."""
 
 import pytest
-
-from thermotilt.twin import simulate
-from thermotilt.physics import Model
-from thermotilt.twin.scenarios import ScenarioOptions, build
-from thermotilt.twin.boards import Board, FirmwareSymbols, is_runtime_routine
-
 from firmware_helpers import chamber
+
+from thermotilt.physics import Model
+from thermotilt.twin import simulate
+from thermotilt.twin.boards import Board, FirmwareSymbols, is_runtime_routine
+from thermotilt.twin.scenarios import ScenarioOptions, build
 
 pytestmark = pytest.mark.twin
 

@@ -17,25 +17,24 @@ from types import SimpleNamespace
 
 import pytest
 import serial
-
-from thermotilt.twin import simulate
-from thermotilt.calibration.fit import SurfaceFit, write_outputs
-from thermotilt.cli import main
-from thermotilt.calibration.upload import UploadError, printed_equal, read_table, upload_table
-from thermotilt.surfaces import AXES, SETS, COEFFICIENT_NAMES, Surface
-from thermotilt.wire.coefficients import BLOCK_SIZE, decode_block, encode_block
-from thermotilt.wire.client import CommandClient
-from thermotilt.wire.protocol import build_frame, parse_line
-from thermotilt.physics import Model
-from thermotilt.run.log import read_run_log
-from thermotilt.twin.scenarios import ScenarioOptions, build
-from thermotilt.twin.simulate import SimulationError
-from thermotilt.twin.boards import Board
-
 from child_process import thermotilt as run
 from firmware_helpers import of_type
-from twin_helpers import pty_twin
 from test_bad_input import assert_one_line_error
+from twin_helpers import pty_twin
+
+from thermotilt.calibration.fit import SurfaceFit, write_outputs
+from thermotilt.calibration.upload import UploadError, printed_equal, read_table, upload_table
+from thermotilt.cli import main
+from thermotilt.physics import Model
+from thermotilt.run.log import read_run_log
+from thermotilt.surfaces import AXES, COEFFICIENT_NAMES, SETS, Surface
+from thermotilt.twin import simulate
+from thermotilt.twin.boards import Board
+from thermotilt.twin.scenarios import ScenarioOptions, build
+from thermotilt.twin.simulate import SimulationError
+from thermotilt.wire.client import CommandClient
+from thermotilt.wire.coefficients import BLOCK_SIZE, decode_block, encode_block
+from thermotilt.wire.protocol import build_frame, parse_line
 
 # -1700 / -400 / 16000 LSB, raw temperature 32 -> 25.000 degC.
 SENSOR = (-1700, -400, 16000, 32)

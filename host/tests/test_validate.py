@@ -7,13 +7,12 @@ import json
 
 import numpy as np
 import pytest
+from child_process import THERMOTILT, run
 
 from thermotilt import cli
 from thermotilt.calibration.validate import AxisResult, Validation, format_validation, load_coefficients, validate
-from thermotilt.surfaces import PAPER_DEFAULTS
 from thermotilt.run.log import COLUMNS, read_run_log
-
-from child_process import THERMOTILT, run
+from thermotilt.surfaces import PAPER_DEFAULTS
 
 WARMING_X = PAPER_DEFAULTS.surface("W", "X")
 OFFSET_X, OFFSET_Y = -1823.0, -143.0

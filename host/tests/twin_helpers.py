@@ -7,10 +7,9 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
+from child_process import THERMOTILT, popen
 
 from thermotilt.twin.cli import announced_ports
-
-from child_process import THERMOTILT, popen
 
 
 @contextmanager

@@ -51,16 +51,21 @@ import time
 from collections import Counter
 from pathlib import Path
 
+import generated_page
 import numpy as np
 
-import generated_page
-from thermotilt.twin import simulate
 from thermotilt.calibration.dataset import Campaign, SetData, load
 from thermotilt.calibration.families import compare_families
 from thermotilt.calibration.fit import fit_surface
 from thermotilt.calibration.paper import FIELD_RMS_LSB, TABLES
 from thermotilt.calibration.validate import validate
-from thermotilt.wire.protocol import build_frame
+from thermotilt.physics import Chamber, Model, Sensor
+from thermotilt.program import CALIBRATION_MAX_C, CALIBRATION_MIN_C, PAPER_HOLD_S, PAPER_STEP_C
+from thermotilt.run.folder import LOG_FILE
+from thermotilt.run.log import RunLogWriter
+from thermotilt.run.summary import BoardReport
+from thermotilt.surfaces import PAPER_DEFAULTS
+from thermotilt.twin import simulate
 from thermotilt.twin.boards import (
     DEFAULT_FREQUENCY_HZ,
     Board,
@@ -69,13 +74,8 @@ from thermotilt.twin.boards import (
     firmware_elf,
     is_runtime_routine,
 )
-from thermotilt.physics import Chamber, Model, Sensor
-from thermotilt.program import CALIBRATION_MAX_C, CALIBRATION_MIN_C, PAPER_HOLD_S, PAPER_STEP_C
-from thermotilt.run.folder import LOG_FILE
-from thermotilt.run.log import RunLogWriter
-from thermotilt.run.summary import BoardReport
-from thermotilt.surfaces import PAPER_DEFAULTS
 from thermotilt.twin.scenarios import ScenarioOptions, build, campaign_positions
+from thermotilt.wire.protocol import build_frame
 
 COUPLED_TARGET_X_REAL_TIME = 50.0
 CAMPAIGN_TARGET_MINUTES = 30.0

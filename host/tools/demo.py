@@ -31,6 +31,7 @@ from pathlib import Path
 # campaign settings) without this folder on sys.path.
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import generated_page  # noqa: E402
+
 from thermotilt.calibration.compare import compare, read_fit
 from thermotilt.calibration.paper import FIELD_RMS_LSB, FIELD_TEST_SET, TABLES
 from thermotilt.calibration.validate import SET_NAMES, load_coefficients, validate
@@ -259,7 +260,7 @@ def main() -> None:
         print(result.stdout, end="")
         if result.returncode != 0:
             sys.exit(f"demo: simulate {name} failed: {result.stderr.strip()}")
-    for name, run in runs.items():
+    for run in runs.values():
         thermotilt("validate", str(run), "--coefficients", str(out / "fit"))
 
     write_paper_comparison(out, runs, started, load_at_start)

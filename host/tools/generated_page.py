@@ -69,7 +69,7 @@ def table(header: tuple[str, ...], rows: list[tuple]) -> list[str]:
 
 
 def now() -> datetime.datetime:
-    return datetime.datetime.now(datetime.timezone.utc)
+    return datetime.datetime.now(datetime.UTC)
 
 
 def write(path: Path, lines: list[str]) -> None:

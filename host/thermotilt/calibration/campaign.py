@@ -36,7 +36,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ..program import CALIBRATION_MAX_C, CALIBRATION_MIN_C, PAPER_STEP_C
-from ..run.summary import CHAMBER_FAULT, INTERRUPTED as RUN_INTERRUPTED, PROGRAM_DONE
+from ..run.summary import CHAMBER_FAULT, PROGRAM_DONE
+from ..run.summary import INTERRUPTED as RUN_INTERRUPTED
 from ..twin.scenarios import ScenarioError, ScenarioOptions, campaign_positions, cycle
 
 if TYPE_CHECKING:
@@ -637,10 +638,10 @@ def run_boards_position(setup: BoardsSetup, position: Position, out_dir: Path) -
     and log both boards until it ends."""
     import serial
 
+    from ..twin.scenarios import chamber_program
     from ..wire.client import CommandClient, CommandError
     from ..wire.logger import LogError, ProgramWatch, Rig, log_boards
     from ..wire.protocol import SequenceCounter
-    from ..twin.scenarios import chamber_program
 
     record = PositionRecord(position.label, position.incl_x_deg, position.incl_y_deg, started_utc=_utc_now())
     partial = _fresh_partial(out_dir, position.label)

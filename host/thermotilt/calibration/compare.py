@@ -19,10 +19,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..surfaces import COEFFICIENT_NAMES, Surface
 from ..physics import Model, ModelError
 from ..physics.terms.sensor import coefficient_table_of
-from .dataset import CalibrationDataError, REFERENCE_C
+from ..surfaces import COEFFICIENT_NAMES, Surface
+from .dataset import REFERENCE_C, CalibrationDataError
 from .paper import PRINTING_ERRORS, TABLES
 
 CALIBRATED_C = (-10.0, 45.0)

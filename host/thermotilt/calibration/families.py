@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from ..surfaces import SETS
-from .dataset import Campaign, CalibrationDataError
+from .dataset import CalibrationDataError, Campaign
 from .fit import design
 from .newey_west import group_bounds
 

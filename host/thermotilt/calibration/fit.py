@@ -20,9 +20,9 @@ import numpy as np
 import statsmodels.api as sm
 from statsmodels.tsa.stattools import acf
 
-from ..surfaces import AXES, SETS, COEFFICIENT_NAMES, CoefficientTable, Surface, ZERO_SURFACE
+from ..surfaces import AXES, COEFFICIENT_NAMES, SETS, ZERO_SURFACE, CoefficientTable, Surface
 from ..wire.coefficients import encode_block
-from .dataset import FIT_AXES, Campaign, CalibrationDataError, SetData
+from .dataset import FIT_AXES, CalibrationDataError, Campaign, SetData
 from .newey_west import hac_panel_bounds
 
 # Powers of (T, a) for p00, p10, p01, p20, p11, p02.

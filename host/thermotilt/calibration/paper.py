@@ -11,9 +11,9 @@ midpoint 7.723e-4 is the likely value; p02's upper bound is printed
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
-from typing import Mapping
 
 from ..surfaces import COEFFICIENT_NAMES
 

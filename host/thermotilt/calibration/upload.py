@@ -28,14 +28,14 @@ checked in the twin (host/tests/test_upload.py).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any
 
 import serial
 
-from ..surfaces import AXES, SETS, COEFFICIENT_NAMES, ZERO_SURFACE, CoefficientTable, Surface
+from ..surfaces import AXES, COEFFICIENT_NAMES, SETS, ZERO_SURFACE, CoefficientTable, Surface
 from ..wire.client import CommandClient, CommandRefused, CommandTimeout
 from ..wire.protocol import PROTOCOL_VERSION, Frame
 from .compare import read_fit

@@ -31,9 +31,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..surfaces import AXES, PAPER_DEFAULTS, SETS, ZERO_SURFACE, CoefficientTable
 from ..run.folder import RunFolder, RunFolderError
 from ..run.log import RunLogError, read_run_columns
+from ..surfaces import AXES, PAPER_DEFAULTS, SETS, ZERO_SURFACE, CoefficientTable
 from .compare import CALIBRATED_C, read_fit
 from .dataset import FIT_AXES, REFERENCE_BAND_C, REFERENCE_C, CalibrationDataError, reading_at_25
 

@@ -31,13 +31,12 @@ import numpy as np
 
 from .. import native
 from ..physics import Chamber, Model, Sensor
-from ..physics.sensor import registered_temperature_c
 from ..physics.document import plain
+from ..physics.sensor import registered_temperature_c
 from ..physics.terms import REGISTRY, SensorTerm
-from ..run import SETTLE_S
+from ..run import SETTLE_S, positions
 from ..run.folder import RunFolder, RunFolderError
 from ..run.log import RunLogError, read_run_columns
-from ..run import positions
 
 # Channel -> the run.csv column it is measured in.
 CHANNEL_COLUMNS: Mapping[str, str] = {

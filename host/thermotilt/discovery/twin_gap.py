@@ -7,8 +7,8 @@ shows what the found model changes in a whole run."""
 
 from __future__ import annotations
 
-from dataclasses import replace
 from collections.abc import Callable, Mapping
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np

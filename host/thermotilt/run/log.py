@@ -13,8 +13,9 @@ from __future__ import annotations
 import csv
 import io
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import IO, Any, Mapping
+from typing import IO, Any
 
 COLUMNS: tuple[str, ...] = (
     "time_s",

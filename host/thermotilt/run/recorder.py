@@ -13,7 +13,8 @@ chamber program the host started, says when it is over.
 
 from __future__ import annotations
 
-from typing import Any, Callable, Mapping, Protocol
+from collections.abc import Callable, Mapping
+from typing import Any, Protocol
 
 from ..wire.protocol import FRAMES, Frame, FrameReader
 from .log import RunLogWriter, format_number

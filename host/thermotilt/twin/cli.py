@@ -20,6 +20,7 @@ from ..options import (
     read_at_most,
 )
 
+
 def add_commands(commands: argparse._SubParsersAction) -> None:
     simulate = commands.add_parser(
         "simulate", help="run both firmware images in the digital twin against the physics model"

@@ -9,8 +9,8 @@ sent exactly as the host would send it to the real Mega (SETPRG, START).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Callable
 
 import numpy as np
 

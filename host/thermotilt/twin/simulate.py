@@ -18,9 +18,10 @@ clock (``realtime``), as a client of the ``pty`` ports expects of a board.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import BinaryIO, Callable
+from typing import BinaryIO
 
 from ..physics import Chamber, Fault, Model, Sensor, SensorSample
 from ..run.folder import CHAMBER_BOARD, IMU_BOARD, RunFolder

@@ -49,7 +49,7 @@ _TYPE = re.compile(r"[A-Z]{2,7}")
 _SEQ = re.compile(r"[0-9]{1,5}")
 # The line check after '*': CRC-16/XMODEM as four hex digits (Protocol.h).
 CHECKSUM_DIGITS = 4
-_CHECKSUM_HEX = re.compile(r"[0-9A-Fa-f]{%d}" % CHECKSUM_DIGITS)
+_CHECKSUM_HEX = re.compile(rf"[0-9A-Fa-f]{{{CHECKSUM_DIGITS}}}")
 _INTEGER = re.compile(r"[+-]?[0-9]+")
 _FLOAT = re.compile(
     r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?|[+-]?(?:nan|inf|infinity)",

@@ -12,7 +12,7 @@ from scipy.signal import lfilter
 
 from ...surfaces import AXES, PAPER_DEFAULTS, SETS, CoefficientTable, Surface
 from ..parameters import Bounds, Parameter, PerAxis, Surfaces
-from . import SensorContext, SensorTerm, Section, hardware, register
+from . import Section, SensorContext, SensorTerm, hardware, register
 from .lag import first_order
 
 INT16_MIN, INT16_MAX = -32768, 32767
