@@ -28,5 +28,4 @@ def run(command, **options) -> subprocess.CompletedProcess:
 def thermotilt(*args, **options) -> subprocess.CompletedProcess:
     """`python -m thermotilt ARGS` to its end; stdout and stderr as text."""
     options.setdefault("stdout", subprocess.PIPE)
-    return run([*THERMOTILT, *map(str, args)], stderr=subprocess.PIPE, text=True, timeout=60,
-               check=False, **options)
+    return run([*THERMOTILT, *map(str, args)], stderr=subprocess.PIPE, text=True, timeout=60, check=False, **options)

@@ -48,9 +48,23 @@ def made_once_per_test_run(tmp_path_factory, name, make):
 
 def run_cycles(folder):
     processes = [
-        popen([*THERMOTILT, "simulate", "cycle", "--out", str(folder / str(angle)), "--incl-x", str(angle),
-               "--rest-seconds", "60", *SCATTER_OFF],
-              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        popen(
+            [
+                *THERMOTILT,
+                "simulate",
+                "cycle",
+                "--out",
+                str(folder / str(angle)),
+                "--incl-x",
+                str(angle),
+                "--rest-seconds",
+                "60",
+                *SCATTER_OFF,
+            ],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
         for angle in CYCLE_ANGLES
     ]
     for process in processes:

@@ -77,26 +77,17 @@ def test_the_command_exits_with_mains_status_and_one_line():
         (["simulate", "fig8", "--seed", "x"], "argument --seed: invalid int value: 'x'"),
         (["simulate", "fig8", "--ambient", "nan"], f"argument --ambient: {AMBIENT}, got nan"),
         (["simulate", "fig8", "--ambient", "-300"], f"argument --ambient: {AMBIENT}, got -300"),
-        (["simulate", "field-warming", "--duration", "nan"],
-         f"argument --duration: {BOARD_SECONDS}, got nan"),
-        (["simulate", "field-warming", "--duration", "inf"],
-         f"argument --duration: {BOARD_SECONDS}, got inf"),
-        (["simulate", "field-warming", "--duration", "-1"],
-         f"argument --duration: {BOARD_SECONDS}, got -1"),
-        (["simulate", "fig8", "--hold-seconds", "0"],
-         "argument --hold-seconds: must be from 1 to 3600, got 0"),
-        (["simulate", "cycle", "--rest-seconds", "-1"],
-         "argument --rest-seconds: must be from 0 to 86400, got -1"),
-        (["simulate", "cycle", "--incl-x", "91"],
-         "argument --incl-x: must be from -90 to 90 deg, got 91"),
+        (["simulate", "field-warming", "--duration", "nan"], f"argument --duration: {BOARD_SECONDS}, got nan"),
+        (["simulate", "field-warming", "--duration", "inf"], f"argument --duration: {BOARD_SECONDS}, got inf"),
+        (["simulate", "field-warming", "--duration", "-1"], f"argument --duration: {BOARD_SECONDS}, got -1"),
+        (["simulate", "fig8", "--hold-seconds", "0"], "argument --hold-seconds: must be from 1 to 3600, got 0"),
+        (["simulate", "cycle", "--rest-seconds", "-1"], "argument --rest-seconds: must be from 0 to 86400, got -1"),
+        (["simulate", "cycle", "--incl-x", "91"], "argument --incl-x: must be from -90 to 90 deg, got 91"),
         (["log", "--port", "loop://", "--rows", "0"], "argument --rows: must be at least 1, got 0"),
-        (["log", "--port", "loop://", "--duration", "-1"],
-         f"argument --duration: {BOARD_SECONDS}, got -1"),
-        (["log", "--port", "loop://", "--duration", "nan"],
-         f"argument --duration: {BOARD_SECONDS}, got nan"),
+        (["log", "--port", "loop://", "--duration", "-1"], f"argument --duration: {BOARD_SECONDS}, got -1"),
+        (["log", "--port", "loop://", "--duration", "nan"], f"argument --duration: {BOARD_SECONDS}, got nan"),
         (["log", "--port", "loop://", "--ambient", "-300"], f"argument --ambient: {AMBIENT}, got -300"),
-        (["log", "--port", "loop://", "--incl-y", "inf"],
-         "argument --incl-y: must be from -90 to 90 deg, got inf"),
+        (["log", "--port", "loop://", "--incl-y", "inf"], "argument --incl-y: must be from -90 to 90 deg, got inf"),
     ],
 )
 def test_bad_numbers_are_refused_before_anything_runs(cli_in_process, tmp_path, args, message):
@@ -129,10 +120,14 @@ def with_parameter(text, section, name, value):
     ("content", "message"),
     [
         (b"\xff\xfe[chamber]\n", "not UTF-8 text (byte 0)"),
-        (with_parameter(default_text(), "chamber", "inner_heat_capacity_j_per_k", "1e-300").encode(),
-         "[chamber] inner_heat_capacity_j_per_k: must be >= 4 and <= 100000 J/K, got 1e-300"),
-        (with_parameter(default_text(), "temperature_offset", "offset_c", "9" * 400).encode(),
-         "[temperature_offset] offset_c: must be >= -20 and <= 20 degC, got 9999"),
+        (
+            with_parameter(default_text(), "chamber", "inner_heat_capacity_j_per_k", "1e-300").encode(),
+            "[chamber] inner_heat_capacity_j_per_k: must be >= 4 and <= 100000 J/K, got 1e-300",
+        ),
+        (
+            with_parameter(default_text(), "temperature_offset", "offset_c", "9" * 400).encode(),
+            "[temperature_offset] offset_c: must be >= -20 and <= 20 degC, got 9999",
+        ),
         (b"chamber = " + b"[" * 5000, "not valid TOML: nested too deeply"),
         (b'"a\\nb" = 1\n', "unknown section [a\\nb]"),
     ],
@@ -145,13 +140,15 @@ def test_bad_model_files_are_refused_before_the_twin_starts(cli_in_process, tmp_
     assert not (tmp_path / "run").exists()
 
 
-@pytest.mark.parametrize(("path", "message"), [
-    ("{tmp}", "cannot read: Is a directory"),
-    ("/dev/zero", "larger than 1048576 bytes, not a model file"),
-])
+@pytest.mark.parametrize(
+    ("path", "message"),
+    [
+        ("{tmp}", "cannot read: Is a directory"),
+        ("/dev/zero", "larger than 1048576 bytes, not a model file"),
+    ],
+)
 def test_a_model_that_is_no_file_is_refused(cli_in_process, tmp_path, path, message):
-    result = cli_in_process("simulate", "fig8", "--model", path.format(tmp=tmp_path),
-                            "--out", tmp_path / "run")
+    result = cli_in_process("simulate", "fig8", "--model", path.format(tmp=tmp_path), "--out", tmp_path / "run")
     assert_one_line_error(result, 1, message)
 
 
@@ -192,8 +189,7 @@ def test_every_parameter_is_held_to_its_range(tmp_path, section, name, kind):
 def test_a_drift_surface_term_is_held_to_its_range(tmp_path):
     zero = "[0, 0, 0, 0, 0, 0]"
     surfaces = f"{{ X = [0, 0, 0, 0, 1.0, 0], Y = {zero}, Z = {zero} }}"
-    text = default_text().replace('coefficients = "paper"',
-                                  f"coefficients = {{ W = {surfaces}, C = {surfaces} }}")
+    text = default_text().replace('coefficients = "paper"', f"coefficients = {{ W = {surfaces}, C = {surfaces} }}")
     path = tmp_path / "model.toml"
     path.write_text(text, encoding="utf-8")
     with pytest.raises(ModelError, match=r"\[drift\] coefficients\.W\.X p11: must be >= -0\.0235"):
@@ -248,8 +244,7 @@ def documented_ranges():
 def test_the_documented_ranges_are_the_loaders():
     documented = documented_ranges()
     parameters = {**CONSTANT_PARAMETERS, **TERM_PARAMETERS}
-    assert set(documented) == {(section, name) for section, names in parameters.items()
-                               for name in names}
+    assert set(documented) == {(section, name) for section, names in parameters.items() for name in names}
     for (section, name), cell in documented.items():
         kind = parameters[section][name]
         bounds = kind.bounds if isinstance(kind, PerAxis) else kind
@@ -259,21 +254,26 @@ def test_the_documented_ranges_are_the_loaders():
         if match["half"]:
             stated = Bounds(-float(match["half"]), float(match["half"]))
         else:
-            stated = Bounds(float(match["low"]), float(match["high"]),
-                            low_exclusive=bool(match["exclusive"]))
-        assert (stated.low, stated.high, stated.low_exclusive) == (
-            bounds.low, bounds.high, bounds.low_exclusive), (section, name, cell)
+            stated = Bounds(float(match["low"]), float(match["high"]), low_exclusive=bool(match["exclusive"]))
+        assert (stated.low, stated.high, stated.low_exclusive) == (bounds.low, bounds.high, bounds.low_exclusive), (
+            section,
+            name,
+            cell,
+        )
 
 
 # --- outputs ----------------------------------------------------------------
 
 
-@pytest.mark.parametrize(("out", "message"), [
-    ("{tmp}/file", "cannot create folder {tmp}/file: File exists"),
-    ("{tmp}/file/run", "cannot create folder {tmp}/file/run: Not a directory"),
-    ("{tmp}/full", "cannot write {tmp}/full/run.csv: No space left on device"),
-    ("{tmp}/rig.csv", "--out {tmp}/rig.csv: a run folder's log is run.csv; give the folder, e.g. --out {tmp}/rig"),
-])
+@pytest.mark.parametrize(
+    ("out", "message"),
+    [
+        ("{tmp}/file", "cannot create folder {tmp}/file: File exists"),
+        ("{tmp}/file/run", "cannot create folder {tmp}/file/run: Not a directory"),
+        ("{tmp}/full", "cannot write {tmp}/full/run.csv: No space left on device"),
+        ("{tmp}/rig.csv", "--out {tmp}/rig.csv: a run folder's log is run.csv; give the folder, e.g. --out {tmp}/rig"),
+    ],
+)
 def test_log_outputs_that_cannot_be_written(cli_in_process, tmp_path, out, message):
     (tmp_path / "file").write_text("not a folder\n")
     (tmp_path / "full").mkdir()
@@ -315,8 +315,7 @@ def test_a_full_disk_on_stdout(args):
 def test_a_closed_pipe_on_stdout_ends_quietly():
     """`thermotilt coefficients | head -c 20` once head has gone: the standard
     recipe, exit 1 and nothing on stderr (nobody reads what follows)."""
-    process = popen([*THERMOTILT, "coefficients"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                    text=True)
+    process = popen([*THERMOTILT, "coefficients"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     process.stdout.close()
     stderr = process.stderr.read()
     assert process.wait(timeout=60) == 1
@@ -327,15 +326,14 @@ def test_a_closed_pipe_on_stdout_ends_quietly():
 
 
 def test_inputs_that_cannot_be_read(cli_in_process, tmp_path):
-    assert_one_line_error(cli_in_process("frames", tmp_path), 1,
-                          f"cannot read {tmp_path}: Is a directory")
-    assert_one_line_error(cli_in_process("coefficients", "--block", "/dev/zero"), 1,
-                          "/dev/zero: coefficient block is")
+    assert_one_line_error(cli_in_process("frames", tmp_path), 1, f"cannot read {tmp_path}: Is a directory")
+    assert_one_line_error(cli_in_process("coefficients", "--block", "/dev/zero"), 1, "/dev/zero: coefficient block is")
 
 
 def test_a_closed_standard_input():
-    closed_stdin = run(["sh", "-c", 'exec "$0" -m thermotilt frames - <&-', sys.executable],
-                       capture_output=True, text=True, timeout=60)
+    closed_stdin = run(
+        ["sh", "-c", 'exec "$0" -m thermotilt frames - <&-', sys.executable], capture_output=True, text=True, timeout=60
+    )
     assert_one_line_error(closed_stdin, 1, "standard input is closed")
 
 
@@ -348,8 +346,12 @@ def test_children_take_ctrl_c_whatever_this_test_run_inherited():
     KeyboardInterrupt on Ctrl-C."""
     inherited = signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
-        child = run([sys.executable, "-c", "import signal; print(signal.getsignal(signal.SIGINT))"],
-                    capture_output=True, text=True, timeout=60)
+        child = run(
+            [sys.executable, "-c", "import signal; print(signal.getsignal(signal.SIGINT))"],
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
     finally:
         signal.signal(signal.SIGINT, inherited)
     assert child.stdout == f"{signal.default_int_handler}\n", child.stderr
@@ -368,8 +370,9 @@ def unread_bytes(pipe):
 
 def test_ctrl_c_in_frames_prints_the_counts_so_far():
     read_end, write_end = os.pipe()
-    process = popen([*THERMOTILT, "frames", "-"], stdin=read_end,
-                    stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    process = popen(
+        [*THERMOTILT, "frames", "-"], stdin=read_end, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
     try:
         os.write(write_end, imu_frame(0, 1000).encode() + imu_frame(1, 1100).encode())
         # The frames command is reading once the pipe is empty again.
@@ -386,8 +389,12 @@ def test_ctrl_c_in_frames_prints_the_counts_so_far():
 def test_ctrl_c_in_log_keeps_the_rows(tmp_path):
     master, slave = os.openpty()
     out = tmp_path / "run.csv"
-    process = popen([*THERMOTILT, "log", "--port", os.ttyname(slave), "--out", out],
-                    stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    process = popen(
+        [*THERMOTILT, "log", "--port", os.ttyname(slave), "--out", out],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         wait_until_opened(master)
         os.write(master, "".join(imu_frame(seq, 1000 + 100 * seq) for seq in range(3)).encode())
@@ -404,8 +411,9 @@ def test_ctrl_c_in_log_keeps_the_rows(tmp_path):
 @pytest.mark.twin
 def test_ctrl_c_in_simulate_keeps_the_run(tmp_path):
     out = tmp_path / "run"
-    process = popen([*THERMOTILT, "simulate", "fig8", "--out", out],
-                    stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    process = popen(
+        [*THERMOTILT, "simulate", "fig8", "--out", out], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
 
     def running():
         assert process.poll() is None, process.communicate()
@@ -461,8 +469,11 @@ def frame_line(frame):
 
 
 frame_like_bytes = st.lists(
-    st.one_of(st.binary(max_size=12), frames().map(frame_line).map(str.encode),
-              st.sampled_from([b"$", b"\r\n", b"\n", b"*", b",", b"\x00", b"\xff"])),
+    st.one_of(
+        st.binary(max_size=12),
+        frames().map(frame_line).map(str.encode),
+        st.sampled_from([b"$", b"\r\n", b"\n", b"*", b",", b"\x00", b"\xff"]),
+    ),
     max_size=25,
 ).map(b"".join)
 
@@ -511,8 +522,7 @@ def toml_value(value):
         return json.dumps(value, ensure_ascii=False)
     if isinstance(value, list):
         return "[" + ", ".join(map(toml_value, value)) + "]"
-    return "{" + ", ".join(f"{toml_value(key)} = {toml_value(item)}"
-                           for key, item in value.items()) + "}"
+    return "{" + ", ".join(f"{toml_value(key)} = {toml_value(item)}" for key, item in value.items()) + "}"
 
 
 def toml_document(document):
@@ -521,8 +531,9 @@ def toml_document(document):
 
 toml_values = st.recursive(
     st.one_of(st.booleans(), st.integers(), st.floats(), st.text(max_size=12)),
-    lambda children: st.one_of(st.lists(children, max_size=4),
-                               st.dictionaries(st.text(max_size=8), children, max_size=4)),
+    lambda children: st.one_of(
+        st.lists(children, max_size=4), st.dictionaries(st.text(max_size=8), children, max_size=4)
+    ),
     max_leaves=8,
 )
 faults = st.fixed_dictionaries(
@@ -547,8 +558,7 @@ def test_the_document_writer_keeps_the_default_model(tmp_path):
 
 
 @PROPERTY
-@given(st.one_of(st.binary(max_size=300),
-                 st.text(st.sampled_from('[]{}="., \n#-+_e019abnxyz'), max_size=200)))
+@given(st.one_of(st.binary(max_size=300), st.text(st.sampled_from('[]{}="., \n#-+_e019abnxyz'), max_size=200)))
 def test_any_model_text_is_a_model_or_a_model_error(tmp_path_factory, text):
     load_or_model_error(tmp_path_factory.mktemp("model") / "model.toml", text)
 
@@ -572,8 +582,7 @@ def test_any_model_document_is_a_usable_model_or_a_model_error(tmp_path_factory,
         else:
             entries = document.get("faults")
             document["faults"] = [*(entries if isinstance(entries, list) else []), data.draw(faults)]
-    model = load_or_model_error(tmp_path_factory.mktemp("model") / "model.toml",
-                                toml_document(document))
+    model = load_or_model_error(tmp_path_factory.mktemp("model") / "model.toml", toml_document(document))
     if model is not None:
         chamber = Chamber(model, 22.0)
         chamber.step(0.01, 0.5, 1, 22.0)
@@ -595,11 +604,9 @@ def test_any_values_within_the_ranges_make_a_model_that_steps(tmp_path_factory, 
                 document[section][name] = data.draw(within(kind), label=f"{section}.{name}")
             elif isinstance(kind, PerAxis):
                 document[section][name] = {
-                    key: data.draw(within(kind.bounds), label=f"{section}.{name}.{key}")
-                    for key in kind.keys
+                    key: data.draw(within(kind.bounds), label=f"{section}.{name}.{key}") for key in kind.keys
                 }
-    model = load_or_model_error(tmp_path_factory.mktemp("model") / "model.toml",
-                                toml_document(document))
+    model = load_or_model_error(tmp_path_factory.mktemp("model") / "model.toml", toml_document(document))
     assert model is not None
     chamber, sensor = Chamber(model, 22.0), Sensor(model, 1, 22.0)
     assert chamber.substeps(0.01) <= FASTEST_CHAMBER_SUBSTEPS
@@ -617,10 +624,13 @@ csv_cells = st.text(st.characters(exclude_categories=("Cc", "Cs")), max_size=6)
 
 
 @PROPERTY
-@given(st.sampled_from([COLUMNS, ALL_COLUMNS]).flatmap(
-    lambda header: st.tuples(st.just(header),
-                             st.lists(st.lists(csv_cells, min_size=len(header),
-                                               max_size=len(header)), max_size=5))))
+@given(
+    st.sampled_from([COLUMNS, ALL_COLUMNS]).flatmap(
+        lambda header: st.tuples(
+            st.just(header), st.lists(st.lists(csv_cells, min_size=len(header), max_size=len(header)), max_size=5)
+        )
+    )
+)
 def test_run_logs_read_back_as_written(tmp_path_factory, log):
     header, rows = log
     path = tmp_path_factory.mktemp("log") / "run.csv"
@@ -630,9 +640,12 @@ def test_run_logs_read_back_as_written(tmp_path_factory, log):
 
 
 @PROPERTY
-@given(st.one_of(st.binary(max_size=300),
-                 st.lists(st.text(max_size=20), max_size=5).map(
-                     lambda lines: "\n".join([",".join(COLUMNS), *lines]).encode())))
+@given(
+    st.one_of(
+        st.binary(max_size=300),
+        st.lists(st.text(max_size=20), max_size=5).map(lambda lines: "\n".join([",".join(COLUMNS), *lines]).encode()),
+    )
+)
 def test_any_bytes_are_a_run_log_or_a_run_log_error(tmp_path_factory, data):
     path = tmp_path_factory.mktemp("log") / "run.csv"
     path.write_bytes(data)
@@ -642,4 +655,3 @@ def test_any_bytes_are_a_run_log_or_a_run_log_error(tmp_path_factory, data):
         assert "\n" not in str(error)
     else:
         assert all(tuple(row) in (COLUMNS, ALL_COLUMNS) for row in rows)
-

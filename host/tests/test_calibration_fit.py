@@ -24,8 +24,7 @@ from thermotilt.wire.coefficients import BLOCK_SIZE, decode_block
 # A drift surface that is zero at 25 degC for every acceleration, as the
 # residuals against a 25 degC reading are: Table 2's warming X temperature
 # terms with an a-dependent slope.
-TRUE = Surface(p00=-25 * -20.23 - 625 * -0.1044, p10=-20.23, p01=25 * 6.936e-5, p20=-0.1044,
-               p11=-6.936e-5, p02=0.0)
+TRUE = Surface(p00=-25 * -20.23 - 625 * -0.1044, p10=-20.23, p01=25 * 6.936e-5, p20=-0.1044, p11=-6.936e-5, p02=0.0)
 ANGLES_DEG = (-45, -30, -15, 0, 15, 30, 45)
 LSB_PER_G = 16393.44
 
@@ -47,8 +46,12 @@ def synthetic_set(rng, rows_per_position: int = 800, correlation_rows: int = 40)
         accelerations.append(acceleration)
         residuals.append(drift + smooth_noise(rng, rows_per_position, 5.0, correlation_rows))
         positions.append(np.full(rows_per_position, index))
-    return SetData(np.concatenate(temperatures), {"X": np.concatenate(accelerations)},
-                   {"X": np.concatenate(residuals)}, np.concatenate(positions))
+    return SetData(
+        np.concatenate(temperatures),
+        {"X": np.concatenate(accelerations)},
+        {"X": np.concatenate(residuals)},
+        np.concatenate(positions),
+    )
 
 
 def test_hac_bounds_cover_the_truth_where_ols_bounds_do_not():
@@ -93,11 +96,20 @@ def test_too_little_data_is_refused():
     two = synthetic_set(rng)
     first_two = two.position < 2
     with pytest.raises(CalibrationDataError, match="at least 3 inclinations"):
-        fit_surface(SetData(two.temperature_c[first_two], {"X": two.acceleration["X"][first_two]},
-                            {"X": two.residual["X"][first_two]}, two.position[first_two]), "W", "X")
+        fit_surface(
+            SetData(
+                two.temperature_c[first_two],
+                {"X": two.acceleration["X"][first_two]},
+                {"X": two.residual["X"][first_two]},
+                two.position[first_two],
+            ),
+            "W",
+            "X",
+        )
     flat = synthetic_set(rng)
-    one_angle = SetData(flat.temperature_c, {"X": np.full_like(flat.temperature_c, 100.0)},
-                        flat.residual, flat.position)
+    one_angle = SetData(
+        flat.temperature_c, {"X": np.full_like(flat.temperature_c, 100.0)}, flat.residual, flat.position
+    )
     with pytest.raises(CalibrationDataError, match="do not vary enough"):
         fit_surface(one_angle, "W", "X")
 
@@ -111,8 +123,7 @@ def nominal(angle_deg: float) -> tuple[float, float]:
     return x, 0.5 * x
 
 
-def write_run_log(path, angle_deg: float, temperatures, sets, drift=TRUE, blank_every: int = 0,
-                  chamber=None) -> None:
+def write_run_log(path, angle_deg: float, temperatures, sets, drift=TRUE, blank_every: int = 0, chamber=None) -> None:
     """A run.csv of a position: the chamber running, filters settled, both
     axes carrying `drift` on top of offsets of 300 and -400 LSB. `chamber`,
     one (phase, setpoint_c, inner_c) a row, writes the chamber's columns;
@@ -126,14 +137,20 @@ def write_run_log(path, angle_deg: float, temperatures, sets, drift=TRUE, blank_
             row = {column: "" for column in COLUMNS}
             ax = x + 300.0 + drift.evaluate(temperature, x)
             ay = y - 400.0 + drift.evaluate(temperature, y)
-            row.update(time_s=f"{index / 10:.3f}", phase="W" if set_name == "W" else "C",
-                       imu_temp_c=f"{temperature:.3f}", incl_x_deg=f"{angle_deg:.2f}", incl_y_deg="0.00",
-                       since_move_s=f"{200 + index / 10:.2f}", ax_filt=f"{ax:.2f}", ay_filt=f"{ay:.2f}",
-                       comp_set=set_name)
+            row.update(
+                time_s=f"{index / 10:.3f}",
+                phase="W" if set_name == "W" else "C",
+                imu_temp_c=f"{temperature:.3f}",
+                incl_x_deg=f"{angle_deg:.2f}",
+                incl_y_deg="0.00",
+                since_move_s=f"{200 + index / 10:.2f}",
+                ax_filt=f"{ax:.2f}",
+                ay_filt=f"{ay:.2f}",
+                comp_set=set_name,
+            )
             if chamber is not None:
                 phase, setpoint, inner = chamber[index]
-                row.update(phase=phase, setpoint_c=f"{setpoint:.2f}" if phase != "R" else "",
-                           chamber_c=f"{inner:.2f}")
+                row.update(phase=phase, setpoint_c=f"{setpoint:.2f}" if phase != "R" else "", chamber_c=f"{inner:.2f}")
             if blank_every and index % blank_every == 0:
                 row["ax_filt"] = ""
             writer.writerow(row)
@@ -155,8 +172,12 @@ def test_residuals_are_taken_against_each_positions_25c_reading(tmp_path):
     # Sorted by folder name: pos-15, pos-30, pos-45, pos0, pos15, ...
     angles = sorted(ANGLES_DEG, key=lambda angle: f"pos{angle}")
     for axis, offset in (("X", 0), ("Y", 1)):
-        expected = np.array([TRUE.evaluate(t, nominal(angles[index])[offset])
-                             for t, index in zip(warming.temperature_c, warming.position)])
+        expected = np.array(
+            [
+                TRUE.evaluate(t, nominal(angles[index])[offset])
+                for t, index in zip(warming.temperature_c, warming.position)
+            ]
+        )
         # The 25 degC reading is a line through +-1.5 degC of a curved drift:
         # p20 * 1.5^2 = 0.23 LSB off at most, plus the cells' 0.01 LSB.
         assert np.max(np.abs(warming.residual[axis] - expected)) < 0.3, axis
@@ -173,13 +194,18 @@ def test_rows_before_the_chamber_first_reaches_its_setpoint_are_not_fitted(tmp_p
     def program(from_c: float):
         pulldown = np.linspace(from_c, -9.5, 300)
         return [("W", -10.0, inner) for inner in pulldown], list(pulldown), ["C"] * len(pulldown)
+
     first, first_t, first_sets = program(22.0)
     second, second_t, second_sets = program(5.0)
     rest = [("R", 0.0, -5.0)] * 50
     chamber = first + staircase + rest + second + staircase
-    write_run_log(tmp_path / "0" / "run.csv", 0.0,
-                  [*first_t, *temperatures, *[-5.0] * len(rest), *second_t, *temperatures],
-                  [*first_sets, *sets, *["C"] * len(rest), *second_sets, *sets], chamber=chamber)
+    write_run_log(
+        tmp_path / "0" / "run.csv",
+        0.0,
+        [*first_t, *temperatures, *[-5.0] * len(rest), *second_t, *temperatures],
+        [*first_sets, *sets, *["C"] * len(rest), *second_sets, *sets],
+        chamber=chamber,
+    )
     campaign = load(tmp_path)
     # Each program keeps its rows from the first within 1 degC of -10 degC on:
     # the pulldown's last rows (-9 .. -9.5 degC) and the staircase.
@@ -198,8 +224,9 @@ def test_the_fit_command_writes_coefficients_block_and_header(tmp_path):
     for angle in ANGLES_DEG:
         write_run_log(campaign / f"{angle}.csv", angle, temperatures, sets, blank_every=50)
     out = tmp_path / "fit"
-    result = run([*THERMOTILT, "fit", str(campaign), "--out", str(out)],
-                 capture_output=True, text=True, timeout=120, check=False)
+    result = run(
+        [*THERMOTILT, "fit", str(campaign), "--out", str(out)], capture_output=True, text=True, timeout=120, check=False
+    )
     assert result.returncode == 0, result.stderr
     assert "7 positions" in result.stdout and "rows with empty cells skipped" in result.stdout
     assert "p11" in result.stdout and "RMSE" in result.stdout
@@ -228,23 +255,32 @@ def test_the_fit_command_writes_coefficients_block_and_header(tmp_path):
     "make, message",
     [
         (lambda folder: folder.mkdir(), "no run log"),
-        (lambda folder: write_run_log(folder / "warming.csv", 0.0, np.linspace(10, 45, 600), ["W"] * 600),
-         "no settled rows of the C set"),
-        (lambda folder: write_run_log(folder / "warm.csv", 0.0, *cycle_without_25c()),
-         "never crosses 25 degC"),
-        (lambda folder: write_run_log(folder / "stuck.csv", 0.0, *cycle(),
-                                      chamber=[("W", -10.0, 20.0)] * 1200),
-         "never came within 1 degC of its program's setpoint"),
-        (lambda folder: (folder.mkdir(), (folder / "bad.csv").write_text("time_s,ax\n1,2\n")),
-         "the header is not run.csv's"),
+        (
+            lambda folder: write_run_log(folder / "warming.csv", 0.0, np.linspace(10, 45, 600), ["W"] * 600),
+            "no settled rows of the C set",
+        ),
+        (lambda folder: write_run_log(folder / "warm.csv", 0.0, *cycle_without_25c()), "never crosses 25 degC"),
+        (
+            lambda folder: write_run_log(folder / "stuck.csv", 0.0, *cycle(), chamber=[("W", -10.0, 20.0)] * 1200),
+            "never came within 1 degC of its program's setpoint",
+        ),
+        (
+            lambda folder: (folder.mkdir(), (folder / "bad.csv").write_text("time_s,ax\n1,2\n")),
+            "the header is not run.csv's",
+        ),
     ],
     ids=["empty", "one-set", "no-25c", "never-reached", "not-a-run-log"],
 )
 def test_bad_campaign_folders_are_one_line(tmp_path, make, message):
     folder = tmp_path / "campaign"
     make(folder)
-    result = run([*THERMOTILT, "fit", str(folder), "--out", str(tmp_path / "o")],
-                 capture_output=True, text=True, timeout=120, check=False)
+    result = run(
+        [*THERMOTILT, "fit", str(folder), "--out", str(tmp_path / "o")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
     assert result.returncode == 1
     assert result.stderr.count("\n") == 1 and "Traceback" not in result.stderr
     assert message in result.stderr
@@ -277,9 +313,14 @@ def model_with_drift(path, surface: Surface) -> None:
     """The default model with `surface` as every X and Y drift surface."""
     text = resources.files("thermotilt").joinpath("models/default.toml").read_text()
     rows = ", ".join(f"{value!r}" for value in surface)
-    table = "{ " + ", ".join(
-        f"{set_name} = {{ X = [{rows}], Y = [{rows}], Z = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0] }}" for set_name in ("W", "C")
-    ) + " }"
+    table = (
+        "{ "
+        + ", ".join(
+            f"{set_name} = {{ X = [{rows}], Y = [{rows}], Z = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0] }}"
+            for set_name in ("W", "C")
+        )
+        + " }"
+    )
     path.write_text(text.replace('coefficients = "paper"', f"coefficients = {table}", 1))
 
 
@@ -290,8 +331,12 @@ def test_compare_against_the_model_that_made_the_data_finds_no_gap(tmp_path):
     for angle in ANGLES_DEG:
         write_run_log(campaign / f"{angle}.csv", angle, temperatures, sets)
     fit_dir = tmp_path / "fit"
-    assert run([*THERMOTILT, "fit", str(campaign), "--out", str(fit_dir)],
-               capture_output=True, text=True, timeout=120).returncode == 0
+    assert (
+        run(
+            [*THERMOTILT, "fit", str(campaign), "--out", str(fit_dir)], capture_output=True, text=True, timeout=120
+        ).returncode
+        == 0
+    )
     model = tmp_path / "model.toml"
     model_with_drift(model, TRUE)
     comparisons = {c.key: c for c in compare(read_fit(fit_dir), str(model))}
@@ -322,8 +367,7 @@ def test_compare_uses_the_consistent_reading_of_table_2s_misprints():
 
 def test_compare_refuses_what_fit_did_not_write(tmp_path):
     (tmp_path / "coefficients.json").write_text('{"fits": {"WX": {}}}')
-    result = run([*THERMOTILT, "compare", str(tmp_path)],
-                 capture_output=True, text=True, timeout=60, check=False)
+    result = run([*THERMOTILT, "compare", str(tmp_path)], capture_output=True, text=True, timeout=60, check=False)
     assert result.returncode == 1 and result.stderr.count("\n") == 1
     assert "not a coefficients.json written by thermotilt fit" in result.stderr
 

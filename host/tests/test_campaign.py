@@ -54,8 +54,9 @@ def interrupt_once_a_position_is_done(command, out):
 @pytest.mark.twin
 def test_positions_run_in_workers_each_into_its_own_folder(tmp_path, capsys):
     out = tmp_path / "campaign"
-    status = cli.main(["campaign", "--twin", "--out", str(out), "--positions", "0,X+30,Y-15",
-                       "--jobs", "2", "--seed", "5", *SHORT])
+    status = cli.main(
+        ["campaign", "--twin", "--out", str(out), "--positions", "0,X+30,Y-15", "--jobs", "2", "--seed", "5", *SHORT]
+    )
     stdout = capsys.readouterr().out
     assert status == 0, stdout
     assert "all 3 positions done" in stdout
@@ -84,8 +85,9 @@ def test_a_position_is_the_same_run_in_a_subset_and_in_another_campaign(tmp_path
     runs = []
     for name, positions, jobs in (("pair", "X+30,0", "2"), ("one", "0", "1")):
         out = tmp_path / name
-        assert cli.main(["campaign", "--twin", "--out", str(out), "--positions", positions,
-                         "--jobs", jobs, *SHORT]) == 0
+        assert (
+            cli.main(["campaign", "--twin", "--out", str(out), "--positions", positions, "--jobs", jobs, *SHORT]) == 0
+        )
         runs.append((out / "0" / "run.csv").read_bytes())
     assert runs[0] == runs[1]
 
@@ -96,17 +98,32 @@ def test_ctrl_c_keeps_finished_positions_and_resume_runs_only_the_others(tmp_pat
     out = tmp_path / "campaign"
     # 3 s holds, so that the last position is surely still running at the signal.
     longer = ["--hold-seconds", "3", *SHORT[2:]]
-    command = [*THERMOTILT, "campaign", "--twin", "--out", str(out), "--positions", "0,X+30,X-30",
-               "--jobs", "2", *longer]
+    command = [
+        *THERMOTILT,
+        "campaign",
+        "--twin",
+        "--out",
+        str(out),
+        "--positions",
+        "0,X+30,X-30",
+        "--jobs",
+        "2",
+        *longer,
+    ]
     # Two workers, three positions: once one is done the last one is running.
     before, kept = interrupt_once_a_position_is_done(command, out)
     assert set(before.values()) <= {"done", "interrupted", "pending"}
     assert "interrupted" in before.values()
 
-    assert cli.main(["campaign", "--twin", "--out", str(out), "--positions", "0,X+30,X-30",
-                     "--jobs", "2", *longer]) == 1
-    assert cli.main(["campaign", "--twin", "--out", str(out), "--positions", "0,X+30,X-30",
-                     "--jobs", "2", "--resume", *longer]) == 0
+    assert (
+        cli.main(["campaign", "--twin", "--out", str(out), "--positions", "0,X+30,X-30", "--jobs", "2", *longer]) == 1
+    )
+    assert (
+        cli.main(
+            ["campaign", "--twin", "--out", str(out), "--positions", "0,X+30,X-30", "--jobs", "2", "--resume", *longer]
+        )
+        == 0
+    )
     assert set(statuses(out).values()) == {"done"}
     for label, data in kept.items():
         assert (out / label / "run.csv").read_bytes() == data
@@ -120,19 +137,21 @@ def test_resume_refuses_other_settings(tmp_path, capsys):
     assert cli.main(["campaign", "--twin", "--out", str(out), "--positions", "0", *SHORT]) == 0
     capsys.readouterr()
     changed = [argument if argument != "1" else "2" for argument in SHORT]
-    assert cli.main(["campaign", "--twin", "--out", str(out), "--positions", "0", "--resume",
-                     *changed]) == 1
+    assert cli.main(["campaign", "--twin", "--out", str(out), "--positions", "0", "--resume", *changed]) == 1
     assert "its program differ" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("arguments, message", [
-    (["--positions", "0,X+7"], "unknown position(s) X+7"),
-    (["--positions", "0,0"], "listed twice"),
-    (["--positions", ","], "names no position"),
-    (["--resume"], "nothing to resume"),
-    ([], "needs --twin"),
-    (["--twin", "--model", "/nonexistent.toml"], "nonexistent.toml"),
-])
+@pytest.mark.parametrize(
+    "arguments, message",
+    [
+        (["--positions", "0,X+7"], "unknown position(s) X+7"),
+        (["--positions", "0,0"], "listed twice"),
+        (["--positions", ","], "names no position"),
+        (["--resume"], "nothing to resume"),
+        ([], "needs --twin"),
+        (["--twin", "--model", "/nonexistent.toml"], "nonexistent.toml"),
+    ],
+)
 def test_bad_campaign_input_is_one_line(tmp_path, capsys, arguments, message):
     twin = [] if "--twin" in arguments or arguments == [] else ["--twin"]
     status = cli.main(["campaign", "--out", str(tmp_path / "c"), *twin, *arguments])
@@ -159,10 +178,27 @@ def idle_twin(tmp_path):
 
 def boards_campaign(ports, out, answers, *extra):
     # The twin races ahead of the wall clock, so a wall-clock heartbeat would trip: off.
-    return run([*THERMOTILT, "campaign", "--imu-port", ports["imu_reader"],
-                "--chamber-port", ports["thermal_chamber"], "--out", str(out),
-                "--heartbeat-seconds", "0", *SHORT, *extra],
-               input=answers, capture_output=True, text=True, timeout=180, check=False)
+    return run(
+        [
+            *THERMOTILT,
+            "campaign",
+            "--imu-port",
+            ports["imu_reader"],
+            "--chamber-port",
+            ports["thermal_chamber"],
+            "--out",
+            str(out),
+            "--heartbeat-seconds",
+            "0",
+            *SHORT,
+            *extra,
+        ],
+        input=answers,
+        capture_output=True,
+        text=True,
+        timeout=180,
+        check=False,
+    )
 
 
 @pytest.mark.slow
@@ -193,10 +229,26 @@ def test_boards_campaign_asks_for_each_position_and_logs_its_program(idle_twin, 
 
 
 def test_boards_campaign_without_a_board_is_one_line(tmp_path):
-    result = run([*THERMOTILT, "campaign", "--imu-port", str(tmp_path / "ttyNONE"),
-                  "--chamber-port", str(tmp_path / "ttyNONE2"), "--out", str(tmp_path / "c"),
-                  "--positions", "0", *SHORT], input="\n", capture_output=True, text=True,
-                 timeout=60, check=False)
+    result = run(
+        [
+            *THERMOTILT,
+            "campaign",
+            "--imu-port",
+            str(tmp_path / "ttyNONE"),
+            "--chamber-port",
+            str(tmp_path / "ttyNONE2"),
+            "--out",
+            str(tmp_path / "c"),
+            "--positions",
+            "0",
+            *SHORT,
+        ],
+        input="\n",
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
     assert result.returncode == 1
     assert result.stderr.count("\n") == 1 and "1 position(s) failed: 0: serial port:" in result.stderr
     assert campaign_file(tmp_path / "c")["positions"][0]["status"] == "failed"

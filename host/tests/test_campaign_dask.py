@@ -30,8 +30,9 @@ def cluster():
 
 
 def records_without_times(out):
-    return [{key: value for key, value in entry.items() if key not in TIMES}
-            for entry in campaign_file(out)["positions"]]
+    return [
+        {key: value for key, value in entry.items() if key not in TIMES} for entry in campaign_file(out)["positions"]
+    ]
 
 
 def files_of(folder):
@@ -44,8 +45,9 @@ def test_a_dask_cluster_writes_what_local_workers_write(cluster, tmp_path, capsy
     local, dask = tmp_path / "local", tmp_path / "dask"
     assert cli.main(["campaign", "--twin", "--out", str(local), "--jobs", "2", *positions]) == 0
     capsys.readouterr()
-    assert cli.main(["campaign", "--twin", "--out", str(dask), "--scheduler", cluster.scheduler_address,
-                     *positions]) == 0
+    assert (
+        cli.main(["campaign", "--twin", "--out", str(dask), "--scheduler", cluster.scheduler_address, *positions]) == 0
+    )
     stdout = capsys.readouterr().out
     assert f"on the Dask cluster at {cluster.scheduler_address} (2 worker threads)" in stdout
     assert "all 2 positions done" in stdout
@@ -55,16 +57,27 @@ def test_a_dask_cluster_writes_what_local_workers_write(cluster, tmp_path, capsy
             assert (dask / label / name).read_bytes() == (local / label / name).read_bytes(), (label, name)
     assert records_without_times(dask) == records_without_times(local)
     header = {key: value for key, value in campaign_file(local).items() if key not in ("created_utc", "positions")}
-    assert header == {key: value for key, value in campaign_file(dask).items()
-                      if key not in ("created_utc", "positions")}
+    assert header == {
+        key: value for key, value in campaign_file(dask).items() if key not in ("created_utc", "positions")
+    }
     assert not (dask / ".partial").exists()
 
 
 @pytest.mark.twin
 def test_ctrl_c_on_a_cluster_keeps_finished_positions_and_resume_runs_the_others(cluster, tmp_path):
     out = tmp_path / "campaign"
-    command = [*THERMOTILT, "campaign", "--twin", "--out", str(out), "--positions", "0,X+30,X-30",
-               "--scheduler", cluster.scheduler_address, *SHORT]
+    command = [
+        *THERMOTILT,
+        "campaign",
+        "--twin",
+        "--out",
+        str(out),
+        "--positions",
+        "0,X+30,X-30",
+        "--scheduler",
+        cluster.scheduler_address,
+        *SHORT,
+    ]
     # Two workers, three positions: the last one starts only when one is done.
     before, kept = interrupt_once_a_position_is_done(command, out)
     assert set(before.values()) == {"done", "pending"}
@@ -95,19 +108,37 @@ def test_a_position_on_a_worker_stops_at_the_campaigns_stop_event_and_ships_what
 @pytest.mark.slow
 def test_an_unreachable_scheduler_is_one_line(tmp_path):
     out = tmp_path / "campaign"
-    result = run([*THERMOTILT, "campaign", "--twin", "--out", str(out), "--positions", "0",
-                  "--scheduler", "tcp://127.0.0.1:1", *SHORT],
-                 capture_output=True, text=True, timeout=60, check=False)
+    result = run(
+        [
+            *THERMOTILT,
+            "campaign",
+            "--twin",
+            "--out",
+            str(out),
+            "--positions",
+            "0",
+            "--scheduler",
+            "tcp://127.0.0.1:1",
+            *SHORT,
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
     assert result.returncode == 1
     assert result.stderr.count("\n") == 1, result.stderr
     assert "cannot reach the Dask scheduler at tcp://127.0.0.1:1" in result.stderr
     assert not (out / CAMPAIGN_FILE).exists()
 
 
-@pytest.mark.parametrize("address, message", [
-    ("127.0.0.1", "missing port number"),
-    ("udp://127.0.0.1:8786", "unknown address scheme"),
-])
+@pytest.mark.parametrize(
+    "address, message",
+    [
+        ("127.0.0.1", "missing port number"),
+        ("udp://127.0.0.1:8786", "unknown address scheme"),
+    ],
+)
 def test_a_malformed_scheduler_address_is_one_line(tmp_path, capsys, address, message):
     status = cli.main(["campaign", "--twin", "--out", str(tmp_path / "c"), "--scheduler", address, *SHORT])
     err = capsys.readouterr().err
@@ -118,11 +149,31 @@ def test_a_malformed_scheduler_address_is_one_line(tmp_path, capsys, address, me
 def test_a_worker_without_the_build_is_one_line_before_anything_is_written(tmp_path):
     out = tmp_path / "campaign"
     missing = tmp_path / "no-build"
-    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address="127.0.0.1:0",
-                      env={"THERMOTILT_BUILD_DIR": str(missing)}) as unbuilt:
-        result = run([*THERMOTILT, "campaign", "--twin", "--out", str(out), "--positions", "0",
-                      "--scheduler", unbuilt.scheduler_address, *SHORT],
-                     capture_output=True, text=True, timeout=60, check=False)
+    with LocalCluster(
+        n_workers=1,
+        threads_per_worker=1,
+        processes=True,
+        dashboard_address="127.0.0.1:0",
+        env={"THERMOTILT_BUILD_DIR": str(missing)},
+    ) as unbuilt:
+        result = run(
+            [
+                *THERMOTILT,
+                "campaign",
+                "--twin",
+                "--out",
+                str(out),
+                "--positions",
+                "0",
+                "--scheduler",
+                unbuilt.scheduler_address,
+                *SHORT,
+            ],
+            capture_output=True,
+            text=True,
+            timeout=60,
+            check=False,
+        )
     assert result.returncode == 1
     assert result.stderr.count("\n") == 1, result.stderr
     assert "cannot run the twin" in result.stderr and str(missing) in result.stderr
@@ -134,9 +185,24 @@ def test_a_worker_without_the_build_is_one_line_before_anything_is_written(tmp_p
 def test_a_scheduler_without_workers_is_one_line(tmp_path):
     out = tmp_path / "campaign"
     with LocalCluster(n_workers=0, processes=True, dashboard_address="127.0.0.1:0") as empty:
-        result = run([*THERMOTILT, "campaign", "--twin", "--out", str(out), "--positions", "0",
-                      "--scheduler", empty.scheduler_address, *SHORT],
-                     capture_output=True, text=True, timeout=60, check=False)
+        result = run(
+            [
+                *THERMOTILT,
+                "campaign",
+                "--twin",
+                "--out",
+                str(out),
+                "--positions",
+                "0",
+                "--scheduler",
+                empty.scheduler_address,
+                *SHORT,
+            ],
+            capture_output=True,
+            text=True,
+            timeout=60,
+            check=False,
+        )
     assert result.returncode == 1
     assert result.stderr.count("\n") == 1, result.stderr
     assert "has no workers" in result.stderr and f"dask worker {empty.scheduler_address}" in result.stderr
@@ -144,7 +210,18 @@ def test_a_scheduler_without_workers_is_one_line(tmp_path):
 
 
 def test_scheduler_needs_the_twin(tmp_path, capsys):
-    status = cli.main(["campaign", "--imu-port", "/dev/null", "--chamber-port", "/dev/null",
-                       "--out", str(tmp_path / "c"), "--scheduler", "tcp://127.0.0.1:1"])
+    status = cli.main(
+        [
+            "campaign",
+            "--imu-port",
+            "/dev/null",
+            "--chamber-port",
+            "/dev/null",
+            "--out",
+            str(tmp_path / "c"),
+            "--scheduler",
+            "tcp://127.0.0.1:1",
+        ]
+    )
     assert status == 1
     assert "it needs --twin" in capsys.readouterr().err

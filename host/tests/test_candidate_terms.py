@@ -77,15 +77,28 @@ def errors(sample):
 
 def same_temperatures(on, off):
     for with_term, without in zip(on, off, strict=True):
-        assert (with_term.die_c, with_term.reported_c, with_term.rate_c_per_s,
-                with_term.drift_set, with_term.temperature_raw, with_term.mounting) == (
-            without.die_c, without.reported_c, without.rate_c_per_s,
-            without.drift_set, without.temperature_raw, without.mounting)
+        assert (
+            with_term.die_c,
+            with_term.reported_c,
+            with_term.rate_c_per_s,
+            with_term.drift_set,
+            with_term.temperature_raw,
+            with_term.mounting,
+        ) == (
+            without.die_c,
+            without.reported_c,
+            without.rate_c_per_s,
+            without.drift_set,
+            without.temperature_raw,
+            without.mounting,
+        )
 
 
 def surfaces(drift_set, temperature_c, acceleration):
-    return tuple(PAPER_DEFAULTS.surface(drift_set, axis.upper()).evaluate(temperature_c, a)
-                 for axis, a in zip(AXES, acceleration))
+    return tuple(
+        PAPER_DEFAULTS.surface(drift_set, axis.upper()).evaluate(temperature_c, a)
+        for axis, a in zip(AXES, acceleration)
+    )
 
 
 # --- registration -------------------------------------------------------------
@@ -150,30 +163,43 @@ def test_a_model_file_may_switch_one_candidate_on(tmp_path):
         Model.load(path)
 
 
-@pytest.mark.parametrize(("name", "parameter", "value", "message"), [
-    ("sensor_lag", "time_constant_s", 0.0, "time_constant_s: must be > 0 and <= 3600 s"),
-    ("sensor_lag", "time_constant_s", -1.0, "time_constant_s: must be > 0 and <= 3600 s"),
-    ("sensor_lag", "time_constant_s", 3600.5, "time_constant_s: must be > 0 and <= 3600 s"),
-    ("hysteresis", "cooling_offset_lsb", {"x": 32768.5, "y": 0.0, "z": 0.0},
-     r"cooling_offset_lsb\.x: must be >= -32768 and <= 32768 LSB"),
-    ("scale_tempco", "ppm_per_c", {"x": 0.0, "y": -10001.0, "z": 0.0},
-     r"ppm_per_c\.y: must be >= -10000 and <= 10000 ppm per degC"),
-    ("cross_axis", "share", {"x": 0.0, "y": 0.0, "z": 0.11},
-     r"share\.z: must be >= -0\.1 and <= 0\.1, got"),
-    ("cross_axis", "share", {"x": 0.0, "y": 0.0}, r"share: expected a table"),
-])
+@pytest.mark.parametrize(
+    ("name", "parameter", "value", "message"),
+    [
+        ("sensor_lag", "time_constant_s", 0.0, "time_constant_s: must be > 0 and <= 3600 s"),
+        ("sensor_lag", "time_constant_s", -1.0, "time_constant_s: must be > 0 and <= 3600 s"),
+        ("sensor_lag", "time_constant_s", 3600.5, "time_constant_s: must be > 0 and <= 3600 s"),
+        (
+            "hysteresis",
+            "cooling_offset_lsb",
+            {"x": 32768.5, "y": 0.0, "z": 0.0},
+            r"cooling_offset_lsb\.x: must be >= -32768 and <= 32768 LSB",
+        ),
+        (
+            "scale_tempco",
+            "ppm_per_c",
+            {"x": 0.0, "y": -10001.0, "z": 0.0},
+            r"ppm_per_c\.y: must be >= -10000 and <= 10000 ppm per degC",
+        ),
+        ("cross_axis", "share", {"x": 0.0, "y": 0.0, "z": 0.11}, r"share\.z: must be >= -0\.1 and <= 0\.1, got"),
+        ("cross_axis", "share", {"x": 0.0, "y": 0.0}, r"share: expected a table"),
+    ],
+)
 def test_the_candidates_bounds_are_enforced(name, parameter, value, message):
     with pytest.raises(ModelError, match=rf"\[{name}\] {message}"):
         model_with(name, **{parameter: value})
 
 
-@pytest.mark.parametrize(("name", "parameter", "value"), [
-    ("sensor_lag", "time_constant_s", 3600.0),
-    ("sensor_lag", "time_constant_s", 1e-3),
-    ("hysteresis", "cooling_offset_lsb", {"x": -32768.0, "y": 32768.0, "z": 0.0}),
-    ("scale_tempco", "ppm_per_c", {"x": -10000.0, "y": 10000.0, "z": 0.0}),
-    ("cross_axis", "share", {"x": -0.1, "y": 0.1, "z": 0.0}),
-])
+@pytest.mark.parametrize(
+    ("name", "parameter", "value"),
+    [
+        ("sensor_lag", "time_constant_s", 3600.0),
+        ("sensor_lag", "time_constant_s", 1e-3),
+        ("hysteresis", "cooling_offset_lsb", {"x": -32768.0, "y": 32768.0, "z": 0.0}),
+        ("scale_tempco", "ppm_per_c", {"x": -10000.0, "y": 10000.0, "z": 0.0}),
+        ("cross_axis", "share", {"x": -0.1, "y": 0.1, "z": 0.0}),
+    ],
+)
 def test_the_candidates_bounds_are_inclusive_where_stated(name, parameter, value):
     model = model_with(name, **{parameter: value})
     sample = Sensor(model, 1, 22.0).step(0.01, 23.0, 45.0, -45.0)
@@ -216,8 +242,8 @@ def test_sensor_lag_evaluates_the_drift_at_a_lagged_reported_temperature(seed, p
         assert drift(with_lag) == pytest.approx(expected, rel=1e-12, abs=EXACT)
         added = tuple(a - b for a, b in zip(unrounded(with_lag), unrounded(without)))
         lagged_minus_reported = tuple(
-            a - b for a, b in zip(expected, surfaces(with_lag.drift_set, with_lag.reported_c,
-                                                     ideal(with_lag))))
+            a - b for a, b in zip(expected, surfaces(with_lag.drift_set, with_lag.reported_c, ideal(with_lag)))
+        )
         assert added == pytest.approx(lagged_minus_reported, rel=1e-9, abs=EXACT)
         assert errors(with_lag) == pytest.approx(errors(without), abs=EXACT)
 
@@ -232,8 +258,7 @@ def test_sensor_lag_is_first_order_and_leaves_the_register_alone():
 
 
 @PROPERTY
-@given(seed=seeds, path=paths,
-       offset=st.fixed_dictionaries({axis: st.floats(-32768.0, 32768.0) for axis in AXES}))
+@given(seed=seeds, path=paths, offset=st.fixed_dictionaries({axis: st.floats(-32768.0, 32768.0) for axis in AXES}))
 def test_hysteresis_adds_its_offset_while_the_trend_set_is_cooling(seed, path, offset):
     on = run(model_with("hysteresis", cooling_offset_lsb=offset), seed, path)
     off = run(Model.load(), seed, path)
@@ -254,13 +279,11 @@ def test_hysteresis_follows_the_sets_of_a_warming_then_cooling_path():
     sensor = Sensor(quiet, 1, 25.0)
     samples = [sensor.step(0.01, t, 0.0, 0.0) for t in (25.0, 26.0, 25.0, 24.0)]
     assert [s.drift_set for s in samples] == ["W", "W", "C", "C"]
-    assert [(s.ax, s.ay, s.az) for s in samples] == [(0, 0, 16393), (0, 0, 16393),
-                                                     (20, 20, 16393), (20, 20, 16393)]
+    assert [(s.ax, s.ay, s.az) for s in samples] == [(0, 0, 16393), (0, 0, 16393), (20, 20, 16393), (20, 20, 16393)]
 
 
 @PROPERTY
-@given(seed=seeds, path=paths,
-       ppm=st.fixed_dictionaries({axis: st.floats(-10000.0, 10000.0) for axis in AXES}))
+@given(seed=seeds, path=paths, ppm=st.fixed_dictionaries({axis: st.floats(-10000.0, 10000.0) for axis in AXES}))
 def test_scale_tempco_adds_c_times_the_excursion_from_25_c_times_the_ideal(seed, path, ppm):
     on = run(model_with("scale_tempco", ppm_per_c=ppm), seed, path)
     off = run(Model.load(), seed, path)
@@ -268,14 +291,14 @@ def test_scale_tempco_adds_c_times_the_excursion_from_25_c_times_the_ideal(seed,
     for with_term, without in zip(on, off):
         assert (ideal(with_term), drift(with_term)) == (ideal(without), drift(without))
         added = tuple(a - b for a, b in zip(unrounded(with_term), unrounded(without)))
-        expected = tuple(ppm[axis] * 1e-6 * (with_term.reported_c - REFERENCE_C) * a
-                         for axis, a in zip(AXES, ideal(without)))
+        expected = tuple(
+            ppm[axis] * 1e-6 * (with_term.reported_c - REFERENCE_C) * a for axis, a in zip(AXES, ideal(without))
+        )
         assert added == pytest.approx(expected, rel=1e-9, abs=EXACT)
 
 
 def test_scale_tempco_uses_the_reported_temperature_not_the_lagged_one():
-    quiet = Model.load().with_terms(SENSOR_EFFECTS_OFF | {"scale_tempco": True,
-                                                         "sensor_lag": True})
+    quiet = Model.load().with_terms(SENSOR_EFFECTS_OFF | {"scale_tempco": True, "sensor_lag": True})
     # X pointing down reads 1 g; the structure has barely left 0 degC.
     sample = Sensor(quiet, 1, 0.0).step(0.01, 45.0, 90.0, 0.0)
     assert sample.reported_c == 45.0 and sample.drift_temperature_c < 1.0
@@ -284,8 +307,7 @@ def test_scale_tempco_uses_the_reported_temperature_not_the_lagged_one():
 
 
 @PROPERTY
-@given(seed=seeds, path=paths,
-       share=st.fixed_dictionaries({axis: st.floats(-0.1, 0.1) for axis in AXES}))
+@given(seed=seeds, path=paths, share=st.fixed_dictionaries({axis: st.floats(-0.1, 0.1) for axis in AXES}))
 def test_cross_axis_mixes_in_a_share_of_another_axis(seed, path, share):
     on = run(model_with("cross_axis", share=share), seed, path)
     off = run(Model.load(), seed, path)
@@ -296,8 +318,8 @@ def test_cross_axis_mixes_in_a_share_of_another_axis(seed, path, share):
         assert ideal(with_term) == pytest.approx(expected, rel=1e-15, abs=1e-9)
         # The drift sees the mixed acceleration; what follows it is unchanged.
         assert drift(with_term) == pytest.approx(
-            surfaces(with_term.drift_set, with_term.reported_c, ideal(with_term)),
-            rel=1e-12, abs=EXACT)
+            surfaces(with_term.drift_set, with_term.reported_c, ideal(with_term)), rel=1e-12, abs=EXACT
+        )
         assert errors(with_term) == pytest.approx(errors(without), abs=EXACT)
 
 

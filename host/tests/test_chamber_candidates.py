@@ -30,10 +30,13 @@ def trace(model, duty, direction=1, steps=600, dt_s=0.5):
 def test_the_chamber_candidates_are_off_by_default_and_then_change_nothing():
     model = Model.load()
     assert not model.enabled("drive_dead_zone") and not model.enabled("thermistor_offset")
-    switched_off = Model.from_document({
-        "drive_dead_zone": {"enabled": False, "threshold_duty": 0.3},
-        "thermistor_offset": {"enabled": False, "offset_c": {"inner": 2.0, "outer": -2.0}},
-    }, "test")
+    switched_off = Model.from_document(
+        {
+            "drive_dead_zone": {"enabled": False, "threshold_duty": 0.3},
+            "thermistor_offset": {"enabled": False, "offset_c": {"inner": 2.0, "outer": -2.0}},
+        },
+        "test",
+    )
     for duty in (0.1, 0.7):
         assert trace(switched_off, duty, steps=50) == trace(model, duty, steps=50)
 

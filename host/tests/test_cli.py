@@ -22,16 +22,10 @@ def test_frames_counts(tmp_path, capsys):
     capture.write_bytes(
         b"boot noise\r\n"
         + build_frame("ACK", 0, [0, "START"]).encode()
-        + build_frame(
-            "IMU", 1, [10, 1, 2, 3, 1.5, 2.5, 3.5, 1.0, 2.0, 3.0, 21.5, "W", "D"]
-        ).encode()
+        + build_frame("IMU", 1, [10, 1, 2, 3, 1.5, 2.5, 3.5, 1.0, 2.0, 3.0, 21.5, "W", "D"]).encode()
         + build_frame("ACK", 2, [0, "STOP"]).replace("STOP", "STOQ").encode()
-        + build_frame(
-            "IMU", 4, [20, 1, 2, 3, 1.5, 2.5, 3.5, 1.0, 2.0, 3.0, 21.5, "W", "D"]
-        ).encode()
-        + build_frame("IMU", 5, [30, 1, 2, 3, 1.5, 2.5, 3.5, 1.0, 2.0, 3.0, 21.5, "W", "D"])
-        .encode()
-        .rstrip(b"\r\n")
+        + build_frame("IMU", 4, [20, 1, 2, 3, 1.5, 2.5, 3.5, 1.0, 2.0, 3.0, 21.5, "W", "D"]).encode()
+        + build_frame("IMU", 5, [30, 1, 2, 3, 1.5, 2.5, 3.5, 1.0, 2.0, 3.0, 21.5, "W", "D"]).encode().rstrip(b"\r\n")
     )
     assert main(["frames", str(capture)]) == 0
     out = capsys.readouterr().out.splitlines()

@@ -136,9 +136,7 @@ def test_setcoe_frames_round_trip():
 
 def test_setcoe_longest_values_fit_and_keep_float32():
     # The longest 9-digit text: negative, 9 digits, two-digit negative exponent.
-    extreme = table_from_values(
-        [-1.17549435e-38, -3.40282347e38, -1.23456789e-12] * 12
-    ).to_float32()
+    extreme = table_from_values([-1.17549435e-38, -3.40282347e38, -1.23456789e-12] * 12).to_float32()
     lines = setcoe_frames(extreme)
     for line in lines:
         assert len(line.rstrip("\r\n")) <= MAX_LINE

@@ -165,8 +165,7 @@ class ScriptedPort:
 def coe_and_ack(board_seq: int, set_: str, axis: str, cmd_seq: int) -> bytes:
     surface = PAPER_DEFAULTS.surface(set_, axis)
     return (
-        build_frame("COE", board_seq, [set_, axis, *surface])
-        + build_frame("ACK", board_seq + 1, [cmd_seq, "GETCOE"])
+        build_frame("COE", board_seq, [set_, axis, *surface]) + build_frame("ACK", board_seq + 1, [cmd_seq, "GETCOE"])
     ).encode()
 
 

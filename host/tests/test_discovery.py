@@ -138,8 +138,15 @@ def test_sensor_lag_and_rate_sensitivity_on_one_ramp_rate_are_ambiguous(tmp_path
     # No holds: one slow ramp up and down over 20..30 degC, where the drift's
     # slope hardly changes, so a lag of the structure and a rate term look
     # the same (a wider range or holds tell them apart: the SNR 4 case).
-    ramps = staircase_inputs(tmp_path / "inputs" / "run.csv", positions=((30.0, 0.0),),
-                             low_c=20.0, high_c=30.0, step_c=10.0, hold_s=0.0, ramp_c_per_s=0.01)
+    ramps = staircase_inputs(
+        tmp_path / "inputs" / "run.csv",
+        positions=((30.0, 0.0),),
+        low_c=20.0,
+        high_c=30.0,
+        step_c=10.0,
+        hold_s=0.0,
+        ramp_c_per_s=0.01,
+    )
     hide_effect(ramps, tmp_path / "hidden", "sensor_lag", seed=7, snr=4.0, channel="X")
     outcome = _discover(tmp_path / "hidden" / "run.csv")
     assert outcome.verdict == "ambiguous"
@@ -184,8 +191,9 @@ def test_discover_twin_runs_the_scenario_again_and_the_found_model_closes_its_ga
     write_model(with_values(Model.load(), "drive_dead_zone", {"enabled": True, "threshold_duty": 0.1}), hidden)
     made = _cli("simulate", "fig8", "--model", str(hidden), "--out", str(tmp_path / "measured"))
     assert made.returncode == 0, made.stderr
-    result = _cli("discover", str(tmp_path / "measured"), "--settle-seconds", "30", "--twin",
-                  "--out", str(tmp_path / "found"))
+    result = _cli(
+        "discover", str(tmp_path / "measured"), "--settle-seconds", "30", "--twin", "--out", str(tmp_path / "found")
+    )
     assert result.returncode == 0, result.stderr
     document = json.loads((tmp_path / "found" / "discovery.json").read_text())
     assert document["effects"][0]["name"] == "drive_dead_zone"
@@ -237,8 +245,7 @@ def test_a_run_without_the_chamber_temperature_is_one_line(tmp_path: Path, input
     lines = inputs.read_text().splitlines()
     header = lines[0].split(",")
     column = header.index("chamber_c")
-    stripped = [",".join("" if i == column else cell for i, cell in enumerate(line.split(",")))
-                for line in lines[1:]]
+    stripped = [",".join("" if i == column else cell for i, cell in enumerate(line.split(","))) for line in lines[1:]]
     (tmp_path / "run.csv").write_text("\n".join([lines[0], *stripped]) + "\n")
     result = _cli("discover", str(tmp_path / "run.csv"), "--out", str(tmp_path / "out"))
     assert result.returncode == 1
@@ -251,8 +258,7 @@ def test_a_channel_without_its_column_is_skipped_and_said(tmp_path: Path, inputs
     hide_effect(inputs, tmp_path / "run", "none", seed=4, noise="white")
     lines = (tmp_path / "run" / "run.csv").read_text().splitlines()
     column = lines[0].split(",").index("az_filt")
-    stripped = [",".join("" if i == column else cell for i, cell in enumerate(line.split(",")))
-                for line in lines[1:]]
+    stripped = [",".join("" if i == column else cell for i, cell in enumerate(line.split(","))) for line in lines[1:]]
     (tmp_path / "run" / "run.csv").write_text("\n".join([lines[0], *stripped]) + "\n")
     result = _cli("discover", str(tmp_path / "run"), "--out", str(tmp_path / "out"))
     assert result.returncode == 0, result.stderr
@@ -269,7 +275,18 @@ def test_every_candidate_is_a_registered_term() -> None:
 @pytest.mark.twin
 def test_an_effect_the_inputs_do_not_excite_cannot_be_hidden(inputs: Path, tmp_path: Path) -> None:
     # Every position holds Z at g cos 30 deg: a gain loss there is one constant offset.
-    result = _cli("hide-effect", "--inputs", str(inputs), "--effect", "sensitivity_loss",
-                  "--channel", "Z", "--snr", "4", "--out", str(tmp_path / "out"))
+    result = _cli(
+        "hide-effect",
+        "--inputs",
+        str(inputs),
+        "--effect",
+        "sensitivity_loss",
+        "--channel",
+        "Z",
+        "--snr",
+        "4",
+        "--out",
+        str(tmp_path / "out"),
+    )
     assert result.returncode == 1
     assert "hardly excite" in result.stderr and len(result.stderr.strip().splitlines()) == 1

@@ -32,12 +32,19 @@ def synthetic_campaign(rate_lsb_per_c_per_min: float, seed: int = 2) -> Campaign
     parts = []
     for index, angle in enumerate(ANGLES_DEG):
         acceleration = np.full(rows, LSB_PER_G * np.sin(np.radians(angle)))
-        residual = (TRUE.evaluate(temperature, acceleration) + rate_lsb_per_c_per_min * rate * 60.0
-                    + smooth_noise(rng, rows, 2.0, 20))
+        residual = (
+            TRUE.evaluate(temperature, acceleration)
+            + rate_lsb_per_c_per_min * rate * 60.0
+            + smooth_noise(rng, rows, 2.0, 20)
+        )
         parts.append((temperature, acceleration, residual, np.full(rows, index), rate))
-    data = SetData(np.concatenate([p[0] for p in parts]), {"X": np.concatenate([p[1] for p in parts])},
-                   {"X": np.concatenate([p[2] for p in parts])}, np.concatenate([p[3] for p in parts]),
-                   np.concatenate([p[4] for p in parts]))
+    data = SetData(
+        np.concatenate([p[0] for p in parts]),
+        {"X": np.concatenate([p[1] for p in parts])},
+        {"X": np.concatenate([p[2] for p in parts])},
+        np.concatenate([p[3] for p in parts]),
+        np.concatenate([p[4] for p in parts]),
+    )
     return Campaign(tuple(str(angle) for angle in ANGLES_DEG), {"W": data, "C": data}, 0)
 
 
@@ -78,14 +85,16 @@ def test_the_fit_command_writes_families_json(tmp_path, capsys):
 def test_a_family_the_data_cannot_determine_is_left_out():
     campaign = synthetic_campaign(0.0)
     data = campaign.sets["W"]
-    steady = SetData(data.temperature_c, data.acceleration, data.residual, data.position,
-                     np.full(data.temperature_c.size, 0.01))
+    steady = SetData(
+        data.temperature_c, data.acceleration, data.residual, data.position, np.full(data.temperature_c.size, 0.01)
+    )
     scores = compare_families(Campaign(campaign.positions, {"W": steady, "C": steady}, 0), ("X",))
     undetermined = {s.family for s in scores if not s.determined}
     assert undetermined == {"poly22+rate"}
     assert recommend(scores) == {"X": "poly22"}
-    assert any(line.startswith("poly22+rate") and "not determined" in line
-               for line in format_families(scores).splitlines())
+    assert any(
+        line.startswith("poly22+rate") and "not determined" in line for line in format_families(scores).splitlines()
+    )
 
 
 def test_too_few_inclinations_for_a_quadratic_are_named():
@@ -93,8 +102,13 @@ def test_too_few_inclinations_for_a_quadratic_are_named():
     data = campaign.sets["W"]
     # Keep three of the seven positions: -45, 0 and +45 deg.
     keep = np.isin(data.position, [0, 3, 6])
-    three = SetData(data.temperature_c[keep], {"X": data.acceleration["X"][keep]}, {"X": data.residual["X"][keep]},
-                    data.position[keep], data.rate_c_per_s[keep])
+    three = SetData(
+        data.temperature_c[keep],
+        {"X": data.acceleration["X"][keep]},
+        {"X": data.residual["X"][keep]},
+        data.position[keep],
+        data.rate_c_per_s[keep],
+    )
     scores = compare_families(Campaign(campaign.positions, {"W": three, "C": three}, 0), ("X",))
     assert extrapolating(scores) == ["X"]
     assert "too few inclinations on X" in format_families(scores)

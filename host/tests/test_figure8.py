@@ -54,15 +54,20 @@ def fig8_runs(tmp_path_factory):
     runs, processes = {}, {}
     for controller in CONTROLLERS:
         out = tmp_path_factory.mktemp(controller)
-        processes[controller] = (out, popen(
-            [*THERMOTILT, "simulate", "fig8", "--seed", "7", "--controller", controller, "--out", str(out)],
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True))
+        processes[controller] = (
+            out,
+            popen(
+                [*THERMOTILT, "simulate", "fig8", "--seed", "7", "--controller", controller, "--out", str(out)],
+                stdout=subprocess.PIPE,
+                stderr=subprocess.PIPE,
+                text=True,
+            ),
+        )
     for controller, (out, process) in processes.items():
         stdout, stderr = process.communicate(timeout=900)
         assert process.returncode == 0, stderr
         rows = read_run_log(str(out / "run.csv"))
-        runs[controller] = {"out": out, "stdout": stdout, "rows": rows,
-                            "figures": figures.fig8_figures(rows)}
+        runs[controller] = {"out": out, "stdout": stdout, "rows": rows, "figures": figures.fig8_figures(rows)}
     return runs
 
 
@@ -71,8 +76,13 @@ def fig8_runs(tmp_path_factory):
 def test_the_command_prints_the_four_features_beside_the_paper(fig8_runs, controller):
     stdout = fig8_runs[controller]["stdout"]
     assert f"Figure 8 (outside {FIG8_AMBIENT_C:g} degC; offsets programmed - measured)" in stdout
-    for feature in ("(a) 2 degC step time", "(b) offset below outside", "offset above outside",
-                    "(c) overshoot, crossing", "(d) IMU temperature offset"):
+    for feature in (
+        "(a) 2 degC step time",
+        "(b) offset below outside",
+        "offset above outside",
+        "(c) overshoot, crossing",
+        "(d) IMU temperature offset",
+    ):
         assert feature in stdout
     assert "thermal_chamber reported" not in stdout and "refused" not in stdout
 
@@ -102,8 +112,9 @@ def test_float_offset_has_the_papers_sign_but_not_its_size(fig8_runs):
 def rounded_holds(fig8_runs, far_from_outside):
     holds = fig8_runs["rounded-error"]["figures"]["holds"]
     assert [hold["setpoint_c"] for hold in holds] == [16, 18, 20, 22]
-    return [hold for hold in holds
-            if (abs(hold["setpoint_c"] - FIG8_AMBIENT_C) > FAR_FROM_OUTSIDE_C) == far_from_outside]
+    return [
+        hold for hold in holds if (abs(hold["setpoint_c"] - FIG8_AMBIENT_C) > FAR_FROM_OUTSIDE_C) == far_from_outside
+    ]
 
 
 @pytest.mark.twin
@@ -116,9 +127,12 @@ def test_rounded_error_offset_is_about_half_a_degree_far_from_the_outside(fig8_r
 
 
 @pytest.mark.twin
-@pytest.mark.xfail(strict=True, reason="1 K from the outside the face drifts too slowly to reach the dead "
-                   "band's edge within a minute; at 18 degC it settles at the setpoint "
-                   "(docs/physics-model.md)")
+@pytest.mark.xfail(
+    strict=True,
+    reason="1 K from the outside the face drifts too slowly to reach the dead "
+    "band's edge within a minute; at 18 degC it settles at the setpoint "
+    "(docs/physics-model.md)",
+)
 def test_rounded_error_offset_has_the_papers_sign_near_the_outside(fig8_runs):
     for hold in rounded_holds(fig8_runs, far_from_outside=False):
         assert side_of_outside(hold) * hold["offset_c"] > 0, hold
@@ -126,8 +140,11 @@ def test_rounded_error_offset_has_the_papers_sign_near_the_outside(fig8_runs):
 
 @pytest.mark.parametrize("controller", CONTROLLERS)
 @pytest.mark.twin
-@pytest.mark.xfail(strict=True, reason="neither controller overshoots more at the crossing than at the "
-                   "other steps: nothing in the twin's chamber is crossing-specific (docs/physics-model.md)")
+@pytest.mark.xfail(
+    strict=True,
+    reason="neither controller overshoots more at the crossing than at the "
+    "other steps: nothing in the twin's chamber is crossing-specific (docs/physics-model.md)",
+)
 def test_the_crossing_step_overshoots_most(fig8_runs, controller):
     result = fig8_runs[controller]["figures"]
     assert result["crossing_overshoot_c"] > result["other_overshoot_c"]
@@ -138,8 +155,9 @@ def test_the_crossing_step_overshoots_most(fig8_runs, controller):
 def test_the_crossing_step_is_the_one_across_the_outside_temperature(fig8_runs, controller):
     result = fig8_runs[controller]["figures"]
     assert result["ambient_c"] == pytest.approx(FIG8_AMBIENT_C)
-    crossing = figures.crossing_step(figures.step_responses(figures.warming_rows(fig8_runs[controller]["rows"])),
-                                     result["ambient_c"])
+    crossing = figures.crossing_step(
+        figures.step_responses(figures.warming_rows(fig8_runs[controller]["rows"])), result["ambient_c"]
+    )
     assert (crossing.from_c, crossing.to_c) == (18, 20)
     assert result["crossing_overshoot_c"] == pytest.approx(crossing.overshoot_c, abs=1e-3)
 
@@ -170,9 +188,13 @@ def test_each_hold_lasts_a_minute_from_reaching_its_setpoint(fig8_runs, controll
 @pytest.mark.slow
 @pytest.mark.twin
 def test_holds_too_short_to_settle_are_said_so_not_printed_as_nan(tmp_path):
-    result = run([*THERMOTILT, "simulate", "fig8", "--hold-seconds", "10",
-                  "--out", str(tmp_path / "short")], capture_output=True, text=True, timeout=600,
-                 check=False)
+    result = run(
+        [*THERMOTILT, "simulate", "fig8", "--hold-seconds", "10", "--out", str(tmp_path / "short")],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=False,
+    )
     assert result.returncode == 0, result.stderr
     assert "nan" not in result.stdout and "Warning" not in result.stderr
     assert f"no hold lasted {2 * figures.SETTLED_WINDOW_S:g} s" in result.stdout

@@ -50,8 +50,15 @@ def firmware_program_steps(start_c, max_c, step_c) -> tuple[np.ndarray, np.ndarr
     start, top, step = _singles(start_c, max_c, step_c)
     error = np.zeros(start.size, np.uint8)
     steps = np.zeros(start.size, np.uint16)
-    _call("thermotilt_program_steps", start.size, start.ctypes.data, top.ctypes.data, step.ctypes.data,
-          error.ctypes.data, steps.ctypes.data)
+    _call(
+        "thermotilt_program_steps",
+        start.size,
+        start.ctypes.data,
+        top.ctypes.data,
+        step.ctypes.data,
+        error.ctypes.data,
+        steps.ctypes.data,
+    )
     return error, steps
 
 
@@ -67,8 +74,14 @@ def firmware_surface(p: np.ndarray, temperature_c: np.ndarray, accel_lsb: np.nda
     (coefficients,) = _singles(p)
     temperature, accel = _singles(temperature_c, accel_lsb)
     correction = np.zeros(temperature.size, np.float32)
-    _call("thermotilt_surface_corrections", temperature.size, coefficients.ctypes.data, temperature.ctypes.data,
-          accel.ctypes.data, correction.ctypes.data)
+    _call(
+        "thermotilt_surface_corrections",
+        temperature.size,
+        coefficients.ctypes.data,
+        temperature.ctypes.data,
+        accel.ctypes.data,
+        correction.ctypes.data,
+    )
     return correction
 
 
@@ -93,8 +106,9 @@ def test_program_steps_on_every_staircase_typed_in_tenths_of_a_degree():
         start_c, max_c, step_c = start[fits] / 10, top[fits] / 10, step / 10
         error, firmware = firmware_program_steps(start_c, max_c, step_c)
         accepted = error == PROGRAM_ACCEPTED
-        np.testing.assert_array_equal(program_steps(start_c[accepted], max_c[accepted], step_c),
-                                      firmware[accepted], err_msg=f"step {step_c} degC")
+        np.testing.assert_array_equal(
+            program_steps(start_c[accepted], max_c[accepted], step_c), firmware[accepted], err_msg=f"step {step_c} degC"
+        )
         compared += int(accepted.sum())
     assert compared > 27_000_000
 
@@ -104,8 +118,9 @@ def staircases(draw) -> tuple[float, float, float]:
     """start < max in the firmware's -10..45 degC and a step: any share of
     the span, or the span over a whole number of steps to within +-3e-4 (the
     firmware lets a top step up to 1e-4 of a step past a multiple merge)."""
-    start, top = sorted(draw(st.lists(st.floats(CALIBRATION_MIN_C, CALIBRATION_MAX_C), min_size=2, max_size=2,
-                                      unique=True)))
+    start, top = sorted(
+        draw(st.lists(st.floats(CALIBRATION_MIN_C, CALIBRATION_MAX_C), min_size=2, max_size=2, unique=True))
+    )
     span = top - start
     if draw(st.booleans()):
         return start, top, span * draw(st.floats(1e-3, 1.0))
@@ -218,8 +233,7 @@ def gamma_6(unit_roundoff: float) -> float:
 def rounding_bound(p: np.ndarray, temperature_c: np.ndarray, accel_lsb: np.ndarray) -> np.ndarray:
     p00, p10, p01, p20, p11, p02 = p.astype(np.float64)
     t, a = temperature_c.astype(np.float64), accel_lsb.astype(np.float64)
-    magnitudes = (abs(p00) + abs(p10 * t) + abs(p01 * a) + abs(p20 * t * t) + abs(p11 * t * a)
-                  + abs(p02 * a * a))
+    magnitudes = abs(p00) + abs(p10 * t) + abs(p01 * a) + abs(p20 * t * t) + abs(p11 * t * a) + abs(p02 * a * a)
     underflow = 2.0**-149 * (2 * abs(t) + abs(a) + 2)
     return (gamma_6(2.0**-24) + gamma_6(2.0**-53)) * magnitudes + underflow
 
@@ -238,19 +252,24 @@ def float32_surfaces() -> st.SearchStrategy[np.ndarray]:
     over the operating domain), as the firmware holds them."""
     terms = [st.floats(bounds.low, bounds.high).map(np.float32) for bounds in SURFACE_TERM_BOUNDS]
     return st.tuples(*terms).map(lambda values: np.array(values, np.float32)) | st.sampled_from(
-        [np.array(surface, np.float32) for surface in PAPER_SURFACES])
+        [np.array(surface, np.float32) for surface in PAPER_SURFACES]
+    )
 
 
 def assert_within_rounding(p: np.ndarray, temperature_c: np.ndarray, accel_lsb: np.ndarray) -> None:
     firmware = firmware_surface(p, temperature_c, accel_lsb).astype(np.float64)
     bound = rounding_bound(p, temperature_c, accel_lsb)
     t, a = temperature_c.astype(np.float64), accel_lsb.astype(np.float64)
-    for name, python in (("Surface.evaluate", Surface(*p.astype(np.float64)).evaluate(t, a)),
-                         ("_surface", _surface(tuple(p.astype(np.float64)), t, a))):
+    for name, python in (
+        ("Surface.evaluate", Surface(*p.astype(np.float64)).evaluate(t, a)),
+        ("_surface", _surface(tuple(p.astype(np.float64)), t, a)),
+    ):
         excess = np.abs(python - firmware) - bound
         worst = int(np.argmax(excess))
-        assert excess[worst] <= 0, (f"{name} at T={t[worst]!r}, a={a[worst]!r}: {python[worst]!r}, "
-                                    f"firmware {firmware[worst]!r}, bound {bound[worst]!r}")
+        assert excess[worst] <= 0, (
+            f"{name} at T={t[worst]!r}, a={a[worst]!r}: {python[worst]!r}, "
+            f"firmware {firmware[worst]!r}, bound {bound[worst]!r}"
+        )
 
 
 @pytest.mark.parametrize("domain", DOMAINS)
@@ -269,8 +288,9 @@ def test_surface_agrees_with_the_firmware_within_float32_rounding(domain, data):
 def test_paper_surfaces_agree_with_the_firmware_over_the_calibrated_grid(surface):
     """0.1 degC by 1 LSB steps would be 90 million points; 0.25 degC by 64 LSB covers the corners and edges."""
     (t_low, t_high), (a_low, a_high) = DOMAINS["calibrated"]
-    temperature, accel = np.meshgrid(np.arange(t_low, t_high + 0.125, 0.25, dtype=np.float32),
-                                     np.arange(a_low, a_high + 1, 64, dtype=np.float32))
+    temperature, accel = np.meshgrid(
+        np.arange(t_low, t_high + 0.125, 0.25, dtype=np.float32), np.arange(a_low, a_high + 1, 64, dtype=np.float32)
+    )
     assert_within_rounding(np.array(surface, np.float32), temperature.ravel(), accel.ravel())
 
 
@@ -281,9 +301,19 @@ def test_chamber_drive_is_the_firmwares_p_law():
     measured = [19.5, 20.0, 21.0, 19.999, 20.4]
     pwm, direction = native.chamber_drive(setpoint, measured, 0.25)
     assert pwm.tolist() == [175, 0, 255, 0, 140]
-    assert direction.tolist() == [native.DRIVE_HEAT, native.DRIVE_OFF, native.DRIVE_COOL,
-                                  native.DRIVE_OFF, native.DRIVE_COOL]
+    assert direction.tolist() == [
+        native.DRIVE_HEAT,
+        native.DRIVE_OFF,
+        native.DRIVE_COOL,
+        native.DRIVE_OFF,
+        native.DRIVE_COOL,
+    ]
     pwm, direction = native.chamber_drive(setpoint, measured, 0.25, rounded_error=True)
     assert pwm.tolist() == [255, 0, 255, 0, 0]
-    assert direction.tolist() == [native.DRIVE_HEAT, native.DRIVE_OFF, native.DRIVE_COOL,
-                                  native.DRIVE_OFF, native.DRIVE_OFF]
+    assert direction.tolist() == [
+        native.DRIVE_HEAT,
+        native.DRIVE_OFF,
+        native.DRIVE_COOL,
+        native.DRIVE_OFF,
+        native.DRIVE_OFF,
+    ]

@@ -143,7 +143,13 @@ def test_imu_reader_answers_commands(tmp_path):
 
 def test_chamber_reads_both_thermistors_and_idles_without_a_program():
     frames = run_board(
-        "atmega2560", "thermal_chamber", 2.5, "--adc", f"0={round(divider_millivolts(20.0))}", "--adc", f"1={round(divider_millivolts(25.0))}"
+        "atmega2560",
+        "thermal_chamber",
+        2.5,
+        "--adc",
+        f"0={round(divider_millivolts(20.0))}",
+        "--adc",
+        f"1={round(divider_millivolts(25.0))}",
     )
     assert not of_type(frames, "ERR")
     for status in of_type(frames, "CHS"):
@@ -165,7 +171,15 @@ def test_chamber_runs_a_program_and_drives_the_peltier_by_the_p_law(tmp_path):
     # avr_run holds an input at whole millivolts.
     inner = round(divider_millivolts(18.3))
     frames = run_board(
-        "atmega2560", "thermal_chamber", 2.5, "--adc", f"0={inner}", "--adc", "1=2500", commands=commands, tmp_path=tmp_path
+        "atmega2560",
+        "thermal_chamber",
+        2.5,
+        "--adc",
+        f"0={inner}",
+        "--adc",
+        "1=2500",
+        commands=commands,
+        tmp_path=tmp_path,
     )
     errors = of_type(frames, "ERR")
     assert [(e["cmd_seq"], e["code"], e["detail"]) for e in errors] == [

@@ -173,7 +173,11 @@ def test_setcoe_refuses_surfaces_whose_output_cannot_be_framed():
         board.run_until(0.3)
         frames = answers(board, reader, commands, 0.6)
     errors = [(e["cmd_seq"], e["code"], e["detail"]) for e in of_type(frames, "ERR")]
-    assert errors == [(1, "BAD_ARG", "OUTPUT_TOO_LARGE"), (2, "BAD_ARG", "OUTPUT_TOO_LARGE"), (3, "BAD_ARG", "COEFFICIENTS")]
+    assert errors == [
+        (1, "BAD_ARG", "OUTPUT_TOO_LARGE"),
+        (2, "BAD_ARG", "OUTPUT_TOO_LARGE"),
+        (3, "BAD_ARG", "COEFFICIENTS"),
+    ]
     (coe,) = of_type(frames, "COE")
     assert surface_values(coe) == pytest.approx(paper, rel=1e-4)
     (config,) = of_type(frames, "ICF")
@@ -271,7 +275,13 @@ def test_commands_with_an_appended_field_are_carried_out():
         board.run_until(0.3)
         frames = answers(board, reader, commands, 0.6)
     replies = [(f.type, f["cmd_seq"], f["cmd_type"]) for f in frames if f.type == "ACK"]
-    assert replies == [("ACK", 1, "SETDEC"), ("ACK", 2, "SETCOE"), ("ACK", 3, "GETCOE"), ("ACK", 4, "STATUS"), ("ACK", 5, "VERSION")]
+    assert replies == [
+        ("ACK", 1, "SETDEC"),
+        ("ACK", 2, "SETCOE"),
+        ("ACK", 3, "GETCOE"),
+        ("ACK", 4, "STATUS"),
+        ("ACK", 5, "VERSION"),
+    ]
     assert not of_type(frames, "ERR")
     (coe,) = of_type(frames, "COE")
     assert (coe["set"], coe["axis"]) == ("C", "Y")
@@ -290,7 +300,7 @@ SAMPLE_PERIOD_S = 0.01
 
 def frames_after(frames: list[Frame], first: Frame) -> list[Frame]:
     """The frames from `first` on: sequence numbers start again at each boot."""
-    return frames[next(i for i, f in enumerate(frames) if f is first):]
+    return frames[next(i for i, f in enumerate(frames) if f is first) :]
 
 
 def test_reset_acknowledges_then_restarts_as_commanded_not_as_a_fault():
@@ -344,13 +354,23 @@ def test_a_reset_keeps_saved_coefficients_and_drops_unsaved_ones():
     reader = FrameReader()
     with start_imu() as board:
         board.run_until(0.3)
-        frames = answers(board, reader, [build_frame("SETCOE", 1, ["W", "X", *saved]),
-                                         build_frame("SAVECOE", 2),
-                                         build_frame("SETCOE", 3, ["C", "Y", *unsaved]),
-                                         build_frame("RESET", 4)], 0.5)
-        frames += answers(board, reader, [build_frame("GETCOE", 5, ["W", "X"]),
-                                          build_frame("GETCOE", 6, ["C", "Y"]),
-                                          build_frame("STATUS", 7)], 1.0)
+        frames = answers(
+            board,
+            reader,
+            [
+                build_frame("SETCOE", 1, ["W", "X", *saved]),
+                build_frame("SAVECOE", 2),
+                build_frame("SETCOE", 3, ["C", "Y", *unsaved]),
+                build_frame("RESET", 4),
+            ],
+            0.5,
+        )
+        frames += answers(
+            board,
+            reader,
+            [build_frame("GETCOE", 5, ["W", "X"]), build_frame("GETCOE", 6, ["C", "Y"]), build_frame("STATUS", 7)],
+            1.0,
+        )
         stored = board.read_eeprom(0, len(PAPER_BLOCK))
     rebooted = frames_after(frames, of_type(frames, "VER")[1])
     coe_wx, coe_cy = of_type(rebooted, "COE")

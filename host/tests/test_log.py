@@ -22,8 +22,9 @@ from thermotilt.wire.protocol import SequenceCounter, build_frame
 
 
 def imu_frame(seq, t_ms, ax=-1650):
-    return build_frame("IMU", seq, [t_ms, ax, 12, 16390, ax + 0.5, 12.25, 16389.9,
-                                    ax - 3.5, 10.0, 16389.9, 24.125, "W", "D"])
+    return build_frame(
+        "IMU", seq, [t_ms, ax, 12, 16390, ax + 0.5, 12.25, 16389.9, ax - 3.5, 10.0, 16389.9, 24.125, "W", "D"]
+    )
 
 
 def chs_frame(seq, t_ms, setpoint, inner, phase="W", fault="OK"):
@@ -90,8 +91,9 @@ def test_log_writes_a_run_folder_one_row_per_imu_frame_with_chamber_state(pty_pa
     chamber_timer = feed_when_opened(chamber_master, [chs_frame(0, 900, 18.0, 17.62)])
     imu_lines = [imu_frame(0, 1000), "$IMU,1,garbage*00\r\n", imu_frame(2, 1100), imu_frame(3, 1200)]
     timer = feed_when_opened(imu_master, imu_lines, after=chamber_timer)
-    status = main(["log", "--port", imu_port, "--chamber-port", chamber_port, "--out", str(out),
-                   "--rows", "3", "--incl-x", "30"])
+    status = main(
+        ["log", "--port", imu_port, "--chamber-port", chamber_port, "--out", str(out), "--rows", "3", "--incl-x", "30"]
+    )
     timer.join()
     chamber_timer.join()
     assert status == 0
@@ -166,10 +168,13 @@ def test_log_without_any_frame_fails(pty_pair, tmp_path, capsys):
     assert read_summary(tmp_path / "run").boards["imu_reader"].rejected_by_reason == {"NO_CHECKSUM": 1}
 
 
-@pytest.mark.parametrize("phase, fault, end_reason", [
-    ("I", "OK", "program done"),
-    ("F", "WRONG_WAY", "chamber fault WRONG_WAY"),
-])
+@pytest.mark.parametrize(
+    "phase, fault, end_reason",
+    [
+        ("I", "OK", "program done"),
+        ("F", "WRONG_WAY", "chamber fault WRONG_WAY"),
+    ],
+)
 def test_a_program_ends_the_log_when_done_or_faulted(pty_pair, tmp_path, phase, fault, end_reason):
     """The rule the twin follows too (thermotilt.run.recorder.ProgramEnd):
     idle or done after running, or a fault at any time, which latches until
@@ -182,8 +187,10 @@ def test_a_program_ends_the_log_when_done_or_faulted(pty_pair, tmp_path, phase, 
     def boards():
         wait_until_opened(imu_master)
         wait_until_opened(chamber_master)
-        os.write(chamber_master, (chs_frame(0, 900, 18.0, 17.5, phase="W")
-                                  + chs_frame(1, 1900, 18.0, 17.8, phase="R")).encode())
+        os.write(
+            chamber_master,
+            (chs_frame(0, 900, 18.0, 17.5, phase="W") + chs_frame(1, 1900, 18.0, 17.8, phase="R")).encode(),
+        )
         for seq in range(600):
             if logged.is_set():
                 return
@@ -195,8 +202,9 @@ def test_a_program_ends_the_log_when_done_or_faulted(pty_pair, tmp_path, phase, 
     feeder = threading.Thread(target=boards)
     feeder.start()
     try:
-        summary = log_boards(imu_port, tmp_path / "position", chamber_port, duration_s=30,
-                             program=ProgramWatch(None, SequenceCounter()))
+        summary = log_boards(
+            imu_port, tmp_path / "position", chamber_port, duration_s=30, program=ProgramWatch(None, SequenceCounter())
+        )
     finally:
         logged.set()
         feeder.join()
@@ -212,13 +220,13 @@ def test_a_killed_log_keeps_every_byte_it_received(pty_pair, tmp_path):
     imu_master, imu_port = pty_pair()
     chamber_master, chamber_port = pty_pair()
     out = tmp_path / "run"
-    imu_bytes = b"boot noise\r\n" + "".join(
-        imu_frame(seq, 1000 + 100 * seq) for seq in range(40)).encode()
+    imu_bytes = b"boot noise\r\n" + "".join(imu_frame(seq, 1000 + 100 * seq) for seq in range(40)).encode()
     chamber_bytes = "".join(chs_frame(seq, 900 + 1000 * seq, 18.0 + seq, 17.5) for seq in range(5))
     logger = popen(
-        [*THERMOTILT, "log", "--port", imu_port, "--chamber-port",
-         chamber_port, "--out", str(out)],
-        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        [*THERMOTILT, "log", "--port", imu_port, "--chamber-port", chamber_port, "--out", str(out)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     try:
         wait_until_opened(chamber_master)
         os.write(chamber_master, chamber_bytes.encode())
@@ -226,8 +234,7 @@ def test_a_killed_log_keeps_every_byte_it_received(pty_pair, tmp_path):
         time.sleep(0.3)
         os.write(imu_master, imu_bytes)
         # The last row carries the last CHS frame: the logger has read both ports to the end.
-        wait_for(lambda: [row["setpoint_c"] for row in rows_of(out / "run.csv")][39:] == ["22"],
-                 "every row written")
+        wait_for(lambda: [row["setpoint_c"] for row in rows_of(out / "run.csv")][39:] == ["22"], "every row written")
     finally:
         logger.kill()
         logger.wait(timeout=10)

@@ -53,8 +53,15 @@ Z_WARMING = Surface(12.5, -0.75, 0.0625, 0.0078125, -0.00048828125, 0.0)
 Z_COOLING = Surface(-8.25, 0.5, -0.03125, -0.00390625, 0.000244140625, 0.0)
 COEFFICIENTS = CoefficientTable({**PAPER_DEFAULTS.surfaces, ("W", "Z"): Z_WARMING, ("C", "Z"): Z_COOLING})
 # IMU frame fields and the decimals the firmware prints them with.
-PRINTED = (("ax_filt", 1), ("ay_filt", 1), ("az_filt", 1), ("ax_comp", 1), ("ay_comp", 1), ("az_comp", 1),
-           ("temp_c", 3))
+PRINTED = (
+    ("ax_filt", 1),
+    ("ay_filt", 1),
+    ("az_filt", 1),
+    ("ax_comp", 1),
+    ("ay_comp", 1),
+    ("az_comp", 1),
+    ("temp_c", 3),
+)
 IMU_FIELDS = FRAMES["IMU"].field_names
 
 
@@ -78,8 +85,7 @@ def frame_steps(frames: list, served: np.ndarray) -> list[int]:
     for frame in frames:
         raw = (frame["ax_raw"], frame["ay_raw"], frame["az_raw"])
         near = round(frame["t_ms"] / 1000 / STEP_S)
-        candidates = [k for k in range(max(near - 4, 0), min(near + 2, len(served)))
-                      if tuple(served[k, :3]) == raw]
+        candidates = [k for k in range(max(near - 4, 0), min(near + 2, len(served))) if tuple(served[k, :3]) == raw]
         assert len(candidates) == 1, f"frame {frame.line} matches served steps {candidates}"
         steps.append(candidates[0])
     return steps
@@ -141,8 +147,11 @@ def test_native_series_gives_every_frame_the_firmware_sent():
     frames = []
     with Board.imu_reader() as board:
         board.attach_lsm9ds0()
-        board.write_uart("".join(build_frame("SETCOE", seq, [s, "Z", *COEFFICIENTS.surface(s, "Z")])
-                                 for seq, s in ((1, "W"), (2, "C"))).encode())
+        board.write_uart(
+            "".join(
+                build_frame("SETCOE", seq, [s, "Z", *COEFFICIENTS.surface(s, "Z")]) for seq, s in ((1, "W"), (2, "C"))
+            ).encode()
+        )
         for step in range(steps_total):
             if step in reseed_steps:
                 board.write_uart(build_frame("RESEED", 10 + step).encode())
@@ -162,8 +171,9 @@ def test_native_series_gives_every_frame_the_firmware_sent():
     replay = served[first:]
     reset = np.zeros(len(replay), bool)
     reset[[start - first for start in starts]] = True
-    result = native.imu_process(replay[:, 0], replay[:, 1], replay[:, 2], replay[:, 3], reset,
-                                decimation=DECIMATION, coefficients=COEFFICIENTS)
+    result = native.imu_process(
+        replay[:, 0], replay[:, 1], replay[:, 2], replay[:, 3], reset, decimation=DECIMATION, coefficients=COEFFICIENTS
+    )
     assert_frames_match(imu, steps, first, result)
 
 
@@ -183,8 +193,11 @@ def test_native_series_replays_a_twin_run_of_the_model(tmp_path, monkeypatch):
     scenario = build("field-alternating", ScenarioOptions(duration_s=90.0, incl_x_deg=30.0))
     simulate.run(scenario, Model.load(), tmp_path / "run", seed=3)
     served_array = np.array(served, dtype=int)
-    imu = [frame for frame in FrameReader().feed((tmp_path / "run" / "serial" / "imu_reader.txt").read_bytes())
-           if frame.type == "IMU"]
+    imu = [
+        frame
+        for frame in FrameReader().feed((tmp_path / "run" / "serial" / "imu_reader.txt").read_bytes())
+        if frame.type == "IMU"
+    ]
     assert len(imu) > 850
 
     steps = frame_steps(imu, served_array)
@@ -214,11 +227,26 @@ def test_unrounded_equals_the_firmware_path_on_integer_inputs():
     reset = np.zeros(3000, bool)
     reset[[700, 701, 2222]] = True
     for decimation, hysteresis in ((10, 0.5), (1, 0.0), (7, 0.25)):
-        rounded = native.imu_process(samples[:, 0], samples[:, 1], samples[:, 2], samples[:, 3], reset,
-                                     decimation=decimation, hysteresis_c=hysteresis, coefficients=COEFFICIENTS)
-        unrounded = native.imu_process_unrounded(samples[:, 0].astype(float), samples[:, 1], samples[:, 2],
-                                                 samples[:, 3] / 8.0 + 21.0, reset, decimation=decimation,
-                                                 hysteresis_c=hysteresis, coefficients=COEFFICIENTS)
+        rounded = native.imu_process(
+            samples[:, 0],
+            samples[:, 1],
+            samples[:, 2],
+            samples[:, 3],
+            reset,
+            decimation=decimation,
+            hysteresis_c=hysteresis,
+            coefficients=COEFFICIENTS,
+        )
+        unrounded = native.imu_process_unrounded(
+            samples[:, 0].astype(float),
+            samples[:, 1],
+            samples[:, 2],
+            samples[:, 3] / 8.0 + 21.0,
+            reset,
+            decimation=decimation,
+            hysteresis_c=hysteresis,
+            coefficients=COEFFICIENTS,
+        )
         assert set(rounded) == set(unrounded) == set(native.OUTPUTS)
         for name in native.OUTPUTS:
             assert rounded[name].dtype == unrounded[name].dtype
@@ -298,5 +326,7 @@ def test_a_missing_library_is_one_readable_error(tmp_path, monkeypatch):
         native.imu_process([0], [0], [0], [0])
     message = str(error.value)
     assert "\n" not in message
-    assert message == f"{tmp_path}/native/libthermotilt_host.so is missing: run `make build` first " \
-                      f"(or set THERMOTILT_BUILD_DIR)"
+    assert (
+        message == f"{tmp_path}/native/libthermotilt_host.so is missing: run `make build` first "
+        f"(or set THERMOTILT_BUILD_DIR)"
+    )

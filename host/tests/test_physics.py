@@ -86,9 +86,7 @@ def test_default_model_has_every_term(model):
     assert model.source == "default"
     assert set(model.terms) == set(TERMS)
     # Every effect on; the discovery workflow's candidates off.
-    assert {term: model.enabled(term) for term in TERMS} == {
-        term: REGISTRY[term].enabled_by_default for term in TERMS
-    }
+    assert {term: model.enabled(term) for term in TERMS} == {term: REGISTRY[term].enabled_by_default for term in TERMS}
     assert not any(model.enabled(term) for term in CANDIDATES)
     assert model.faults == ()
 
@@ -211,9 +209,7 @@ def test_the_default_file_states_every_registered_default(model):
 
 def test_explicit_coefficients_replace_the_paper_tables(tmp_path):
     surfaces = "{ X = [100.0, 0, 0, 0, 0, 0], Y = [0, 0, 0, 0, 0, 0], Z = [0, 0, 0, 0, 0, 0] }"
-    text = default_text().replace(
-        'coefficients = "paper"', f"coefficients = {{ W = {surfaces}, C = {surfaces} }}"
-    )
+    text = default_text().replace('coefficients = "paper"', f"coefficients = {{ W = {surfaces}, C = {surfaces} }}")
     loaded = Model.load(write_model(tmp_path, text))
     loaded = loaded.with_terms(SENSOR_EFFECTS_OFF | {"drift": True})
     sample = Sensor(loaded, seed=1, environment_c=30.0).step(0.01, 30.0, 0.0, 0.0)
@@ -228,9 +224,7 @@ def test_parse_fault_syntax():
     assert parse_fault("inner_open@120-180") == Fault("inner_open", 120.0, 180.0)
     assert parse_fault("imu_uart_corrupt=0.001") == Fault("imu_uart_corrupt", 0.0, None, 0.001)
     assert parse_fault("sensor_stuck@30") == Fault("sensor_stuck", 30.0)
-    assert parse_fault("chamber_uart_corrupt=0.5@2.5-7") == Fault(
-        "chamber_uart_corrupt", 2.5, 7.0, 0.5
-    )
+    assert parse_fault("chamber_uart_corrupt=0.5@2.5-7") == Fault("chamber_uart_corrupt", 2.5, 7.0, 0.5)
     assert parse_fault("peltier_disconnected") == Fault("peltier_disconnected")
 
 
@@ -421,9 +415,7 @@ def test_figure8_settled_offset_lies_on_the_ambient_side(figure8):
 
 
 @pytest.mark.twin
-@pytest.mark.parametrize(
-    ("ambient", "setpoint"), [(22.0, -10.0), (20.0, -10.0), (20.0, 45.0), (22.0, 45.0)]
-)
+@pytest.mark.parametrize(("ambient", "setpoint"), [(22.0, -10.0), (20.0, -10.0), (20.0, 45.0), (22.0, 45.0)])
 def test_chamber_reaches_and_holds_the_campaign_range(model, ambient, setpoint):
     trace = run_p_control(model, ambient, (setpoint,), 2400.0, dt_s=0.05)
     settled = hold_mean(trace, 2340.0, 2400.0)
@@ -496,8 +488,7 @@ def test_firmware_compensation_recovers_the_tilt(model):
     # The firmware computes raw - f(T, raw) with T = raw_temperature / 8 + 21.
     # The measuring offset, which the surfaces leave alone, is off here.
     quiet = model.with_terms(
-        {"noise": False, "rate_sensitivity": False, "die_lag": False, "measuring_offset": False}
-        | SCATTER_OFF
+        {"noise": False, "rate_sensitivity": False, "die_lag": False, "measuring_offset": False} | SCATTER_OFF
     )
     rising = [-10.0 + 0.05 * i for i in range(1101)]
     for sample in sweep(quiet, rising, incl_x=20.0, incl_y=-15.0)[::50]:
@@ -586,9 +577,7 @@ def test_the_paper_surfaces_leave_the_measuring_offset_in_the_compensated_readin
     # Section 3.3: the surfaces compensate the thermal drift only; the
     # firmware's raw - f(T, raw) keeps the offset, within a few LSB (f is
     # evaluated at the offset reading).
-    quiet = model.with_terms(
-        {"noise": False, "rate_sensitivity": False, "die_lag": False} | SCATTER_OFF
-    )
+    quiet = model.with_terms({"noise": False, "rate_sensitivity": False, "die_lag": False} | SCATTER_OFF)
     offset = model.terms["measuring_offset"]["warming_lsb"]
     for sample in sweep(quiet, [-10.0 + 0.05 * i for i in range(1101)], incl_x=20.0)[::100]:
         reported = sample.temperature_raw / 8 + 21

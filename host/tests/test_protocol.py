@@ -154,8 +154,10 @@ def test_frame_roles_are_the_ones_the_docs_describe():
     if not docs.exists():
         pytest.skip("not in the ThermoTilt repository: no docs/protocol.md")
     text = docs.read_text()
-    roles = {role: {tag for tag, spec in FRAMES.items() if spec.role == role} for role in
-             (protocol.STREAM, protocol.ANSWER, protocol.OUTCOME, protocol.COMMAND)}
+    roles = {
+        role: {tag for tag, spec in FRAMES.items() if spec.role == role}
+        for role in (protocol.STREAM, protocol.ANSWER, protocol.OUTCOME, protocol.COMMAND)
+    }
     assert sum(len(tags) for tags in roles.values()) == len(FRAMES)
     titles = docs_frame_titles(text)
     assert {tag for tag, title in titles.items() if "answer to" in title} == roles[protocol.ANSWER]
@@ -201,7 +203,9 @@ def test_docs_err_table_has_every_code_and_detail_token_of_the_definition():
     if not docs.exists():
         pytest.skip("not in the ThermoTilt repository: no docs/protocol.md")
     rows = docs_err_table(docs.read_text())
-    assert [code for code, _ in rows] == list(protocol_spec.ERRORS), "docs/protocol.md's ERR rows differ from the .def's codes"
+    assert [code for code, _ in rows] == list(protocol_spec.ERRORS), (
+        "docs/protocol.md's ERR rows differ from the .def's codes"
+    )
     for code, documented in rows:
         assert documented == set(protocol_spec.ERRORS[code][1]), f"ERR {code}: detail tokens differ"
 
@@ -352,10 +356,7 @@ def test_malformed_lines(text, reason):
 
 
 def test_reader_garbage_crlf_lf_lowercase():
-    data = (
-        b"\x00\xffnoise*12,\r\n$START,1*80BD\r\n$GETCOE,3,C,Y*c2ac\n\n$STOP,4*"
-        + b"%04X\r\n" % checksum("STOP,4")
-    )
+    data = b"\x00\xffnoise*12,\r\n$START,1*80BD\r\n$GETCOE,3,C,Y*c2ac\n\n$STOP,4*" + b"%04X\r\n" % checksum("STOP,4")
     reader, frames = read_all(data)
     assert [f.type for f in frames] == ["START", "GETCOE", "STOP"]
     assert frames[1]["axis"] == "Y"
@@ -371,9 +372,7 @@ def test_reader_over_long_line_then_good_frame():
 
 
 def test_reader_same_result_in_any_chunking():
-    data = (
-        "\r\n".join(VECTORS + [LONGEST, "$ACK,0,13,STOP*B193", "$" + "B" * 200]) + "\r\n"
-    ).encode()
+    data = ("\r\n".join(VECTORS + [LONGEST, "$ACK,0,13,STOP*B193", "$" + "B" * 200]) + "\r\n").encode()
     whole, whole_frames = read_all(data)
     for chunk in (1, 7, 64):
         reader, frames = read_all(data, chunk)

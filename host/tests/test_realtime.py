@@ -88,14 +88,16 @@ def simulate_idle(tmp_path, *options):
 
 @pytest.mark.slow
 @pytest.mark.twin
-@pytest.mark.parametrize("options, paced", [
-    (["--pty"], True),
-    ([], False),
-    (["--pty", "--realtime", "off"], False),
-    (["--realtime", "on"], True),
-])
-def test_pty_runs_paced_by_default_and_other_runs_race(tmp_path, capsys, waits_for_the_wall_clock,
-                                                        options, paced):
+@pytest.mark.parametrize(
+    "options, paced",
+    [
+        (["--pty"], True),
+        ([], False),
+        (["--pty", "--realtime", "off"], False),
+        (["--realtime", "on"], True),
+    ],
+)
+def test_pty_runs_paced_by_default_and_other_runs_race(tmp_path, capsys, waits_for_the_wall_clock, options, paced):
     summary, wall_s = simulate_idle(tmp_path, *options)
     assert summary["realtime"] is paced
     assert summary["sim_seconds"] == SIMULATED_S

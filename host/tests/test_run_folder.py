@@ -32,9 +32,14 @@ def write_log(path, rows):
 def log_rows(draw):
     rows = []
     for _ in range(draw(st.integers(0, 8))):
-        rows.append([draw(text_cells) if column in ("direction", "phase", "chamber_fault", "comp_set",
-                                                     "coef_source") else draw(numeric_cells)
-                     for column in COLUMNS])
+        rows.append(
+            [
+                draw(text_cells)
+                if column in ("direction", "phase", "chamber_fault", "comp_set", "coef_source")
+                else draw(numeric_cells)
+                for column in COLUMNS
+            ]
+        )
     return rows
 
 
@@ -75,10 +80,18 @@ def staircase_by_rows(phase, chamber_c, setpoint_c, mounting):
 
 
 @settings(max_examples=200, deadline=None)
-@given(st.lists(st.tuples(st.sampled_from(["", "I", "W", "C", "R", "D", "F"]),
-                          st.one_of(st.just(math.nan), st.floats(-12, 48)),
-                          st.floats(-10, 45), st.booleans()), max_size=40),
-       st.booleans())
+@given(
+    st.lists(
+        st.tuples(
+            st.sampled_from(["", "I", "W", "C", "R", "D", "F"]),
+            st.one_of(st.just(math.nan), st.floats(-12, 48)),
+            st.floats(-10, 45),
+            st.booleans(),
+        ),
+        max_size=40,
+    ),
+    st.booleans(),
+)
 def test_the_staircase_rule_is_its_row_by_row_form(rows, face_known):
     phase = np.array([row[0] for row in rows], dtype=str)
     chamber_c = np.array([row[1] if face_known else math.nan for row in rows], dtype=float)

@@ -20,14 +20,32 @@ from thermotilt.wire.protocol import build_frame, parse_line
 
 def twin_summary(**changes):
     values = dict(
-        source="twin", rows=12, end_reason="program done", wall_seconds=1.5,
-        boards={"imu_reader": BoardReport(frames=13, frames_by_type={"IMU": 12, "VER": 1}, rejected=0,
-                                          rejected_by_reason={}, sequence_gaps=0,
-                                          reported_errors=["RESET WATCHDOG at 30.51 s"],
-                                          firmware="imu_reader 0.2.0 protocol 2", cycles=16000000)},
-        scenario="cycle", options={"hold_s": 1, "positions": None}, seed=5, model="default",
-        terms={"heatsink": True}, faults=[{"name": "imu_hang", "start_s": 30.0, "end_s": None, "rate": None}],
-        imu_eeprom_preloaded_bytes=0, realtime=False, sim_seconds=62.5, speed_x_real_time=41.67,
+        source="twin",
+        rows=12,
+        end_reason="program done",
+        wall_seconds=1.5,
+        boards={
+            "imu_reader": BoardReport(
+                frames=13,
+                frames_by_type={"IMU": 12, "VER": 1},
+                rejected=0,
+                rejected_by_reason={},
+                sequence_gaps=0,
+                reported_errors=["RESET WATCHDOG at 30.51 s"],
+                firmware="imu_reader 0.2.0 protocol 2",
+                cycles=16000000,
+            )
+        },
+        scenario="cycle",
+        options={"hold_s": 1, "positions": None},
+        seed=5,
+        model="default",
+        terms={"heatsink": True},
+        faults=[{"name": "imu_hang", "start_s": 30.0, "end_s": None, "rate": None}],
+        imu_eeprom_preloaded_bytes=0,
+        realtime=False,
+        sim_seconds=62.5,
+        speed_x_real_time=41.67,
         positions=[{"at_s": 0.0, "label": "0", "incl_x_deg": 0.0, "incl_y_deg": 0.0}],
     )
     return RunSummary(**(values | changes))
@@ -55,22 +73,50 @@ def test_interrupted_is_the_end_reason(tmp_path):
     assert read_summary(tmp_path).interrupted is True
 
 
-@pytest.mark.parametrize("document, message", [
-    ({"schema": SCHEMA + 1, "rows": 3},
-     f"summary schema {SCHEMA + 1} is newer than this thermotilt reads ({SCHEMA})"),
-    ({"schema": "one"}, "unknown summary schema 'one'"),
-    ({"schema": SCHEMA, "source": "twin"}, "missing key 'boards'"),
-    ({"schema": SCHEMA, "source": "bench", "rows": 1, "end_reason": "x", "wall_seconds": 1, "boards": {}},
-     "source 'bench' is neither 'twin' nor 'boards'"),
-    ({"schema": SCHEMA, "source": "twin", "rows": "many", "end_reason": "x", "wall_seconds": 1, "boards": {}},
-     "rows is 'many', not a number"),
-    ({"schema": SCHEMA, "source": "twin", "rows": 1, "end_reason": "x", "wall_seconds": 1, "boards": {},
-      "colour": "red"}, "unknown key 'colour'"),
-    ({"schema": SCHEMA, "source": "twin", "rows": 1, "end_reason": "x", "wall_seconds": 1,
-      "boards": {"imu_reader": {"volts": 5}}}, "board imu_reader: unknown key 'volts'"),
-    ({"rows": 3}, "not a run summary"),
-    ([1, 2], "not a run summary (a JSON object)"),
-])
+@pytest.mark.parametrize(
+    "document, message",
+    [
+        (
+            {"schema": SCHEMA + 1, "rows": 3},
+            f"summary schema {SCHEMA + 1} is newer than this thermotilt reads ({SCHEMA})",
+        ),
+        ({"schema": "one"}, "unknown summary schema 'one'"),
+        ({"schema": SCHEMA, "source": "twin"}, "missing key 'boards'"),
+        (
+            {"schema": SCHEMA, "source": "bench", "rows": 1, "end_reason": "x", "wall_seconds": 1, "boards": {}},
+            "source 'bench' is neither 'twin' nor 'boards'",
+        ),
+        (
+            {"schema": SCHEMA, "source": "twin", "rows": "many", "end_reason": "x", "wall_seconds": 1, "boards": {}},
+            "rows is 'many', not a number",
+        ),
+        (
+            {
+                "schema": SCHEMA,
+                "source": "twin",
+                "rows": 1,
+                "end_reason": "x",
+                "wall_seconds": 1,
+                "boards": {},
+                "colour": "red",
+            },
+            "unknown key 'colour'",
+        ),
+        (
+            {
+                "schema": SCHEMA,
+                "source": "twin",
+                "rows": 1,
+                "end_reason": "x",
+                "wall_seconds": 1,
+                "boards": {"imu_reader": {"volts": 5}},
+            },
+            "board imu_reader: unknown key 'volts'",
+        ),
+        ({"rows": 3}, "not a run summary"),
+        ([1, 2], "not a run summary (a JSON object)"),
+    ],
+)
 def test_a_summary_this_version_cannot_read_is_one_line(tmp_path, document, message):
     write_document(tmp_path, document)
     with pytest.raises(RunSummaryError) as raised:
@@ -89,17 +135,38 @@ def test_no_summary_and_not_json(tmp_path):
 
 # The twin's summary.json before it had a schema (simulate fig8 at faf0b5b), cut down.
 UNVERSIONED_TWIN = {
-    "scenario": "fig8", "description": "Figure 8: warming steps 16-18-20-22 degC",
-    "options": {"hold_s": 60, "positions": None}, "seed": 5, "model": "default",
-    "terms": {"heatsink": True}, "faults": [], "imu_eeprom_preloaded_bytes": 0,
-    "interrupted": False, "realtime": False, "sim_seconds": 341.5, "wall_seconds": 10.0,
-    "speed_x_real_time": 34.0, "rows": 3414, "marks": {"program_start_s": 1.5},
+    "scenario": "fig8",
+    "description": "Figure 8: warming steps 16-18-20-22 degC",
+    "options": {"hold_s": 60, "positions": None},
+    "seed": 5,
+    "model": "default",
+    "terms": {"heatsink": True},
+    "faults": [],
+    "imu_eeprom_preloaded_bytes": 0,
+    "interrupted": False,
+    "realtime": False,
+    "sim_seconds": 341.5,
+    "wall_seconds": 10.0,
+    "speed_x_real_time": 34.0,
+    "rows": 3414,
+    "marks": {"program_start_s": 1.5},
     "positions": [{"at_s": 0.0, "label": "table", "incl_x_deg": 0.0, "incl_y_deg": 0.0}],
-    "boards": {"thermal_chamber": {"cycles": 5464000001, "awake_cycles": 1, "sleep_cycles": 5464000000,
-                                   "frames": 344, "frames_by_type": {"CHS": 342}, "rejected": 0,
-                                   "rejected_by_reason": {}, "sequence_gaps": 0, "corrupted_bytes": 0,
-                                   "unanswered_commands": [], "refused_commands": [],
-                                   "reported_errors": ["RUNAWAY WRONG_WAY at 16.01 s"]}},
+    "boards": {
+        "thermal_chamber": {
+            "cycles": 5464000001,
+            "awake_cycles": 1,
+            "sleep_cycles": 5464000000,
+            "frames": 344,
+            "frames_by_type": {"CHS": 342},
+            "rejected": 0,
+            "rejected_by_reason": {},
+            "sequence_gaps": 0,
+            "corrupted_bytes": 0,
+            "unanswered_commands": [],
+            "refused_commands": [],
+            "reported_errors": ["RUNAWAY WRONG_WAY at 16.01 s"],
+        }
+    },
 }
 
 
@@ -116,9 +183,17 @@ def test_an_unversioned_twin_summary_reads_as_it_stood(tmp_path):
 
 
 def test_an_unversioned_boards_position_keeps_its_end_and_firmware(tmp_path):
-    document = {"rig": "boards", "position": "X+30", "rows": 5000, "frames": 5600, "rejected": 0,
-                "gaps": 0, "end_reason": "program done", "wall_seconds": 4100.0,
-                "firmware": {"imu_reader": "imu_reader 0.2.0 protocol 2"}}
+    document = {
+        "rig": "boards",
+        "position": "X+30",
+        "rows": 5000,
+        "frames": 5600,
+        "rejected": 0,
+        "gaps": 0,
+        "end_reason": "program done",
+        "wall_seconds": 4100.0,
+        "firmware": {"imu_reader": "imu_reader 0.2.0 protocol 2"},
+    }
     summary = read_summary(write_document(tmp_path, document))
     assert (summary.source, summary.rows, summary.end_reason) == ("boards", 5000, "program done")
     assert summary.boards["imu_reader"].firmware == "imu_reader 0.2.0 protocol 2"
@@ -141,15 +216,18 @@ def status(phase, fault="OK"):
     return parse_line(build_frame("CHS", 0, [1000, phase, 3, 18.0, 17.9, 23.5, 0, "O", fault]))
 
 
-@pytest.mark.parametrize("phases, reasons", [
-    # Idle before START is no end; done or idle after running is.
-    (["I", "W", "C", "R", "D"], ["", "", "", "", "program done"]),
-    (["I", "W", "I"], ["", "", "program done"]),
-    (["I", "I"], ["", ""]),
-    # A fault ends it whenever it comes: it latches until CLEAR.
-    (["I", "F"], ["", "chamber fault WRONG_WAY"]),
-    (["W", "F"], ["", "chamber fault WRONG_WAY"]),
-])
+@pytest.mark.parametrize(
+    "phases, reasons",
+    [
+        # Idle before START is no end; done or idle after running is.
+        (["I", "W", "C", "R", "D"], ["", "", "", "", "program done"]),
+        (["I", "W", "I"], ["", "", "program done"]),
+        (["I", "I"], ["", ""]),
+        # A fault ends it whenever it comes: it latches until CLEAR.
+        (["I", "F"], ["", "chamber fault WRONG_WAY"]),
+        (["W", "F"], ["", "chamber fault WRONG_WAY"]),
+    ],
+)
 def test_when_a_program_is_over(phases, reasons):
     program = ProgramEnd()
     assert [program.reason(status(phase, "WRONG_WAY" if phase == "F" else "OK")) for phase in phases] == reasons

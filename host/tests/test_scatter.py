@@ -46,8 +46,9 @@ def slopes(model, seed, angles, temperature_c=85.0):
     for x, y in angles:
         sample = sensor.step(0.01, temperature_c, x, y)
         excursion = sample.reported_c - 25.0
-        result.append(((sample.ax - sample.ideal_ax) / excursion,
-                       (sample.ay - sample.ideal_ay) / excursion, sample.mounting))
+        result.append(
+            ((sample.ax - sample.ideal_ax) / excursion, (sample.ay - sample.ideal_ay) / excursion, sample.mounting)
+        )
     return result
 
 
@@ -123,8 +124,7 @@ def test_bias_instability_is_flicker_with_a_flat_allan_floor(model):
 @pytest.mark.slow
 def test_bias_instability_starts_stationary_and_continues_across_step_lengths(model):
     quiet = flicker_only(model)
-    first = [Sensor(quiet, seed=seed, environment_c=25.0).step(0.01, 25.0, 0.0, 0.0).ax
-             for seed in range(400)]
+    first = [Sensor(quiet, seed=seed, environment_c=25.0).step(0.01, 25.0, 0.0, 0.0).ax for seed in range(400)]
     floor = model.terms["bias_instability"]["allan_floor_lsb"]["x"]
     stationary = floor * math.sqrt(FLICKER_VARIANCE_PER_FLOOR * len(FLICKER_TIME_CONSTANTS_S))
     # 400 runs' first samples spread as the process does (~2.6 LSB; within 15 %).
@@ -207,9 +207,15 @@ def emulated_campaign(model, seed, out_dir, positions=None):
         for index in range(0, len(sets), every):
             cells = [""] * len(COLUMNS)
             since = index * EMULATION_STEP_S
-            values = {"time_s": time_s + since, "since_move_s": since, "incl_x_deg": x,
-                      "incl_y_deg": y, "imu_temp_c": columns[0][index],
-                      "ax_filt": columns[1][index], "ay_filt": columns[2][index]}
+            values = {
+                "time_s": time_s + since,
+                "since_move_s": since,
+                "incl_x_deg": x,
+                "incl_y_deg": y,
+                "imu_temp_c": columns[0][index],
+                "ax_filt": columns[1][index],
+                "ay_filt": columns[2][index],
+            }
             for name, value in values.items():
                 cells[column[name]] = f"{value:.3f}"
             cells[column["phase"]] = cells[column["comp_set"]] = sets[index]
@@ -218,16 +224,20 @@ def emulated_campaign(model, seed, out_dir, positions=None):
     out_dir.mkdir()
     (out_dir / "run.csv").write_text("\n".join(lines) + "\n")
     campaign = load_campaign(out_dir, settle_s=SETTLE_S)
-    return {(axis, set_name): fit_surface(campaign.sets[set_name], set_name, axis).rmse
-            for axis in ("X", "Y") for set_name in ("W", "C")}
+    return {
+        (axis, set_name): fit_surface(campaign.sets[set_name], set_name, axis).rmse
+        for axis in ("X", "Y")
+        for set_name in ("W", "C")
+    }
 
 
 @pytest.fixture(scope="module")
 def campaign_rmse(model, tmp_path_factory):
     return {
         "default": emulated_campaign(model, 1, tmp_path_factory.mktemp("default") / "campaign"),
-        "no scatter": emulated_campaign(model.with_terms(SCATTER_OFF), 1,
-                                        tmp_path_factory.mktemp("clean") / "campaign"),
+        "no scatter": emulated_campaign(
+            model.with_terms(SCATTER_OFF), 1, tmp_path_factory.mktemp("clean") / "campaign"
+        ),
     }
 
 
@@ -323,8 +333,12 @@ def test_in_the_twin_the_imu_reads_the_field_warming_range(tmp_path, model):
     # transients are over (a minute) the reading trails the air by that rate
     # times the die's lag and the filter's 10 s.
     out = tmp_path / "field"
-    run([*THERMOTILT, "simulate", "field-warming", "--duration", "300",
-         "--out", str(out)], check=True, capture_output=True, timeout=300)
+    run(
+        [*THERMOTILT, "simulate", "field-warming", "--duration", "300", "--out", str(out)],
+        check=True,
+        capture_output=True,
+        timeout=300,
+    )
     rows = read_run_log(str(out / "run.csv"))
     first, last = float(rows[0]["imu_temp_c"]), float(rows[-1]["imu_temp_c"])
     trailing = 39.0 / 300.0 * (model.terms["die_lag"]["time_constant_s"] + KALMAN_TIME_CONSTANT_S)

@@ -55,7 +55,8 @@ def test_cycle_lasts_57_holds_and_the_rest():
     assert [c.frame_type for c in timed.commands] == ["SETPRG", "START"]
     scenario = build("cycle", ScenarioOptions(hold_s=30, rest_s=100, incl_x_deg=30.0))
     assert scenario.duration_s == pytest.approx(
-        1.5 + 57 * 30 + 100 + reach_allowance_s(-10.0, 57, 22.0, ScenarioOptions()))
+        1.5 + 57 * 30 + 100 + reach_allowance_s(-10.0, 57, 22.0, ScenarioOptions())
+    )
     assert [c.frame_type for c in scenario.commands] == ["SETPRG", "START"]
     assert scenario.positions[0].incl_x_deg == 30.0
     assert scenario.positions[0].label == "X+30"

@@ -25,8 +25,7 @@ def test_the_first_worker_makes_it_and_the_others_read_it(tmp_path, monkeypatch)
         made.append(folder)
         (folder / "run.csv").write_text("rows\n")
 
-    folders = [made_once_per_test_run(WorkerTempPaths(tmp_path, worker), "runs", make)
-               for worker in ("gw0", "gw1")]
+    folders = [made_once_per_test_run(WorkerTempPaths(tmp_path, worker), "runs", make) for worker in ("gw0", "gw1")]
     assert made == [tmp_path / "runs"]
     assert folders == [tmp_path / "runs"] * 2
     assert (tmp_path / "runs" / "run.csv").read_text() == "rows\n"

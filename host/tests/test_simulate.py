@@ -35,8 +35,9 @@ COMPENSATED_TOLERANCE_LSB = 10.0
 
 
 def simulate(*arguments, timeout=900):
-    result = run([*THERMOTILT, "simulate", *map(str, arguments)],
-                 capture_output=True, text=True, timeout=timeout, check=False)
+    result = run(
+        [*THERMOTILT, "simulate", *map(str, arguments)], capture_output=True, text=True, timeout=timeout, check=False
+    )
     assert result.returncode == 0, result.stderr
     return result
 
@@ -83,14 +84,17 @@ def test_fig8_writes_the_documented_outputs(fig8_run):
 
 @pytest.mark.slow
 @pytest.mark.twin
-@pytest.mark.parametrize("hold_start, reported", [
-    # Waiting for a setpoint a disconnected Peltier never reaches: full drive
-    # gains nothing, and the guard's no-response window (90 s from START at
-    # 1.5 s, checked every 250 ms) stops the program.
-    ("A", ["RUNAWAY NO_RESPONSE at 92.01 s"]),
-    # Timed 60 s holds give each step a new target before the window ends.
-    ("T", []),
-])
+@pytest.mark.parametrize(
+    "hold_start, reported",
+    [
+        # Waiting for a setpoint a disconnected Peltier never reaches: full drive
+        # gains nothing, and the guard's no-response window (90 s from START at
+        # 1.5 s, checked every 250 ms) stops the program.
+        ("A", ["RUNAWAY NO_RESPONSE at 92.01 s"]),
+        # Timed 60 s holds give each step a new target before the window ends.
+        ("T", []),
+    ],
+)
 def test_a_setpoint_never_reached_ends_in_no_response(tmp_path, hold_start, reported):
     out = tmp_path / hold_start
     simulate("fig8", "--out", out, "--hold-start", hold_start, "--fault", "peltier_disconnected")
@@ -116,8 +120,9 @@ def settled_rows(rows):
     time_s = [number(row["time_s"]) for row in rows]
     for hold in figures.holds(rows):
         begin = (hold.start_s + hold.end_s) / 2
-        keep += [row for t, row in zip(time_s, rows)
-                 if begin <= t <= hold.end_s and row["comp_set"] == row["true_drift_set"]]
+        keep += [
+            row for t, row in zip(time_s, rows) if begin <= t <= hold.end_s and row["comp_set"] == row["true_drift_set"]
+        ]
     return keep
 
 
@@ -133,8 +138,7 @@ def test_cycle_raw_drift_follows_the_models_surfaces(cycle_runs, angle):
         for row in rows:
             surface = PAPER_DEFAULTS.surface(row["true_drift_set"], axis.upper())
             ideal = number(row[f"true_a{axis}"])
-            expected = (ideal + measuring_offset(row, axis)
-                        + surface.evaluate(number(row["true_reported_c"]), ideal))
+            expected = ideal + measuring_offset(row, axis) + surface.evaluate(number(row["true_reported_c"]), ideal)
             errors.append(number(row[f"a{axis}_filt"]) - expected)
         errors.sort()
         # The Kalman filter's lag and noise, well below the drift itself.
@@ -160,12 +164,17 @@ def test_cycle_at_0_deg_drifts_like_section_4_1(cycle_runs):
     assert low < -10 and high > 43
     settled = [row for row, keep in zip(rows, figures.settled_mask(rows)) if keep]
     for axis in ("x", "y"):
-        expected = [number(row[f"true_a{axis}"]) + measuring_offset(row, axis)
-                    + PAPER_DEFAULTS.surface(row["true_drift_set"], axis.upper()).evaluate(
-                        number(row["true_reported_c"]), number(row[f"true_a{axis}"]))
-                    for row in settled]
-        assert span[axis]["raw_span_lsb"] == pytest.approx(max(expected) - min(expected),
-                                                           abs=DRIFT_SPAN_TOLERANCE_LSB), axis
+        expected = [
+            number(row[f"true_a{axis}"])
+            + measuring_offset(row, axis)
+            + PAPER_DEFAULTS.surface(row["true_drift_set"], axis.upper()).evaluate(
+                number(row["true_reported_c"]), number(row[f"true_a{axis}"])
+            )
+            for row in settled
+        ]
+        assert span[axis]["raw_span_lsb"] == pytest.approx(
+            max(expected) - min(expected), abs=DRIFT_SPAN_TOLERANCE_LSB
+        ), axis
 
 
 # The P law settles where its drive balances the chamber's heat flows, at
@@ -205,8 +214,10 @@ def test_a_calibration_cycle_never_trips_the_chambers_guard(cycle_runs, angle):
 def test_cycle_compensated_output_is_flat(cycle_runs, angle):
     rows = settled_rows(read_run_log(str(cycle_runs[angle] / "run.csv")))
     for axis in ("x", "y"):
-        worst = max(abs(number(row[f"a{axis}_comp"]) - number(row[f"true_a{axis}"])
-                        - measuring_offset(row, axis)) for row in rows)
+        worst = max(
+            abs(number(row[f"a{axis}_comp"]) - number(row[f"true_a{axis}"]) - measuring_offset(row, axis))
+            for row in rows
+        )
         assert worst <= COMPENSATED_TOLERANCE_LSB, (axis, worst)
 
 
@@ -234,8 +245,10 @@ def test_simavr_executing_runs_of_instructions_simulates_the_same_cycles(tmp_pat
     # (sim/board.c). Against simavr's default of one instruction per call, with
     # both watchdogs firing, the data-ready line cut and mended, and bytes
     # corrupted on the IMU's UART, every byte of both boards' output is the same.
-    model = physics.Model.load().with_faults(physics.parse_fault(text) for text in (
-        "imu_hang@30", "chamber_hang@50", "data_ready_cut@70-100", "imu_uart_corrupt=0.01@100-140"))
+    model = physics.Model.load().with_faults(
+        physics.parse_fault(text)
+        for text in ("imu_hang@30", "chamber_hang@50", "data_ready_cut@70-100", "imu_uart_corrupt=0.01@100-140")
+    )
     scenario = build("fig8", ScenarioOptions(hold_s=10))
     runs = {}
     for name, board in (("runs", twin.Board), ("single", OneInstructionPerCallBoard)):
@@ -258,8 +271,21 @@ def test_simavr_executing_runs_of_instructions_simulates_the_same_cycles(tmp_pat
 
 # The IMU's own fields: what it read and computed. The frame's millisecond
 # stamp, and with it the row's time_s, may move by the polling's lateness.
-IMU_DATA_COLUMNS = ("imu_temp_c", "ax_raw", "ay_raw", "az_raw", "ax_filt", "ay_filt", "az_filt",
-                    "ax_comp", "ay_comp", "az_comp", "comp_set", "coef_source", "imu_seq")
+IMU_DATA_COLUMNS = (
+    "imu_temp_c",
+    "ax_raw",
+    "ay_raw",
+    "az_raw",
+    "ax_filt",
+    "ay_filt",
+    "az_filt",
+    "ax_comp",
+    "ay_comp",
+    "az_comp",
+    "comp_set",
+    "coef_source",
+    "imu_seq",
+)
 
 
 def awake_fraction(out):
@@ -273,20 +299,34 @@ def test_the_data_ready_line_changes_no_output_and_its_loss_is_caught(tmp_path):
     # Wired (the twin's default), never wired, cut mid-run, and cut then mended:
     # the firmware polls STATUS_REG_A whenever it does not trust the line.
     runs = {}
-    for name, faults in (("wired", []), ("unwired", ["data_ready_cut"]), ("cut", ["data_ready_cut@30"]),
-                         ("mended", ["data_ready_cut@20-40"])):
+    for name, faults in (
+        ("wired", []),
+        ("unwired", ["data_ready_cut"]),
+        ("cut", ["data_ready_cut@30"]),
+        ("mended", ["data_ready_cut@20-40"]),
+    ):
         out = tmp_path / name
-        simulate("field-warming", "--duration", 60, "--seed", 3, "--out", out,
-                 *[argument for fault in faults for argument in ("--fault", fault)])
+        simulate(
+            "field-warming",
+            "--duration",
+            60,
+            "--seed",
+            3,
+            "--out",
+            out,
+            *[argument for fault in faults for argument in ("--fault", fault)],
+        )
         runs[name] = out
     wired = read_run_log(str(runs["wired"] / "run.csv"))
     for name, out in runs.items():
         rows = read_run_log(str(out / "run.csv"))
-        assert [[row[column] for column in IMU_DATA_COLUMNS] for row in rows] == \
-            [[row[column] for column in IMU_DATA_COLUMNS] for row in wired], name
+        assert [[row[column] for column in IMU_DATA_COLUMNS] for row in rows] == [
+            [row[column] for column in IMU_DATA_COLUMNS] for row in wired
+        ], name
         # A sample read late by at most a polling period reaches the host in the same or the next 10 ms step.
-        assert all(abs(number(row["time_s"]) - number(first["time_s"])) <= 0.0105
-                   for row, first in zip(rows, wired)), name
+        assert all(abs(number(row["time_s"]) - number(first["time_s"])) <= 0.0105 for row, first in zip(rows, wired)), (
+            name
+        )
         assert not lines_of(out / "serial" / "imu_reader.txt", "$ERR"), name
     # Without the line the loop wakes at every timer tick near a sample and polls the bus.
     assert awake_fraction(runs["wired"]) < awake_fraction(runs["mended"]) < awake_fraction(runs["unwired"])
@@ -311,9 +351,19 @@ def test_a_fault_the_chamber_catches_is_printed_and_kept(tmp_path):
 @pytest.mark.twin
 def test_faults_from_the_command_line_show_in_the_frames(tmp_path):
     out = tmp_path / "faults"
-    simulate("fig8", "--out", out, "--hold-seconds", 15,
-             "--fault", "inner_open@20-30", "--fault", "sensor_absent@5-8",
-             "--fault", "imu_uart_corrupt=0.002@40")
+    simulate(
+        "fig8",
+        "--out",
+        out,
+        "--hold-seconds",
+        15,
+        "--fault",
+        "inner_open@20-30",
+        "--fault",
+        "sensor_absent@5-8",
+        "--fault",
+        "imu_uart_corrupt=0.002@40",
+    )
     chamber = out / "serial" / "thermal_chamber.txt"
     assert lines_of(chamber, "THERMISTOR,INNER_OPEN")
     rows = read_run_log(str(out / "run.csv"))
@@ -332,14 +382,17 @@ def test_faults_from_the_command_line_show_in_the_frames(tmp_path):
 def test_faults_from_the_model_file(tmp_path):
     model = tmp_path / "broken-rig.toml"
     default = Path(physics.__file__).parents[1] / "models" / "default.toml"
-    model.write_text(default.read_text() + """
+    model.write_text(
+        default.read_text()
+        + """
 [[faults]]
 name = "peltier_disconnected"
 
 [[faults]]
 name = "sensor_stuck"
 start_s = 30.0
-""")
+"""
+    )
     out = tmp_path / "run"
     simulate("fig8", "--out", out, "--hold-seconds", 15, "--model", model)
     rows = read_run_log(str(out / "run.csv"))
@@ -360,8 +413,13 @@ def test_bad_use_is_one_readable_line(tmp_path):
         (["fig8", "--model", tmp_path / "missing.toml"], "missing.toml"),
         (["fig8", "--disable", "no_such_term"], "no_such_term"),
     ):
-        result = run([*THERMOTILT, "simulate", *map(str, arguments), "--out", tmp_path / "x"],
-                     capture_output=True, text=True, timeout=120, check=False)
+        result = run(
+            [*THERMOTILT, "simulate", *map(str, arguments), "--out", tmp_path / "x"],
+            capture_output=True,
+            text=True,
+            timeout=120,
+            check=False,
+        )
         assert result.returncode == 1, arguments
         assert result.stderr.count("\n") == 1 and message in result.stderr, result.stderr
 
@@ -383,9 +441,23 @@ def test_the_twin_through_pseudo_terminals(tmp_path):
         assert any(f.type == "IMU" for f in replies)
         logged = tmp_path / "logged"
         result = run(
-            [*THERMOTILT, "log", "--port", ports["imu_reader"], "--chamber-port",
-             ports["thermal_chamber"], "--out", str(logged), "--rows", "100"],
-            capture_output=True, text=True, timeout=120, check=False)
+            [
+                *THERMOTILT,
+                "log",
+                "--port",
+                ports["imu_reader"],
+                "--chamber-port",
+                ports["thermal_chamber"],
+                "--out",
+                str(logged),
+                "--rows",
+                "100",
+            ],
+            capture_output=True,
+            text=True,
+            timeout=120,
+            check=False,
+        )
         assert result.returncode == 0, result.stderr
     assert read_summary(out).interrupted is True
     logged_rows = read_run_log(str(logged / "run.csv"))
@@ -399,7 +471,20 @@ def test_the_twin_through_pseudo_terminals(tmp_path):
     # What the log wrote from the pseudo-terminals is what the twin logged itself.
     twin_rows = {row["imu_seq"]: row for row in read_run_log(str(out / "run.csv"))}
     # Chamber cells may differ by one CHS frame: the two ports are read apart.
-    same_columns = ["time_s", "imu_temp_c", "ax_raw", "ay_raw", "az_raw", "ax_filt", "ay_filt",
-                    "az_filt", "ax_comp", "ay_comp", "az_comp", "comp_set", "coef_source"]
+    same_columns = [
+        "time_s",
+        "imu_temp_c",
+        "ax_raw",
+        "ay_raw",
+        "az_raw",
+        "ax_filt",
+        "ay_filt",
+        "az_filt",
+        "ax_comp",
+        "ay_comp",
+        "az_comp",
+        "comp_set",
+        "coef_source",
+    ]
     for row in logged_rows:
         assert {c: row[c] for c in same_columns} == {c: twin_rows[row["imu_seq"]][c] for c in same_columns}

@@ -49,9 +49,25 @@ def test_reseed_restarts_the_filters_from_the_next_sample():
 def test_the_campaign_reseeds_at_every_move_and_logs_the_time_since(tmp_path):
     out = tmp_path / "campaign"
     result = run(
-        [*THERMOTILT, "simulate", "campaign", "--positions", "0,X+45",
-         "--hold-seconds", "2", "--rest-seconds", "0", "--hold-start", "T", "--out", str(out)],
-        capture_output=True, text=True, timeout=900, check=False,
+        [
+            *THERMOTILT,
+            "simulate",
+            "campaign",
+            "--positions",
+            "0,X+45",
+            "--hold-seconds",
+            "2",
+            "--rest-seconds",
+            "0",
+            "--hold-start",
+            "T",
+            "--out",
+            str(out),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=900,
+        check=False,
     )
     assert result.returncode == 0, result.stderr
     assert "refused" not in result.stdout

@@ -45,9 +45,22 @@ def summarise(tmp_path, *, unity, pytest_xml=PYTEST, fuzz="fuzz: 3 targets, 900 
     pytest_path = tmp_path / "pytest.xml"
     if pytest_xml is not None:
         pytest_path.write_text(pytest_xml)
-    return subprocess.run([sys.executable, str(SUMMARY), *arguments, "--pytest", str(pytest_path),
-                           "--fuzz", fuzz, "--fuzz-failed", str(fuzz_failed)],
-                          capture_output=True, text=True, timeout=60)
+    return subprocess.run(
+        [
+            sys.executable,
+            str(SUMMARY),
+            *arguments,
+            "--pytest",
+            str(pytest_path),
+            "--fuzz",
+            fuzz,
+            "--fuzz-failed",
+            str(fuzz_failed),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
 
 
 def test_counts_each_runners_cases(tmp_path):
@@ -63,8 +76,11 @@ def test_counts_each_runners_cases(tmp_path):
 
 
 def test_a_program_that_died_outside_unity_counts_as_a_failure(tmp_path):
-    result = summarise(tmp_path, unity={"simavr atmega328p": UNITY_CRASHED}, pytest_xml=PYTEST.replace(
-        '<failure message="x"/>', "").replace('<error message="x"/>', ""))
+    result = summarise(
+        tmp_path,
+        unity={"simavr atmega328p": UNITY_CRASHED},
+        pytest_xml=PYTEST.replace('<failure message="x"/>', "").replace('<error message="x"/>', ""),
+    )
     assert "1 Unity tests, 0 failures, 0 ignored, 1 programs failed outside Unity" in result.stdout
     assert result.stdout.splitlines()[-1] == "total: 7 passed, 1 failed"
     assert "atmega328p.test_c failed without a Unity failure" in result.stderr
@@ -72,9 +88,15 @@ def test_a_program_that_died_outside_unity_counts_as_a_failure(tmp_path):
 
 
 def test_missing_results_and_a_fuzz_run_that_did_not_run_fail(tmp_path):
-    result = summarise(tmp_path, unity={"native": UNITY_PASSING.replace('status="fail"', 'status="run"')
-                                        .replace(":FAIL: Expected 1 Was 2", ":PASS")},
-                       pytest_xml=None, fuzz="", fuzz_failed=0)
+    result = summarise(
+        tmp_path,
+        unity={
+            "native": UNITY_PASSING.replace('status="fail"', 'status="run"').replace(":FAIL: Expected 1 Was 2", ":PASS")
+        },
+        pytest_xml=None,
+        fuzz="",
+        fuzz_failed=0,
+    )
     assert "host: pytest no results" in result.stdout
     assert "fuzz: did not run" in result.stdout
     assert result.stdout.splitlines()[-1] == "total: 4 passed, 2 failed"
@@ -83,7 +105,8 @@ def test_missing_results_and_a_fuzz_run_that_did_not_run_fail(tmp_path):
 
 def test_all_passing_exits_zero(tmp_path):
     passing = PYTEST.replace('<failure message="x"/>', "").replace('<error message="x"/>', "")
-    result = summarise(tmp_path, unity={"native": UNITY_CRASHED.replace('status="fail"', 'status="run"')},
-                       pytest_xml=passing)
+    result = summarise(
+        tmp_path, unity={"native": UNITY_CRASHED.replace('status="fail"', 'status="run"')}, pytest_xml=passing
+    )
     assert result.stdout.splitlines()[-1] == "total: 7 passed, 0 failed"
     assert result.returncode == 0

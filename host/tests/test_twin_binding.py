@@ -457,7 +457,7 @@ def test_eeprom_bytes_written_before_boot_are_what_the_firmware_loads_and_surviv
     assert [v["reset_cause"] for v in versions] == ["POWER_ON", "WATCHDOG"]
     # Loaded at boot, and again after the reset; the sensor's sample clock
     # kept running through it, as a real sensor's does.
-    rebooted = frames[frames.index(versions[1]):]
+    rebooted = frames[frames.index(versions[1]) :]
     assert {f["coef_source"] for f in of_type(frames, "IMU")} == {"E"}
     assert len(of_type(rebooted, "IMU")) >= 4
 

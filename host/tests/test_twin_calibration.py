@@ -32,8 +32,25 @@ def demo_settings():
 def fitted(tmp_path_factory):
     folder = tmp_path_factory.mktemp("twin-calibration")
     positions, hold_s = demo_settings()
-    assert cli.main(["campaign", "--twin", "--positions", positions, "--hold-seconds", str(hold_s),
-                     "--rest-seconds", "0", "--jobs", "2", "--out", str(folder / "campaign")]) == 0
+    assert (
+        cli.main(
+            [
+                "campaign",
+                "--twin",
+                "--positions",
+                positions,
+                "--hold-seconds",
+                str(hold_s),
+                "--rest-seconds",
+                "0",
+                "--jobs",
+                "2",
+                "--out",
+                str(folder / "campaign"),
+            ]
+        )
+        == 0
+    )
     assert cli.main(["fit", str(folder / "campaign"), "--out", str(folder / "fit")]) == 0
     return folder / "fit"
 

@@ -96,8 +96,9 @@ def test_the_profile_capacity_keeps_the_first_samples_and_counts_all():
 
 def test_summary_records_each_boards_awake_and_sleeping_cycles(tmp_path):
     timing = simulate.StepTiming()
-    summary = simulate.run(build("idle", ScenarioOptions(duration_s=3.0)), Model.load(), tmp_path,
-                           timing=timing).summary
+    summary = simulate.run(
+        build("idle", ScenarioOptions(duration_s=3.0)), Model.load(), tmp_path, timing=timing
+    ).summary
     for report in summary.boards.values():
         assert report.awake_cycles > 0
         assert report.awake_cycles + report.sleep_cycles == report.cycles

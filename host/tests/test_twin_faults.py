@@ -48,11 +48,19 @@ def stand_in_twin():
 
 def what_changes(twin):
     return {name: dict(board.state) for name, board in twin.boards.items()} | {
-        "chamber": vars(twin.chamber).copy(), "peltier_reversed": twin.peltier_reversed}
+        "chamber": vars(twin.chamber).copy(),
+        "peltier_reversed": twin.peltier_reversed,
+    }
 
 
-NEUTRAL = {"lsm9ds0": "none", "data_ready_wired": True, "adc0": "none", "adc1": "none",
-           "l298n_disconnected": False, "uart_corruption": (0.0, 7)}
+NEUTRAL = {
+    "lsm9ds0": "none",
+    "data_ready_wired": True,
+    "adc0": "none",
+    "adc1": "none",
+    "l298n_disconnected": False,
+    "uart_corruption": (0.0, 7),
+}
 
 # What each fault changes while active (board -> state, or twin attribute).
 ACTIVE = {

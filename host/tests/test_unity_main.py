@@ -42,12 +42,18 @@ def run_failing_test_program(tmp_path: Path, *defines: str) -> subprocess.Comple
     unity_object = tmp_path / "unity.o"
     program = tmp_path / "program"
     includes = [f"-I{FALLBACK_UNITY}", f"-I{REPO / 'cmake' / 'unity_config'}", "-DUNITY_INCLUDE_CONFIG_H"]
+    subprocess.run(["cc", "-c", *includes, str(FALLBACK_UNITY / "unity.c"), "-o", str(unity_object)], check=True)
     subprocess.run(
-        ["cc", "-c", *includes, str(FALLBACK_UNITY / "unity.c"), "-o", str(unity_object)], check=True
-    )
-    subprocess.run(
-        ["c++", *includes, *defines, str(REPO / "test" / "unity_main.cpp"), str(test_source),
-         str(unity_object), "-o", str(program)],
+        [
+            "c++",
+            *includes,
+            *defines,
+            str(REPO / "test" / "unity_main.cpp"),
+            str(test_source),
+            str(unity_object),
+            "-o",
+            str(program),
+        ],
         check=True,
     )
     return subprocess.run([str(program)], capture_output=True, text=True, timeout=30, check=False)

@@ -51,9 +51,24 @@ BLANK = b"\xff" * BLOCK_SIZE
 
 def write_fit(out_dir: Path, surfaces=FITTED) -> Path:
     """A FIT_DIR as `thermotilt fit` writes it (fit.write_outputs)."""
-    fits = [SurfaceFit(s, a, 1000, surface, tuple((v, v) for v in surface), tuple((v, v) for v in surface),
-                       10, 1.0, 0.9, 0.9, 1.0, (-10.0, 45.0), (-16000.0, 16000.0))
-            for (s, a), surface in surfaces.items()]
+    fits = [
+        SurfaceFit(
+            s,
+            a,
+            1000,
+            surface,
+            tuple((v, v) for v in surface),
+            tuple((v, v) for v in surface),
+            10,
+            1.0,
+            0.9,
+            0.9,
+            1.0,
+            (-10.0, 45.0),
+            (-16000.0, 16000.0),
+        )
+        for (s, a), surface in surfaces.items()
+    ]
     write_outputs(fits, SimpleNamespace(positions=["0", "X+30", "X-30"], skipped_rows=0, stabilizing_rows=0), out_dir)
     return out_dir
 
@@ -105,8 +120,9 @@ def test_upload_round_trip_through_the_twins_ports(fit_dir, tmp_path):
         refused = run("upload", absurd, "--port", imu)
         assert_one_line_error(refused, 1, "SETCOE W X refused by")
         assert "BAD_ARG OUTPUT_TOO_LARGE; nothing saved" in refused.stderr
-        assert_one_line_error(run("upload", fit_dir, "--port", ports["thermal_chamber"]), 1,
-                              "is the thermal_chamber, not the imu_reader")
+        assert_one_line_error(
+            run("upload", fit_dir, "--port", ports["thermal_chamber"]), 1, "is the thermal_chamber, not the imu_reader"
+        )
         in_ram = run("upload", fit_dir, "--port", imu, "--no-save")
         assert in_ram.returncode == 0, in_ram.stderr
         assert "in RAM only (coef_source U)" in in_ram.stdout
@@ -205,8 +221,10 @@ class TamperedLine:
         complete, end, self._partial = data.rpartition(b"\n")
         lines = (complete + end).splitlines(keepends=True)
         if self._rewrite is not None:
-            lines = [self._rewrite(parse_line(line.decode("ascii"))).encode() if line.startswith(b"$") else line
-                     for line in lines]
+            lines = [
+                self._rewrite(parse_line(line.decode("ascii"))).encode() if line.startswith(b"$") else line
+                for line in lines
+            ]
         injected, self._injected = self._injected, b""
         return b"".join(lines) + injected
 
@@ -238,6 +256,7 @@ def on_reset(action):
         if command.type != "RESET":
             return True
         return action(line, command)
+
     return on_command
 
 
@@ -265,19 +284,38 @@ def lose_the_sensor(line, command):
 
 FAILURES = {
     # name: (on_command, rewrite, message, saved)
-    "read back differs": (None, rewrite_coe_cy, "GETCOE C Y read back p10 = -1.2813e+01, sent -12.8000002; "
-                          "nothing saved", False),
+    "read back differs": (
+        None,
+        rewrite_coe_cy,
+        "GETCOE C Y read back p10 = -1.2813e+01, sent -12.8000002; nothing saved",
+        False,
+    ),
     "another protocol": (None, rewrite_protocol, "speaks protocol 1, this host 2", False),
-    "EEPROM damaged before the reset": (on_reset(damage_eeprom), None, "after the reset the board runs "
-                                        "coef_source D, not E (it reported EEPROM_CRC DEFAULTS)", True),
-    "no restart": (on_reset(acknowledge_without_reset), None, "the board did not come back within 3 s of "
-                   "RESET", True),
-    "a hang, not a commanded reset": (on_reset(hang_instead), None, "after RESET the board reported "
-                                      "reset_cause WATCHDOG, not COMMANDED (it reported RESET WATCHDOG)", True),
-    "IMU frames say D": (None, rewrite_imu_source, "after the reset the board sent IMU frames with coef_source "
-                         "D, not E", True),
-    "no IMU frame after the reset": (on_reset(lose_the_sensor), None, "no IMU frame from the board within 3 s "
-                                     "after the reset (it reported SENSOR_MISSING NO_ANSWER", True),
+    "EEPROM damaged before the reset": (
+        on_reset(damage_eeprom),
+        None,
+        "after the reset the board runs coef_source D, not E (it reported EEPROM_CRC DEFAULTS)",
+        True,
+    ),
+    "no restart": (on_reset(acknowledge_without_reset), None, "the board did not come back within 3 s of RESET", True),
+    "a hang, not a commanded reset": (
+        on_reset(hang_instead),
+        None,
+        "after RESET the board reported reset_cause WATCHDOG, not COMMANDED (it reported RESET WATCHDOG)",
+        True,
+    ),
+    "IMU frames say D": (
+        None,
+        rewrite_imu_source,
+        "after the reset the board sent IMU frames with coef_source D, not E",
+        True,
+    ),
+    "no IMU frame after the reset": (
+        on_reset(lose_the_sensor),
+        None,
+        "no IMU frame from the board within 3 s after the reset (it reported SENSOR_MISSING NO_ANSWER",
+        True,
+    ),
 }
 
 
@@ -303,8 +341,9 @@ def test_a_surface_the_board_refuses_stops_before_anything_is_saved(fit_dir):
     table = read_table(write_fit(fit_dir.parent / "refused-cz", {**FITTED, ("C", "Z"): Surface(2e7, 0, 0, 0, 0, 0)}))
     with imu_board() as board:
         line = TamperedLine(board)
-        with pytest.raises(UploadError, match="SETCOE C Z refused by the board: BAD_ARG OUTPUT_TOO_LARGE; "
-                                              "nothing saved"):
+        with pytest.raises(
+            UploadError, match="SETCOE C Z refused by the board: BAD_ARG OUTPUT_TOO_LARGE; nothing saved"
+        ):
             upload_table(line, table)
         assert board.read_eeprom(0, BLOCK_SIZE) == BLANK
     assert line.commands.count("SETCOE") == 6 and "SAVECOE" not in line.commands
@@ -384,7 +423,10 @@ def set_cy_p02_nan(document) -> None:
         (lambda tmp: corrupt_json(tmp / "garbage", "{not json"), "not a coefficients.json written by thermotilt fit"),
         (lambda tmp: corrupt_json(tmp / "empty", '{"fits": {}}'), "no fitted surface to upload"),
         (lambda tmp: edited_fit(tmp / "unknown", rename_wx_to_qx), "unknown surface 'QX'"),
-        (lambda tmp: edited_fit(tmp / "huge", set_wx_p00_beyond_float32), "WX p00 = 1e+39, which the firmware's float32 cannot hold"),
+        (
+            lambda tmp: edited_fit(tmp / "huge", set_wx_p00_beyond_float32),
+            "WX p00 = 1e+39, which the firmware's float32 cannot hold",
+        ),
         (lambda tmp: edited_fit(tmp / "nan", set_cy_p02_nan), "CY p02 = nan"),
     ],
     ids=["missing", "not-json", "no-fits", "unknown-surface", "beyond-float32", "nan"],
@@ -408,8 +450,12 @@ def test_a_missing_port_and_a_silent_board_are_one_line(cli_in_process, fit_dir,
 
 @pytest.mark.parametrize(
     ("content", "message"),
-    [(None, "cannot read"), (b"\x54\x01" * 5, "10 bytes; --eeprom takes the 148-byte coefficient block"),
-     (b"\xff" * 200, "200 bytes; --eeprom takes"), (b"\xff" * 1025, "more than 1024 bytes")],
+    [
+        (None, "cannot read"),
+        (b"\x54\x01" * 5, "10 bytes; --eeprom takes the 148-byte coefficient block"),
+        (b"\xff" * 200, "200 bytes; --eeprom takes"),
+        (b"\xff" * 1025, "more than 1024 bytes"),
+    ],
     ids=["missing", "short", "between", "long"],
 )
 def test_simulate_eeprom_of_the_wrong_size_is_one_line(tmp_path, capsys, content, message):
@@ -453,11 +499,17 @@ def test_a_runs_saved_eeprom_starts_the_next_run(fit_dir, tmp_path):
     """What the IMU saved in one run (imu_reader_eeprom.bin) is what it
     starts with in the next, as a real board keeps its EEPROM."""
     first, second = tmp_path / "first", tmp_path / "second"
-    assert run("simulate", "idle", "--duration", "2", "--eeprom", fit_dir / "coefficients.bin",
-               "--out", first).returncode == 0
+    assert (
+        run("simulate", "idle", "--duration", "2", "--eeprom", fit_dir / "coefficients.bin", "--out", first).returncode
+        == 0
+    )
     saved = (first / "imu_reader_eeprom.bin").read_bytes()
     assert len(saved) == 1024 and saved[:BLOCK_SIZE] == (fit_dir / "coefficients.bin").read_bytes()
-    assert run("simulate", "idle", "--duration", "2", "--eeprom", first / "imu_reader_eeprom.bin",
-               "--out", second).returncode == 0
+    assert (
+        run(
+            "simulate", "idle", "--duration", "2", "--eeprom", first / "imu_reader_eeprom.bin", "--out", second
+        ).returncode
+        == 0
+    )
     assert {row["coef_source"] for row in read_run_log(str(second / "run.csv"))} == {"E"}
     assert (second / "imu_reader_eeprom.bin").read_bytes() == saved

@@ -30,11 +30,18 @@ def write_field_log(path, temperatures, set_name="W", compensated=True, blank_ev
             ax = OFFSET_X + WARMING_X.evaluate(temperature, OFFSET_X) - WARMING_X.evaluate(25.0, OFFSET_X)
             ay = OFFSET_Y - 10.0 * (temperature - 25.0)
             row = {column: "" for column in COLUMNS}
-            row.update(time_s=f"{index / 10:.3f}", imu_temp_c=f"{temperature:.3f}", comp_set=set_name,
-                       coef_source="D", incl_x_deg="0.00", incl_y_deg="0.00",
-                       ax_filt=f"{ax:.1f}", ay_filt=f"{ay:.1f}",
-                       ax_comp=f"{OFFSET_X if compensated else ax:.1f}",
-                       ay_comp=f"{OFFSET_Y if compensated else ay:.1f}")
+            row.update(
+                time_s=f"{index / 10:.3f}",
+                imu_temp_c=f"{temperature:.3f}",
+                comp_set=set_name,
+                coef_source="D",
+                incl_x_deg="0.00",
+                incl_y_deg="0.00",
+                ax_filt=f"{ax:.1f}",
+                ay_filt=f"{ay:.1f}",
+                ax_comp=f"{OFFSET_X if compensated else ax:.1f}",
+                ay_comp=f"{OFFSET_Y if compensated else ay:.1f}",
+            )
             if blank_every and index % blank_every == 0:
                 row["ax_filt"] = ""
             writer.writerow(row)
@@ -49,8 +56,9 @@ def test_rms_is_taken_about_the_25c_reading(tmp_path):
     # Y is a line: its 25 degC reading is exact, its RMS that of -10 (T - 25).
     # The cells hold 0.1 LSB, so the RMS is known to 0.05 LSB.
     assert y.rms_before_lsb == pytest.approx(10.0 * np.sqrt(np.mean(relative**2)), abs=0.05)
-    expected_x = np.sqrt(np.mean((WARMING_X.evaluate(temperatures, OFFSET_X)
-                                  - WARMING_X.evaluate(25.0, OFFSET_X)) ** 2))
+    expected_x = np.sqrt(
+        np.mean((WARMING_X.evaluate(temperatures, OFFSET_X) - WARMING_X.evaluate(25.0, OFFSET_X)) ** 2)
+    )
     # X is curved: a line through +-1.5 degC reads p20 * 1.5^2 / 3 = 0.08 LSB off at 25 degC on average.
     assert x.rms_before_lsb == pytest.approx(expected_x, abs=0.3)
     assert x.rms_after_lsb == pytest.approx(0.0, abs=0.05)
@@ -91,21 +99,34 @@ def test_the_report_has_the_table_and_the_figure(tmp_path, capsys):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("make, arguments, status, message", [
-    # A run without a log is an argument error, found before anything heavy is imported.
-    (lambda folder: None, [], 2, "no run log"),
-    (lambda folder: (folder / "run.csv").write_text("time_s,ax\n1,2\n"), [], 1, "the header is not run.csv's"),
-    (lambda folder: (folder / "run.csv").write_text(",".join(COLUMNS) + "\n1,2\n"), [], 1, "row 1 has 2 cells"),
-    (lambda folder: write_field_log(folder / "run.csv", [20.0, 25.0], set_name=""), [], 1, "no row with"),
-    (lambda folder: write_field_log(folder / "run.csv", [20.0, 25.0]), ["--coefficients", "nofit"], 1,
-     "nofit/coefficients.json: cannot read"),
-])
+@pytest.mark.parametrize(
+    "make, arguments, status, message",
+    [
+        # A run without a log is an argument error, found before anything heavy is imported.
+        (lambda folder: None, [], 2, "no run log"),
+        (lambda folder: (folder / "run.csv").write_text("time_s,ax\n1,2\n"), [], 1, "the header is not run.csv's"),
+        (lambda folder: (folder / "run.csv").write_text(",".join(COLUMNS) + "\n1,2\n"), [], 1, "row 1 has 2 cells"),
+        (lambda folder: write_field_log(folder / "run.csv", [20.0, 25.0], set_name=""), [], 1, "no row with"),
+        (
+            lambda folder: write_field_log(folder / "run.csv", [20.0, 25.0]),
+            ["--coefficients", "nofit"],
+            1,
+            "nofit/coefficients.json: cannot read",
+        ),
+    ],
+)
 def test_bad_validate_input_is_one_line(tmp_path, make, arguments, status, message):
     folder = tmp_path / "run"
     folder.mkdir()
     make(folder)
-    result = run([*THERMOTILT, "validate", str(folder), *arguments], capture_output=True,
-                 text=True, timeout=60, check=False, cwd=tmp_path)
+    result = run(
+        [*THERMOTILT, "validate", str(folder), *arguments],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+        cwd=tmp_path,
+    )
     assert result.returncode == status
     assert result.stderr.count("\n") == 1 and "Traceback" not in result.stderr
     assert message in result.stderr
@@ -118,8 +139,13 @@ def test_host_compensation_equals_the_firmwares(tmp_path):
     (lib/Compensation, float32, with the paper's defaults) and the host's
     (float64) on the same printed rows."""
     out = tmp_path / "field"
-    result = run([*THERMOTILT, "simulate", "field-warming", "--duration", "300", "--out", str(out)],
-                 capture_output=True, text=True, timeout=300, check=False)
+    result = run(
+        [*THERMOTILT, "simulate", "field-warming", "--duration", "300", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
     assert result.returncode == 0, result.stderr
     firmware = validate(out)
     host = validate(out, load_coefficients("paper"))
@@ -131,8 +157,7 @@ def test_host_compensation_equals_the_firmwares(tmp_path):
         # temperature (0.0005 degC x ~25 LSB/degC), the firmware's output is
         # printed to 0.05 LSB, and float32 adds < 0.01 LSB (Compensation.cpp).
         assert np.nanmax(np.abs(difference)) <= 0.05 + 0.0125 + 0.05 + 0.01, axis
-        assert host.result("W", axis).rms_after_lsb == pytest.approx(
-            firmware.result("W", axis).rms_after_lsb, abs=0.1)
+        assert host.result("W", axis).rms_after_lsb == pytest.approx(firmware.result("W", axis).rms_after_lsb, abs=0.1)
     assert host.firmware_difference_lsb <= 0.05 + 0.0125 + 0.05 + 0.01
     assert host.sources == "coef_source D"
     summary = json.loads((out / "summary.json").read_text())
@@ -141,8 +166,7 @@ def test_host_compensation_equals_the_firmwares(tmp_path):
 
 def test_the_papers_figures_stand_beside_the_set_its_test_used():
     results = [AxisResult("W", "X", 200, 7.8, 26.1, 0), AxisResult("C", "X", 3000, 121.8, 2.1, 0)]
-    validation = Validation("run.csv", 3200, 0, (16.0, 26.0), "the firmware's output", "coef_source E", None,
-                            results)
+    validation = Validation("run.csv", 3200, 0, (16.0, 26.0), "the firmware's output", "coef_source E", None, results)
     table = format_validation(validation, {("C", "X"): (122.0, 4.0)}).splitlines()
     warming = next(line for line in table if line.startswith("warming"))
     cooling = next(line for line in table if line.startswith("cooling"))

@@ -17,9 +17,12 @@ def pty_twin(out: Path, scenario: str = "idle", *options):
     """Yields {"imu_reader": path, "thermal_chamber": path}. The twin races
     (`--realtime off`): the clients under test take simulated time as it
     comes, and test_realtime.py covers the pacing a user gets by default."""
-    process = popen([*THERMOTILT, "simulate", scenario, "--pty", "--realtime", "off",
-                     "--out", str(out), *map(str, options)],
-                    stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    process = popen(
+        [*THERMOTILT, "simulate", scenario, "--pty", "--realtime", "off", "--out", str(out), *map(str, options)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         try:
             ports = announced_ports(process.stdout)

@@ -20,8 +20,7 @@ from .wire.protocol_spec import PROTOCOL_VERSION
 
 def build_parser() -> ArgumentParser:
     parser = ArgumentParser(prog=PROGRAM, description="ThermoTilt host tools.")
-    parser.add_argument("--version", action="version",
-                        version=f"{PROGRAM} {__version__} (protocol {PROTOCOL_VERSION})")
+    parser.add_argument("--version", action="version", version=f"{PROGRAM} {__version__} (protocol {PROTOCOL_VERSION})")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for wing in (wire, twin, calibration, discovery):
         wing.add_commands(commands)

@@ -89,8 +89,20 @@ def _load_library(path: Path) -> ctypes.CDLL:
     except OSError as error:
         raise NativeLibraryError(f"cannot load {path}: {error}") from None
     pointer, size, single = ctypes.c_void_p, ctypes.c_size_t, ctypes.c_float
-    arguments = [size, pointer, pointer, pointer, ctypes.c_uint, single, pointer,
-                 pointer, pointer, pointer, pointer, pointer]
+    arguments = [
+        size,
+        pointer,
+        pointer,
+        pointer,
+        ctypes.c_uint,
+        single,
+        pointer,
+        pointer,
+        pointer,
+        pointer,
+        pointer,
+        pointer,
+    ]
     prototypes: dict[str, tuple[type, list[type]]] = {
         "thermotilt_host_abi_version": (ctypes.c_int, []),
         "thermotilt_imu_process": (ctypes.c_int, arguments),
@@ -98,8 +110,10 @@ def _load_library(path: Path) -> ctypes.CDLL:
         "thermotilt_program_steps": (ctypes.c_int, [size, pointer, pointer, pointer, pointer, pointer]),
         "thermotilt_trend_sets": (ctypes.c_int, [size, pointer, single, pointer]),
         "thermotilt_surface_corrections": (ctypes.c_int, [size, pointer, pointer, pointer, pointer]),
-        "thermotilt_chamber_drive": (ctypes.c_int, [size, pointer, pointer, single, single, single,
-                                                    ctypes.c_uint8, pointer, pointer]),
+        "thermotilt_chamber_drive": (
+            ctypes.c_int,
+            [size, pointer, pointer, single, single, single, ctypes.c_uint8, pointer, pointer],
+        ),
     }
     for name, (result, argument_types) in prototypes.items():
         try:
@@ -110,8 +124,9 @@ def _load_library(path: Path) -> ctypes.CDLL:
         function.argtypes = argument_types
     version = library.thermotilt_host_abi_version()
     if version != _ABI_VERSION:
-        raise NativeLibraryError(f"{path} has interface version {version}, this host needs {_ABI_VERSION}: "
-                                 f"run `make build`")
+        raise NativeLibraryError(
+            f"{path} has interface version {version}, this host needs {_ABI_VERSION}: run `make build`"
+        )
     return library
 
 
@@ -140,8 +155,7 @@ def _integers(values: Any, allowed: range, what: str) -> np.ndarray:
     if array.dtype.kind == "b" or array.dtype.kind not in "iuf":
         raise ValueError(f"{what} must hold integers, not {array.dtype}")
     if array.dtype.kind == "f" and not (np.all(np.isfinite(array)) and np.all(array == np.round(array))):
-        raise ValueError(f"{what} must hold integers (the sensor's registers); "
-                         f"imu_process_unrounded takes fractions")
+        raise ValueError(f"{what} must hold integers (the sensor's registers); imu_process_unrounded takes fractions")
     low, high = array.min(), array.max()
     if low < allowed.start or high >= allowed.stop:
         raise ValueError(f"{what} must lie in {allowed.start}..{allowed.stop - 1}, not {low}..{high}")
@@ -179,8 +193,9 @@ def _coefficients(coefficients: CoefficientTable | Iterable[float] | None) -> np
         coefficients = coefficients.values()
     array = np.asarray(coefficients, dtype=np.float64).reshape(-1)
     if array.size != COEFFICIENT_COUNT:
-        raise ValueError(f"need {COEFFICIENT_COUNT} coefficients (set W, C x axis X, Y, Z x p00..p02), "
-                         f"got {array.size}")
+        raise ValueError(
+            f"need {COEFFICIENT_COUNT} coefficients (set W, C x axis X, Y, Z x p00..p02), got {array.size}"
+        )
     return _floats(array, "coefficients")
 
 
@@ -196,8 +211,15 @@ def _settings(decimation: int, hysteresis_c: float) -> tuple[int, float]:
     return factor, float(hysteresis_c)
 
 
-def _run(function_name: str, axes: tuple[np.ndarray, ...], temperature: np.ndarray, reset: Any,
-         decimation: int, hysteresis_c: float, coefficients: Any) -> dict[str, np.ndarray]:
+def _run(
+    function_name: str,
+    axes: tuple[np.ndarray, ...],
+    temperature: np.ndarray,
+    reset: Any,
+    decimation: int,
+    hysteresis_c: float,
+    coefficients: Any,
+) -> dict[str, np.ndarray]:
     count = temperature.size
     for name, axis in zip(("ax", "ay", "az"), axes, strict=True):
         if axis.size != count:
@@ -217,8 +239,19 @@ def _run(function_name: str, axes: tuple[np.ndarray, ...], temperature: np.ndarr
         return None if array is None else array.ctypes.data
 
     status = getattr(loaded, function_name)(
-        count, address(accel), address(temperature), address(flags), factor, hysteresis, address(table),
-        address(filtered), address(temperature_c), address(sets), address(compensated), address(due))
+        count,
+        address(accel),
+        address(temperature),
+        address(flags),
+        factor,
+        hysteresis,
+        address(table),
+        address(filtered),
+        address(temperature_c),
+        address(sets),
+        address(compensated),
+        address(due),
+    )
     if status != _OK:
         raise NativeLibraryError(f"{function_name} refused its arguments (status {status})")
     return {
@@ -280,15 +313,20 @@ def imu_process_unrounded(
     imu_process returns."""
     temperature = _floats(temperature_c, "temperature_c")
     axes = tuple(_floats(values, name) for name, values in (("ax", ax), ("ay", ay), ("az", az)))
-    return _run("thermotilt_imu_process_unrounded", axes, temperature, reset, decimation, hysteresis_c,
-                coefficients)
+    return _run("thermotilt_imu_process_unrounded", axes, temperature, reset, decimation, hysteresis_c, coefficients)
 
 
 DRIVE_OFF, DRIVE_HEAT, DRIVE_COOL = 0, 1, 2  # lib/ChamberControl's Direction
 
 
-def chamber_drive(setpoint_c: Any, measured_c: Any, dt_s: float, proportional_gain: float = PAPER_PROPORTIONAL_GAIN,
-                  integral_gain: float = 0.0, rounded_error: bool = False) -> tuple[np.ndarray, np.ndarray]:
+def chamber_drive(
+    setpoint_c: Any,
+    measured_c: Any,
+    dt_s: float,
+    proportional_gain: float = PAPER_PROPORTIONAL_GAIN,
+    integral_gain: float = 0.0,
+    rounded_error: bool = False,
+) -> tuple[np.ndarray, np.ndarray]:
     """(pwm 0..255, direction DRIVE_*) per sample: one lib/ChamberControl
     controller updated with each setpoint and measured temperature in order,
     dt_s apart (float32, as on the Mega)."""
@@ -298,9 +336,17 @@ def chamber_drive(setpoint_c: Any, measured_c: Any, dt_s: float, proportional_ga
         raise ValueError(f"setpoint_c has {setpoint.size} values and measured_c {measured.size}")
     pwm = np.zeros(setpoint.size, np.uint8)
     direction = np.zeros(setpoint.size, np.uint8)
-    status = library().thermotilt_chamber_drive(setpoint.size, setpoint.ctypes.data, measured.ctypes.data, dt_s,
-                                                proportional_gain, integral_gain, rounded_error,
-                                                pwm.ctypes.data, direction.ctypes.data)
+    status = library().thermotilt_chamber_drive(
+        setpoint.size,
+        setpoint.ctypes.data,
+        measured.ctypes.data,
+        dt_s,
+        proportional_gain,
+        integral_gain,
+        rounded_error,
+        pwm.ctypes.data,
+        direction.ctypes.data,
+    )
     if status != _OK:
         raise NativeLibraryError("thermotilt_chamber_drive refused its arguments")
     return pwm, direction

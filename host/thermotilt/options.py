@@ -141,23 +141,41 @@ def read_at_most(path: str, limit: int) -> bytes:
 def add_model_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=seed, default=1, help="noise seed (default 1)")
     parser.add_argument("--model", help="physics model file (default: the packaged default.toml)")
-    parser.add_argument("--enable", action="append", default=[], metavar="TERM",
-                        help="switch a model term on (repeatable)")
-    parser.add_argument("--disable", action="append", default=[], metavar="TERM",
-                        help="switch a model term off (repeatable)")
+    parser.add_argument(
+        "--enable", action="append", default=[], metavar="TERM", help="switch a model term on (repeatable)"
+    )
+    parser.add_argument(
+        "--disable", action="append", default=[], metavar="TERM", help="switch a model term off (repeatable)"
+    )
 
 
 def add_program_options(parser: argparse.ArgumentParser) -> None:
     """The chamber program's settings, shared by simulate and campaign."""
-    parser.add_argument("--hold-seconds", type=within(int, *HOLD_SECONDS_RANGE), default=PAPER_HOLD_S,
-                        help=f"time per chamber step (default {PAPER_HOLD_S}, the paper's)")
-    parser.add_argument("--rest-seconds", type=within(int, *REST_SECONDS_RANGE), default=DEFAULT_REST_S,
-                        help=f"Peltier-off rest after each cycle (default {DEFAULT_REST_S})")
+    parser.add_argument(
+        "--hold-seconds",
+        type=within(int, *HOLD_SECONDS_RANGE),
+        default=PAPER_HOLD_S,
+        help=f"time per chamber step (default {PAPER_HOLD_S}, the paper's)",
+    )
+    parser.add_argument(
+        "--rest-seconds",
+        type=within(int, *REST_SECONDS_RANGE),
+        default=DEFAULT_REST_S,
+        help=f"Peltier-off rest after each cycle (default {DEFAULT_REST_S})",
+    )
     parser.add_argument("--ambient", type=ambient, help="ambient temperature for chamber scenarios")
-    parser.add_argument("--controller", choices=tuple(CONTROLLERS), default=DEFAULT_CONTROLLER,
-                        help="chamber control law: float (the paper's P law, the firmware default) or "
-                             "rounded-error (P on the error rounded to whole degC, a hypothesis about "
-                             "the paper's code)")
-    parser.add_argument("--hold-start", choices=HOLD_STARTS, default=DEFAULT_HOLD_START,
-                        help="when a step's hold starts: T timed, F the first step of each cycle waits "
-                             "for its setpoint, A every step waits (default)")
+    parser.add_argument(
+        "--controller",
+        choices=tuple(CONTROLLERS),
+        default=DEFAULT_CONTROLLER,
+        help="chamber control law: float (the paper's P law, the firmware default) or "
+        "rounded-error (P on the error rounded to whole degC, a hypothesis about "
+        "the paper's code)",
+    )
+    parser.add_argument(
+        "--hold-start",
+        choices=HOLD_STARTS,
+        default=DEFAULT_HOLD_START,
+        help="when a step's hold starts: T timed, F the first step of each cycle waits "
+        "for its setpoint, A every step waits (default)",
+    )

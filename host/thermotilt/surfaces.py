@@ -28,14 +28,7 @@ class Surface(NamedTuple):
     p02: float
 
     def evaluate(self, x: float, y: float) -> float:
-        return (
-            self.p00
-            + self.p10 * x
-            + self.p01 * y
-            + self.p20 * x * x
-            + self.p11 * x * y
-            + self.p02 * y * y
-        )
+        return self.p00 + self.p10 * x + self.p01 * y + self.p20 * x * x + self.p11 * x * y + self.p02 * y * y
 
 
 ZERO_SURFACE = Surface(0.0, 0.0, 0.0, 0.0, 0.0, 0.0)

@@ -102,16 +102,22 @@ class Figures:
 PAGE = generated_page.DOCS / "performance.md"
 
 
-def write_page(path: Path, rows: list[tuple[str, str, str]], started: datetime.datetime,
-               load_at_start: str) -> None:
-    generated_page.write(path, [
-        "# Performance", "",
-        "How fast the digital twin runs, how much of each board's CPU and RAM the firmware uses, how "
-        "long the fits take and how many corrupted frames the line check lets through. What each figure "
-        "measures and its target are in `host/tools/bench.py`; the targets are for a person to compare, "
-        "the bench asserts nothing.", "",
-        *generated_page.stamp("make bench", started, load_at_start), "",
-        *generated_page.table(("figure", "value", "note"), rows)])
+def write_page(path: Path, rows: list[tuple[str, str, str]], started: datetime.datetime, load_at_start: str) -> None:
+    generated_page.write(
+        path,
+        [
+            "# Performance",
+            "",
+            "How fast the digital twin runs, how much of each board's CPU and RAM the firmware uses, how "
+            "long the fits take and how many corrupted frames the line check lets through. What each figure "
+            "measures and its target are in `host/tools/bench.py`; the targets are for a person to compare, "
+            "the bench asserts nothing.",
+            "",
+            *generated_page.stamp("make bench", started, load_at_start),
+            "",
+            *generated_page.table(("figure", "value", "note"), rows),
+        ],
+    )
 
 
 def physics_step_us(model: Model, steps: int = 20000) -> tuple[float, float]:
@@ -129,17 +135,23 @@ def physics_step_us(model: Model, steps: int = 20000) -> tuple[float, float]:
 
 def speed_line(figures: Figures, label: str, simulated_s: float, wall_s: float, target: str = "") -> float:
     speed = simulated_s / wall_s
-    figures.add(f"twin speed, {label}", f"{speed:.1f}x real time",
-                f"{simulated_s:.0f} s simulated in {wall_s:.1f} s wall{target}")
+    figures.add(
+        f"twin speed, {label}",
+        f"{speed:.1f}x real time",
+        f"{simulated_s:.0f} s simulated in {wall_s:.1f} s wall{target}",
+    )
     return speed
 
 
 def awake_line(figures: Figures, name: str, report: BoardReport, doing: str, target: str = "") -> None:
     awake, asleep = report.awake_cycles, report.sleep_cycles
     seconds = (awake + asleep) / DEFAULT_FREQUENCY_HZ
-    figures.add(f"{name} CPU awake, {doing}", f"{100 * awake / (awake + asleep):.1f} % of cycles",
-                f"{awake / seconds / 1e6:.2f} M cycles executed and {asleep / seconds / 1e6:.2f} M slept "
-                f"a simulated second{target}")
+    figures.add(
+        f"{name} CPU awake, {doing}",
+        f"{100 * awake / (awake + asleep):.1f} % of cycles",
+        f"{awake / seconds / 1e6:.2f} M cycles executed and {asleep / seconds / 1e6:.2f} M slept "
+        f"a simulated second{target}",
+    )
 
 
 CHAMBER_ALONE_S = 600.0
@@ -164,8 +176,9 @@ def chamber_alone_seconds(model: Model) -> float:
                 board.write_uart(build_frame(command.frame_type, next(sequence), command.values).encode())
             drive = board.read_l298n()
             chamber.step(simulate.STEP_S, drive.duty, drive.direction, ambient)
-            for channel, millivolts in zip((simulate.INNER_THERMISTOR_CHANNEL, simulate.OUTER_THERMISTOR_CHANNEL),
-                                           chamber.thermistor_millivolts()):
+            for channel, millivolts in zip(
+                (simulate.INNER_THERMISTOR_CHANNEL, simulate.OUTER_THERMISTOR_CHANNEL), chamber.thermistor_millivolts()
+            ):
                 board.set_adc_millivolts(channel, millivolts)
             board.run_until((step + 1) * simulate.STEP_S)
             board.read_uart()
@@ -201,52 +214,78 @@ def step_breakdown(figures: Figures, timing: simulate.StepTiming, steps: int, bo
         "other (schedule, loop)": seconds["other"],
     }
     total = sum(seconds.values())
-    figures.add("coupled step (fig8, 10 ms simulated), wall time", f"{total / steps * 1e6:.0f} us",
-                ", ".join(f"{label} {100 * part / total:.0f} %" for label, part in shares.items()))
-    figures.add("coupled step, Python against simavr",
-                f"Python {100 * (total - simavr) / total:.0f} %, simavr {100 * simavr / total:.0f} %")
+    figures.add(
+        "coupled step (fig8, 10 ms simulated), wall time",
+        f"{total / steps * 1e6:.0f} us",
+        ", ".join(f"{label} {100 * part / total:.0f} %" for label, part in shares.items()),
+    )
+    figures.add(
+        "coupled step, Python against simavr",
+        f"Python {100 * (total - simavr) / total:.0f} %, simavr {100 * simavr / total:.0f} %",
+    )
 
 
 def speed_and_awake(figures: Figures, model: Model) -> None:
     with tempfile.TemporaryDirectory() as scratch:
-        imu = simulate.run(build("field-warming", ScenarioOptions(duration_s=600)), model,
-                           Path(scratch) / "field").summary
+        imu = simulate.run(
+            build("field-warming", ScenarioOptions(duration_s=600)), model, Path(scratch) / "field"
+        ).summary
         speed_line(figures, "IMU alone, field-warming (10 min)", imu.sim_seconds, imu.wall_seconds)
-        speed_line(figures, "chamber alone, a cycle's program (10 min)", CHAMBER_ALONE_S,
-                   chamber_alone_seconds(model))
+        speed_line(figures, "chamber alone, a cycle's program (10 min)", CHAMBER_ALONE_S, chamber_alone_seconds(model))
         # Timed, its laps add about 1.5 us to a step of 150-250.
         timing = simulate.StepTiming()
         fig8 = simulate.run(build("fig8", ScenarioOptions()), model, Path(scratch) / "fig8", timing=timing).summary
-        speed_line(figures, "both boards coupled, fig8", fig8.sim_seconds, fig8.wall_seconds,
-                   f"; target >= {COUPLED_TARGET_X_REAL_TIME:.0f}x on one core")
+        speed_line(
+            figures,
+            "both boards coupled, fig8",
+            fig8.sim_seconds,
+            fig8.wall_seconds,
+            f"; target >= {COUPLED_TARGET_X_REAL_TIME:.0f}x on one core",
+        )
         step_breakdown(figures, timing, round(fig8.sim_seconds / simulate.STEP_S), len(fig8.boards))
-        position = simulate.run(build("campaign", ScenarioOptions(hold_s=1, positions=("0",))), model,
-                                Path(scratch) / "campaign").summary
-    speed = speed_line(figures, "one campaign position, 1 s holds (simulate campaign --positions 0 "
-                       "--hold-seconds 1)", position.sim_seconds, position.wall_seconds)
+        position = simulate.run(
+            build("campaign", ScenarioOptions(hold_s=1, positions=("0",))), model, Path(scratch) / "campaign"
+        ).summary
+    speed = speed_line(
+        figures,
+        "one campaign position, 1 s holds (simulate campaign --positions 0 --hold-seconds 1)",
+        position.sim_seconds,
+        position.wall_seconds,
+    )
     # `thermotilt campaign --twin` runs each position as a cycle with 60 s holds, ending with its program.
     position_s = build("cycle", ScenarioOptions()).duration_s
     minutes = CAMPAIGN_POSITIONS * position_s / speed / CORES / 60
-    figures.add(f"the paper's campaign in the twin ({CAMPAIGN_POSITIONS} positions, 60 s holds), estimated",
-                f"{minutes:.0f} min",
-                f"each position at most {position_s:.0f} s simulated, at the campaign position's speed, "
-                f"{CORES} at a time; estimated, not run; target <= {CAMPAIGN_TARGET_MINUTES:.0f} min on a "
-                f"2-core machine")
-    awake_line(figures, "imu_reader", imu.boards[simulate.IMU],
-               "100 Hz sampling, decimation 10, a 10 min field run from boot",
-               f"; target <= {100 * IMU_AWAKE_TARGET:.0f} %")
-    awake_line(figures, "thermal_chamber", fig8.boards[simulate.CHAMBER],
-               "running fig8's program (control every 250 ms)")
+    figures.add(
+        f"the paper's campaign in the twin ({CAMPAIGN_POSITIONS} positions, 60 s holds), estimated",
+        f"{minutes:.0f} min",
+        f"each position at most {position_s:.0f} s simulated, at the campaign position's speed, "
+        f"{CORES} at a time; estimated, not run; target <= {CAMPAIGN_TARGET_MINUTES:.0f} min on a "
+        f"2-core machine",
+    )
+    awake_line(
+        figures,
+        "imu_reader",
+        imu.boards[simulate.IMU],
+        "100 Hz sampling, decimation 10, a 10 min field run from boot",
+        f"; target <= {100 * IMU_AWAKE_TARGET:.0f} %",
+    )
+    awake_line(
+        figures, "thermal_chamber", fig8.boards[simulate.CHAMBER], "running fig8's program (control every 250 ms)"
+    )
 
 
 # Where the IMU's awake cycles go, by the first function up a sample's stack
 # that belongs to a stage. Vector numbers are the ATmega328P's.
 IMU_STAGES = (
     ("I2C: the TWI master and its ISR, the LSM9DS0 reads", r"SleepingTwi::|Lsm9ds0Accel::|__vector_24$"),
-    ("Kalman filters and compensation (lib/ImuProcessing)",
-     r"ImuProcessing::|KalmanFilter::|surfaceCorrection|TrendDetector::"),
-    ("frame formatting and printing: FrameWriter, float to text, CRC",
-     r"FrameWriter::|SerialLink::|dtostr|dtoa_prf|crc16Xmodem"),
+    (
+        "Kalman filters and compensation (lib/ImuProcessing)",
+        r"ImuProcessing::|KalmanFilter::|surfaceCorrection|TrendDetector::",
+    ),
+    (
+        "frame formatting and printing: FrameWriter, float to text, CRC",
+        r"FrameWriter::|SerialLink::|dtostr|dtoa_prf|crc16Xmodem",
+    ),
     ("UART: Uart0 and its ISRs", r"Uart0::|__vector_1[89]$"),
     ("clock tick: Clock's Timer1 compare ISR", r"__vector_11$"),
 )
@@ -313,18 +352,24 @@ def imu_profile(figures: Figures, model: Model) -> None:
         stages[imu_stage(names)] += samples
     kept = len(profile.samples)
     window = f"{PROFILE_START_S:.0f}..{PROFILE_START_S + PROFILE_SECONDS:.0f} s"
-    figures.add("imu_reader CPU awake, once the Kalman gain has settled", f"{100 * awake / (awake + asleep):.1f} % "
-                f"of cycles", f"{window}, sensor level with the model's noise, profiler on; "
-                f"target <= {100 * IMU_AWAKE_TARGET:.0f} %")
+    figures.add(
+        "imu_reader CPU awake, once the Kalman gain has settled",
+        f"{100 * awake / (awake + asleep):.1f} % of cycles",
+        f"{window}, sensor level with the model's noise, profiler on; target <= {100 * IMU_AWAKE_TARGET:.0f} %",
+    )
     sampling = f"{kept} profiler samples over {window}, one every {profile.period_cycles} awake cycles"
     for stage, samples in stages.most_common():
         figures.add(f"imu_reader awake cycles: {stage}", f"{100 * samples / kept:.1f} %", sampling)
-    figures.add("imu_reader awake cycles: top functions",
-                ", ".join(f"{without_parameters(name)} {100 * samples / kept:.1f} %"
-                          for name, samples in profile.by_function(symbols).most_common(6)),
-                "the profiler sees functions, not source lines: code LTO inlined counts as its caller's, e.g. "
-                "the Kalman filters as ImuProcessing::update's and the sample path as loop's; soft float and "
-                "division routines count as their caller's, and in the stages so do Clock's reads")
+    figures.add(
+        "imu_reader awake cycles: top functions",
+        ", ".join(
+            f"{without_parameters(name)} {100 * samples / kept:.1f} %"
+            for name, samples in profile.by_function(symbols).most_common(6)
+        ),
+        "the profiler sees functions, not source lines: code LTO inlined counts as its caller's, e.g. "
+        "the Kalman filters as ImuProcessing::update's and the sample path as loop's; soft float and "
+        "division routines count as their caller's, and in the stages so do Clock's reads",
+    )
 
 
 STACK_HEADROOM_TARGET_B = 300
@@ -333,19 +378,26 @@ STATIC_SECTIONS = (".data", ".bss", ".noinit")
 
 def static_ram(name: str) -> int:
     """Bytes of SRAM the image takes before the stack: .data, .bss and .noinit (avr-size)."""
-    sizes = subprocess.run(["avr-size", "-A", str(firmware_elf(name))], check=True, capture_output=True,
-                           text=True).stdout
-    return sum(int(fields[1]) for fields in map(str.split, sizes.splitlines())
-               if fields and fields[0] in STATIC_SECTIONS)
+    sizes = subprocess.run(
+        ["avr-size", "-A", str(firmware_elf(name))], check=True, capture_output=True, text=True
+    ).stdout
+    return sum(
+        int(fields[1]) for fields in map(str.split, sizes.splitlines()) if fields and fields[0] in STATIC_SECTIONS
+    )
 
 
 # One command at a time, as a host waits for each answer: sent back to back,
 # they overrun the board's 64-byte receive buffer while it answers the first.
 # SAVECOE's EEPROM writes take the longest, about 0.5 s.
 COMMAND_GAP_S = 0.6
-IMU_COMMANDS = [("GETCOE", ["W", "X"]), ("STATUS", []),
-                ("SETCOE", ["W", "X", 571.5, -20.23, 1.569e-3, -0.1044, -6.936e-5, 6.327e-9]),
-                ("RESEED", []), ("SAVECOE", []), ("RESET", [])]
+IMU_COMMANDS = [
+    ("GETCOE", ["W", "X"]),
+    ("STATUS", []),
+    ("SETCOE", ["W", "X", 571.5, -20.23, 1.569e-3, -0.1044, -6.936e-5, 6.327e-9]),
+    ("RESEED", []),
+    ("SAVECOE", []),
+    ("RESET", []),
+]
 CHAMBER_COMMANDS = [("SETPRG", [20, 30, 2, 60, 1200, 1, "A"]), ("START", []), ("STATUS", [])]
 
 
@@ -417,8 +469,13 @@ def families_seconds() -> tuple[float, int]:
     angles = np.radians(np.linspace(-45.0, 45.0, CAMPAIGN_POSITIONS))
     acceleration = np.repeat(16393.0 * np.sin(angles), rows)
     residual = -20.0 * (temperature - 25.0) + rng.standard_normal(temperature.size)
-    data = SetData(temperature, {"X": acceleration, "Y": acceleration}, {"X": residual, "Y": residual},
-                   np.repeat(np.arange(CAMPAIGN_POSITIONS), rows), rng.normal(0.0, 0.01, temperature.size))
+    data = SetData(
+        temperature,
+        {"X": acceleration, "Y": acceleration},
+        {"X": residual, "Y": residual},
+        np.repeat(np.arange(CAMPAIGN_POSITIONS), rows),
+        rng.normal(0.0, 0.01, temperature.size),
+    )
     campaign = Campaign(tuple(map(str, range(CAMPAIGN_POSITIONS))), {"W": data, "C": data}, 0)
     begin = time.perf_counter()
     compare_families(campaign, ("X", "Y"))
@@ -443,45 +500,60 @@ def scatter(model: Model, seed: int) -> None:
         out = Path(scratch) / "campaign"
         summary = simulate.run(build("campaign", SCATTER_OPTIONS), model, out, seed=seed).summary
         campaign = load(out, settle_s=SCATTER_SETTLE_S)
-        print(f"campaign {','.join(SCATTER_POSITIONS)}, {SCATTER_OPTIONS.hold_s} s holds: "
-              f"{summary.sim_seconds:.0f} s simulated in {summary.wall_seconds:.0f} s")
+        print(
+            f"campaign {','.join(SCATTER_POSITIONS)}, {SCATTER_OPTIONS.hold_s} s holds: "
+            f"{summary.sim_seconds:.0f} s simulated in {summary.wall_seconds:.0f} s"
+        )
         for axis in ("X", "Y"):
             for set_name in ("W", "C"):
                 fit = fit_surface(campaign.sets[set_name], set_name, axis)
                 paper = TABLES[(axis, set_name)].rmse
-                print(f"  {axis} {set_name}: RMSE {fit.rmse:5.2f} LSB, Tables 2-3 {paper:5.2f} "
-                      f"(x {fit.rmse / paper:.2f}), {fit.points} points")
+                print(
+                    f"  {axis} {set_name}: RMSE {fit.rmse:5.2f} LSB, Tables 2-3 {paper:5.2f} "
+                    f"(x {fit.rmse / paper:.2f}), {fit.points} points"
+                )
         for name, set_name in FIELD_SETS.items():
             out = Path(scratch) / name
             summary = simulate.run(build(name, ScenarioOptions()), model, out, seed=seed).summary
             validation = validate(out)
             low, high = validation.temperature_range_c
-            print(f"{name}: the IMU read {low:.2f}..{high:.2f} degC; "
-                  f"{summary.sim_seconds:.0f} s simulated in {summary.wall_seconds:.0f} s")
+            print(
+                f"{name}: the IMU read {low:.2f}..{high:.2f} degC; "
+                f"{summary.sim_seconds:.0f} s simulated in {summary.wall_seconds:.0f} s"
+            )
             for axis in ("X", "Y"):
                 result = validation.result(set_name, axis)
                 before, after = FIELD_RMS_LSB[(name, axis)]
-                print(f"  {axis}: RMS before {result.rms_before_lsb:6.1f} (paper {before:3.0f}), "
-                      f"after {result.rms_after_lsb:5.2f} (paper {after:2.0f}) LSB")
+                print(
+                    f"  {axis}: RMS before {result.rms_before_lsb:6.1f} (paper {before:3.0f}), "
+                    f"after {result.rms_after_lsb:5.2f} (paper {after:2.0f}) LSB"
+                )
 
 
 def memory(figures: Figures) -> None:
     for name, untouched, capacity in stack_use():
-        figures.add(f"{name} RAM", f"static {static_ram(name)} B, stack peak {capacity - untouched} B, "
-                    f"untouched {untouched} B", f"target: untouched >= {STACK_HEADROOM_TARGET_B} B")
+        figures.add(
+            f"{name} RAM",
+            f"static {static_ram(name)} B, stack peak {capacity - untouched} B, untouched {untouched} B",
+            f"target: untouched >= {STACK_HEADROOM_TARGET_B} B",
+        )
 
 
 def integrity(figures: Figures) -> None:
     """build/native/integrity_bench's figures: frames shaped like IMU, CHS,
     SETPRG and SETCOE through the twin's corruption code into the
     firmware's parser (docs/protocol.md, "Why a CRC")."""
-    output = subprocess.run([str(build_dir() / "native" / "integrity_bench")], check=True,
-                            capture_output=True, text=True).stdout
+    output = subprocess.run(
+        [str(build_dir() / "native" / "integrity_bench")], check=True, capture_output=True, text=True
+    ).stdout
     for line in output.splitlines():
         rate = re.match(r"\s*byte error rate ([0-9.]+): (.*)", line)
         if rate:
-            figures.add(f"corrupted frames accepted at {100 * float(rate[1]):g} % byte errors", rate[2],
-                        "target: at most 1 per million at 0.1 %")
+            figures.add(
+                f"corrupted frames accepted at {100 * float(rate[1]):g} % byte errors",
+                rate[2],
+                "target: at most 1 per million at 0.1 %",
+            )
 
 
 def write_campaign_logs(folder: Path, seed: int = 3) -> int:
@@ -511,17 +583,30 @@ def write_campaign_logs(folder: Path, seed: int = 3) -> int:
             for axis, angle in (("X", incl_x), ("Y", incl_y)):
                 level = 16393.0 * np.sin(np.radians(angle))
                 noise = np.cumsum(rng.normal(0.0, 0.3, rows)) * 0.05
-                drift = np.where(phase == "W", PAPER_DEFAULTS.surface("W", axis).evaluate(temperature, level),
-                                 PAPER_DEFAULTS.surface("C", axis).evaluate(temperature, level))
+                drift = np.where(
+                    phase == "W",
+                    PAPER_DEFAULTS.surface("W", axis).evaluate(temperature, level),
+                    PAPER_DEFAULTS.surface("C", axis).evaluate(temperature, level),
+                )
                 readings[axis] = level + drift + noise
             for row in range(rows):
-                writer.write_row({
-                    "time_s": f"{time_s[row]:.3f}", "ambient_c": "22.000", "setpoint_c": f"{setpoint[row]:.2f}",
-                    "chamber_c": f"{face[row]:.2f}", "phase": phase[row], "imu_temp_c": f"{temperature[row]:.3f}",
-                    "incl_x_deg": f"{incl_x:.2f}", "incl_y_deg": f"{incl_y:.2f}",
-                    "since_move_s": f"{time_s[row]:.2f}", "ax_filt": f"{readings['X'][row]:.1f}",
-                    "ay_filt": f"{readings['Y'][row]:.1f}", "comp_set": phase[row], "coef_source": "D",
-                })
+                writer.write_row(
+                    {
+                        "time_s": f"{time_s[row]:.3f}",
+                        "ambient_c": "22.000",
+                        "setpoint_c": f"{setpoint[row]:.2f}",
+                        "chamber_c": f"{face[row]:.2f}",
+                        "phase": phase[row],
+                        "imu_temp_c": f"{temperature[row]:.3f}",
+                        "incl_x_deg": f"{incl_x:.2f}",
+                        "incl_y_deg": f"{incl_y:.2f}",
+                        "since_move_s": f"{time_s[row]:.2f}",
+                        "ax_filt": f"{readings['X'][row]:.1f}",
+                        "ay_filt": f"{readings['Y'][row]:.1f}",
+                        "comp_set": phase[row],
+                        "coef_source": "D",
+                    }
+                )
             total += writer.rows
     return total
 
@@ -545,19 +630,37 @@ def fit_end_to_end(figures: Figures) -> None:
             pd.read_csv(log)
         parse_s = time.perf_counter() - begin
         begin = time.perf_counter()
-        subprocess.run([sys.executable, "-m", "thermotilt", "fit", str(campaign), "--out", str(Path(scratch) / "fit"),
-                        "--compare-families"], check=True, stdout=subprocess.DEVNULL)
+        subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "thermotilt",
+                "fit",
+                str(campaign),
+                "--out",
+                str(Path(scratch) / "fit"),
+                "--compare-families",
+            ],
+            check=True,
+            stdout=subprocess.DEVNULL,
+        )
         fit_s = time.perf_counter() - begin
     budget_s = FIT_PARSE_FACTOR * parse_s + FIT_FIXED_S
-    figures.add("fit --compare-families, 37 positions end to end", f"{fit_s:.1f} s",
-                f"{rows} rows; pandas parses them in {parse_s:.2f} s; target <= {FIT_PARSE_FACTOR:g} x that "
-                f"+ {FIT_FIXED_S:g} s = {budget_s:.1f} s, and < {FIT_TARGET_S:g} s")
+    figures.add(
+        "fit --compare-families, 37 positions end to end",
+        f"{fit_s:.1f} s",
+        f"{rows} rows; pandas parses them in {parse_s:.2f} s; target <= {FIT_PARSE_FACTOR:g} x that "
+        f"+ {FIT_FIXED_S:g} s = {budget_s:.1f} s, and < {FIT_TARGET_S:g} s",
+    )
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--scatter", action="store_true",
-                        help="the twin's scatter against Tables 2-3 and section 4.3 instead (about 40 min)")
+    parser.add_argument(
+        "--scatter",
+        action="store_true",
+        help="the twin's scatter against Tables 2-3 and section 4.3 instead (about 40 min)",
+    )
     parser.add_argument("--memory", action="store_true", help="only each board's static RAM and stack peak")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--disable", action="append", default=[], metavar="TERM")
@@ -573,17 +676,24 @@ def main() -> None:
     started, load_at_start = generated_page.now(), generated_page.load_average()
     model = Model.load()
     chamber_us, sensor_us = physics_step_us(model)
-    figures.add("physics model step", f"chamber {chamber_us:.1f} us, sensor {sensor_us:.1f} us",
-                "one of each per 10 ms simulated")
+    figures.add(
+        "physics model step",
+        f"chamber {chamber_us:.1f} us, sensor {sensor_us:.1f} us",
+        "one of each per 10 ms simulated",
+    )
     speed_and_awake(figures, model)
     imu_profile(figures, model)
     memory(figures)
-    figures.add("fit, one surface with statistics", f"{fit_seconds():.2f} s",
-                f"{FIT_POINTS} synthetic points; target <= 1 s")
+    figures.add(
+        "fit, one surface with statistics", f"{fit_seconds():.2f} s", f"{FIT_POINTS} synthetic points; target <= 1 s"
+    )
     seconds, points = families_seconds()
-    figures.add("fit --compare-families", f"{seconds:.1f} s",
-                f"4 families x 2 sets x 2 axes, leave-one-position-out over {CAMPAIGN_POSITIONS} positions, "
-                f"{points} synthetic points per set, no run logs to parse; target <= 30 s")
+    figures.add(
+        "fit --compare-families",
+        f"{seconds:.1f} s",
+        f"4 families x 2 sets x 2 axes, leave-one-position-out over {CAMPAIGN_POSITIONS} positions, "
+        f"{points} synthetic points per set, no run logs to parse; target <= 30 s",
+    )
     fit_end_to_end(figures)
     integrity(figures)
     write_page(args.page, figures.rows, started, load_at_start)

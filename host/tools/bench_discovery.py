@@ -50,10 +50,17 @@ def _case(task: tuple[str, str, float | None, str, int, str]) -> dict:
         truth = hide_effect(Path(inputs), run, effect, seed, snr=snr, noise=noise, model=model)
         measured = load_measured(run)
         outcome = Search(measured, model).run()
-    result = {"kind": kind, "effect": effect, "snr": snr, "noise": noise, "seed": seed,
-              "channel": truth.channel, "verdict": outcome.verdict,
-              "found": [(e.candidate, e.channel) for e in outcome.effects],
-              "ambiguous": [list(group.names) for group in outcome.ambiguous]}
+    result = {
+        "kind": kind,
+        "effect": effect,
+        "snr": snr,
+        "noise": noise,
+        "seed": seed,
+        "channel": truth.channel,
+        "verdict": outcome.verdict,
+        "found": [(e.candidate, e.channel) for e in outcome.effects],
+        "ambiguous": [list(group.names) for group in outcome.ambiguous],
+    }
     if effect != "none":
         channel = truth.channel
         true_model = BY_NAME[effect].changed(model, {channel: truth.value})
@@ -99,21 +106,54 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as folder:
         base = Path(folder)
         staircase = str(staircase_inputs(base / "staircase" / "run.csv"))
-        ramp = str(staircase_inputs(base / "ramp" / "run.csv", positions=((30.0, 0.0),), low_c=20.0,
-                                    high_c=30.0, step_c=10.0, hold_s=0.0, ramp_c_per_s=0.01))
+        ramp = str(
+            staircase_inputs(
+                base / "ramp" / "run.csv",
+                positions=((30.0, 0.0),),
+                low_c=20.0,
+                high_c=30.0,
+                step_c=10.0,
+                hold_s=0.0,
+                ramp_c_per_s=0.01,
+            )
+        )
         cycle = base / "cycle"
         print("bench-discovery: the twin's calibration cycle for the chamber's candidates", flush=True)
-        subprocess.run([sys.executable, "-m", "thermotilt", "simulate", "cycle", "--rest-seconds", "60",
-                        "--disable", "drift_repeatability", "--disable", "bias_instability",
-                        "--out", str(cycle)], check=True, stdout=subprocess.DEVNULL)
+        subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "thermotilt",
+                "simulate",
+                "cycle",
+                "--rest-seconds",
+                "60",
+                "--disable",
+                "drift_repeatability",
+                "--disable",
+                "bias_instability",
+                "--out",
+                str(cycle),
+            ],
+            check=True,
+            stdout=subprocess.DEVNULL,
+        )
 
         def inputs_of(candidate) -> str:
             return str(cycle) if set(candidate.channels) <= set(CHAMBER_CHANNELS) else staircase
 
-        tasks = [("hidden", c.name, snr, "model", 100 + seed, inputs_of(c))
-                 for c in CANDIDATES for snr in SNRS for seed in range(args.seeds)]
-        tasks += [("null", "none", None, noise, 200 + seed, inputs)
-                  for inputs in (staircase, str(cycle)) for noise in NOISES for seed in range(args.seeds)]
+        tasks = [
+            ("hidden", c.name, snr, "model", 100 + seed, inputs_of(c))
+            for c in CANDIDATES
+            for snr in SNRS
+            for seed in range(args.seeds)
+        ]
+        tasks += [
+            ("null", "none", None, noise, 200 + seed, inputs)
+            for inputs in (staircase, str(cycle))
+            for noise in NOISES
+            for seed in range(args.seeds)
+        ]
         tasks += [("collinear", "sensor_lag", 4.0, "model", 300 + seed, ramp) for seed in range(args.seeds)]
         print(f"bench-discovery: {len(tasks)} runs, {args.jobs} at a time", flush=True)
         start = time.perf_counter()
@@ -128,34 +168,49 @@ def main() -> None:
 
         null = [r for r in results if r["kind"] == "null"]
         false = [r for r in null if r["verdict"] == "found"]
-        print(f"false discoveries on null runs: {len(false)}/{len(null)} = {len(false) / len(null):.0%} "
-              f"(target <= 5 %); by noise: "
-              + ", ".join(f"{n} {sum(r['verdict'] == 'found' for r in null if r['noise'] == n)}/"
-                          f"{sum(r['noise'] == n for r in null)}" for n in NOISES))
+        print(
+            f"false discoveries on null runs: {len(false)}/{len(null)} = {len(false) / len(null):.0%} "
+            f"(target <= 5 %); by noise: "
+            + ", ".join(
+                f"{n} {sum(r['verdict'] == 'found' for r in null if r['noise'] == n)}/"
+                f"{sum(r['noise'] == n for r in null)}"
+                for n in NOISES
+            )
+        )
         hidden = [r for r in results if r["kind"] == "hidden"]
         for snr in SNRS:
             at = [r for r in hidden if r["snr"] == snr]
             right = sum(_named_right(r) for r in at)
             print(f"SNR {snr:g}: named right {right}/{len(at)} = {right / len(at):.0%}")
         high = [r for r in hidden if r["snr"] >= 2.0]
-        print(f"SNR >= 2: named right {sum(map(_named_right, high)) / len(high):.0%} (target >= 95 %); "
-              f"SNR 1 target >= 70 %")
+        print(
+            f"SNR >= 2: named right {sum(map(_named_right, high)) / len(high):.0%} (target >= 95 %); "
+            f"SNR 1 target >= 70 %"
+        )
         collinear = [r for r in results if r["kind"] == "collinear"]
-        pair = sum(r["verdict"] == "ambiguous" and any({"sensor_lag", "rate_sensitivity"} <= set(g)
-                                                       for g in r["ambiguous"]) for r in collinear)
+        pair = sum(
+            r["verdict"] == "ambiguous" and any({"sensor_lag", "rate_sensitivity"} <= set(g) for g in r["ambiguous"])
+            for r in collinear
+        )
         print(f"collinear pair (sensor_lag on one ramp) ambiguous: {pair}/{len(collinear)} (target >= 90 %)")
         shrink = [r["shrink"] for r in high if _named_right(r) and np.isfinite(r["shrink"])]
         if shrink:
-            print(f"gap shrink relative to the true model, SNR >= 2 and named right: median "
-                  f"{np.median(shrink):.0%}, least {min(shrink):.0%} (target >= 80 %)")
-        for side, on_side in (("sensor", lambda r: r["channel"] not in CHAMBER_CHANNELS),
-                              ("chamber", lambda r: r["channel"] in CHAMBER_CHANNELS)):
+            print(
+                f"gap shrink relative to the true model, SNR >= 2 and named right: median "
+                f"{np.median(shrink):.0%}, least {min(shrink):.0%} (target >= 80 %)"
+            )
+        for side, on_side in (
+            ("sensor", lambda r: r["channel"] not in CHAMBER_CHANNELS),
+            ("chamber", lambda r: r["channel"] in CHAMBER_CHANNELS),
+        ):
             named = [r for r in hidden if _named_right(r) and on_side(r)]
             if named:
                 inside = sum(r["covered"] for r in named)
-                print(f"{side}: true value inside the 95 % interval {inside}/{len(named)} = "
-                      f"{inside / len(named):.0%} of the runs named right (target about 95 %)"
-                      + ("; the chamber's runs share one twin cycle's noise" if side == "chamber" else ""))
+                print(
+                    f"{side}: true value inside the 95 % interval {inside}/{len(named)} = "
+                    f"{inside / len(named):.0%} of the runs named right (target about 95 %)"
+                    + ("; the chamber's runs share one twin cycle's noise" if side == "chamber" else "")
+                )
         print("confusion (rows: hidden effect; columns: first effect found, or the verdict):")
         columns = [c.name for c in CANDIDATES] + ["ambiguous", "none"]
         table = defaultdict(Counter)

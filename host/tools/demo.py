@@ -114,9 +114,13 @@ def upload_through_pty(fit: Path, board_dir: Path) -> Path:
     talks to the IMU like to a Nano on USB. Returns the EEPROM the IMU saved."""
     print("$ thermotilt simulate idle --pty ...  (in the background)", flush=True)
     # preexec_fn runs between fork and exec; no other thread is running yet.
-    twin = subprocess.Popen([*THERMOTILT, "simulate", "idle", "--pty", "--out", str(board_dir), "--force"],
-                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
-                            preexec_fn=default_sigint)
+    twin = subprocess.Popen(
+        [*THERMOTILT, "simulate", "idle", "--pty", "--out", str(board_dir), "--force"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
+        preexec_fn=default_sigint,
+    )
     try:
         ports = ports_of(twin)
         thermotilt("upload", str(fit), "--port", ports["imu_reader"])
@@ -140,22 +144,38 @@ def fit_section(fit: Path) -> list[str]:
         set_name, axis = key[0], key[1]
         paper = TABLES[(axis, set_name)].rmse
         rmse = surface["rmse_lsb"]
-        rows.append((axis, SET_NAMES[set_name], surface["points"],
-                     "{:.1f} .. {:.1f}".format(*surface["temperature_range_c"]),
-                     f"{rmse:.2f}", f"{paper:.2f}", f"{rmse / paper:.2f}"))
-    lines = ["## The scatter the fitted surfaces leave (Tables 2–3)", "",
-             "`thermotilt fit` on the campaign: RMSE = √(SSE / (n − 6)) of each set and axis, beside the "
-             "paper's. What the surfaces cannot take up is the twin sensor's scatter terms "
-             "(`drift_repeatability`, `bias_instability`: docs/physics-model.md), and a few positions are a "
-             "few draws of them.", "",
-             *generated_page.table(("axis", "set", "points", "IMU temperature, °C", "RMSE, LSB",
-                                    "Tables 2–3, LSB", "twin / paper"), rows)]
+        rows.append(
+            (
+                axis,
+                SET_NAMES[set_name],
+                surface["points"],
+                "{:.1f} .. {:.1f}".format(*surface["temperature_range_c"]),
+                f"{rmse:.2f}",
+                f"{paper:.2f}",
+                f"{rmse / paper:.2f}",
+            )
+        )
+    lines = [
+        "## The scatter the fitted surfaces leave (Tables 2–3)",
+        "",
+        "`thermotilt fit` on the campaign: RMSE = √(SSE / (n − 6)) of each set and axis, beside the "
+        "paper's. What the surfaces cannot take up is the twin sensor's scatter terms "
+        "(`drift_repeatability`, `bias_instability`: docs/physics-model.md), and a few positions are a "
+        "few draws of them.",
+        "",
+        *generated_page.table(
+            ("axis", "set", "points", "IMU temperature, °C", "RMSE, LSB", "Tables 2–3, LSB", "twin / paper"), rows
+        ),
+    ]
     families = fit / "families.json"
     if families.is_file():
         recommended = json.loads(families.read_text())["recommended"]
-        lines += ["", "`fit --compare-families` (leave-one-position-out CV RMSE) recommends "
-                  + ", ".join(f"{family} on {axis}" for axis, family in recommended.items())
-                  + "; the paper chose poly22 (§3.3)."]
+        lines += [
+            "",
+            "`fit --compare-families` (leave-one-position-out CV RMSE) recommends "
+            + ", ".join(f"{family} on {axis}" for axis, family in recommended.items())
+            + "; the paper chose poly22 (§3.3).",
+        ]
     return lines
 
 
@@ -167,17 +187,34 @@ def compare_section(fit: Path) -> list[str]:
     for paper in compare(fitted, "paper"):
         model = against_model[paper.key]
         sigmas = ", ".join(f"{term} {value:+.1f}" for term, value in paper.coefficient_sigmas.items())
-        rows.append((paper.key, "{:.1f} .. {:.1f}".format(*paper.temperature_range_c),
-                     f"{paper.rms_lsb:.2f} / {paper.max_lsb:.2f}", sigmas,
-                     f"{model.rms_lsb:.2f} / {model.max_lsb:.2f}"))
-    return ["## The fitted surfaces beside the paper's and the model's", "",
-            "`thermotilt compare`: the difference of two surfaces, each relative to its value at 25 °C, "
-            "over the fit's acceleration range and its part of −10…45 °C (docs/calibration.md, "
-            "\"Comparing\"). The twin's model drifts by Tables 2–3 (`models/default.toml`); the coefficient "
-            "differences are in units of the paper's own 95 % half-widths, which assume independent rows.", "",
-            *generated_page.table(("fit", "°C compared", "against Tables 2–3: RMS / max, LSB",
-                                   "coefficient difference / the paper's half-width",
-                                   "against the model: RMS / max, LSB"), rows)]
+        rows.append(
+            (
+                paper.key,
+                "{:.1f} .. {:.1f}".format(*paper.temperature_range_c),
+                f"{paper.rms_lsb:.2f} / {paper.max_lsb:.2f}",
+                sigmas,
+                f"{model.rms_lsb:.2f} / {model.max_lsb:.2f}",
+            )
+        )
+    return [
+        "## The fitted surfaces beside the paper's and the model's",
+        "",
+        "`thermotilt compare`: the difference of two surfaces, each relative to its value at 25 °C, "
+        "over the fit's acceleration range and its part of −10…45 °C (docs/calibration.md, "
+        '"Comparing"). The twin\'s model drifts by Tables 2–3 (`models/default.toml`); the coefficient '
+        "differences are in units of the paper's own 95 % half-widths, which assume independent rows.",
+        "",
+        *generated_page.table(
+            (
+                "fit",
+                "°C compared",
+                "against Tables 2–3: RMS / max, LSB",
+                "coefficient difference / the paper's half-width",
+                "against the model: RMS / max, LSB",
+            ),
+            rows,
+        ),
+    ]
 
 
 def field_section(fit: Path, runs: dict[str, Path]) -> list[str]:
@@ -186,48 +223,74 @@ def field_section(fit: Path, runs: dict[str, Path]) -> list[str]:
     for name, run in runs.items():
         validation = validate(run, load_coefficients(str(fit)))
         simulated_s = read_summary(run).sim_seconds
-        runs_read.append(f"{name} {simulated_s:.0f} s simulated, the IMU reading "
-                         "{:.1f}…{:.1f} °C".format(*validation.temperature_range_c))
+        runs_read.append(
+            f"{name} {simulated_s:.0f} s simulated, the IMU reading {{:.1f}}…{{:.1f}} °C".format(
+                *validation.temperature_range_c
+            )
+        )
         for result in validation.results:
             paper = FIELD_RMS_LSB.get((name, result.axis)) if FIELD_TEST_SET[name] == result.set_name else None
-            rows.append((name, SET_NAMES[result.set_name], result.axis, result.rows,
-                         lsb(result.rms_before_lsb), f"{paper[0]:.0f}" if paper else "—",
-                         lsb(result.rms_after_lsb), f"{paper[1]:.0f}" if paper else "—"))
+            rows.append(
+                (
+                    name,
+                    SET_NAMES[result.set_name],
+                    result.axis,
+                    result.rows,
+                    lsb(result.rms_before_lsb),
+                    f"{paper[0]:.0f}" if paper else "—",
+                    lsb(result.rms_after_lsb),
+                    f"{paper[1]:.0f}" if paper else "—",
+                )
+            )
         if validation.firmware_difference_lsb is not None:
             firmware.append(f"{validation.firmware_difference_lsb:.2f} LSB on {name}")
-    return ["## Field validation (§4.3)", "",
-            "`thermotilt validate --coefficients FIT`: the RMS over a field run of each axis's reading minus "
-            "its reading at 25 °C, before and after compensation with the fitted surfaces (on the host, as "
-            "the paper post-processed its field data). The paper's field days took 3 h (warming) and 9 h "
-            f"(cooling); here {'; '.join(runs_read)}. Section 4.3 compensated each run with one set's "
-            "surfaces; the other set's rows have no paper figure (—).", "",
-            *generated_page.table(("run", "set", "axis", "rows", "before, LSB", "§4.3 before", "after, LSB",
-                                   "§4.3 after"), rows),
-            "", "The IMU ran the same surfaces from its EEPROM after `thermotilt upload`; its own compensated "
-            f"output is within {' and '.join(firmware)} of the host's."]
+    return [
+        "## Field validation (§4.3)",
+        "",
+        "`thermotilt validate --coefficients FIT`: the RMS over a field run of each axis's reading minus "
+        "its reading at 25 °C, before and after compensation with the fitted surfaces (on the host, as "
+        "the paper post-processed its field data). The paper's field days took 3 h (warming) and 9 h "
+        f"(cooling); here {'; '.join(runs_read)}. Section 4.3 compensated each run with one set's "
+        "surfaces; the other set's rows have no paper figure (—).",
+        "",
+        *generated_page.table(
+            ("run", "set", "axis", "rows", "before, LSB", "§4.3 before", "after, LSB", "§4.3 after"), rows
+        ),
+        "",
+        "The IMU ran the same surfaces from its EEPROM after `thermotilt upload`; its own compensated "
+        f"output is within {' and '.join(firmware)} of the host's.",
+    ]
 
 
-def write_paper_comparison(out: Path, runs: dict[str, Path], started: datetime.datetime,
-                           load_at_start: str) -> None:
+def write_paper_comparison(out: Path, runs: dict[str, Path], started: datetime.datetime, load_at_start: str) -> None:
     campaign = json.loads((out / "campaign" / "campaign.json").read_text())
     positions = campaign["positions"]
     program = campaign["program"]
     walls = [position["wall_seconds"] for position in positions if position["wall_seconds"] is not None]
-    generated_page.write(PAGE, [
-        "# The paper's figures beside the twin's", "",
-        "`make demo` runs the paper's calibration (Sensors 2018, 18, 2536) end to end in the digital twin, "
-        "with the commands a rig takes: `campaign`, `fit`, `compare`, `upload` into the twin's IMU, "
-        "field-warming and field-cooling runs on the uploaded surfaces, `validate` "
-        "([calibration](calibration.md)). The tables below come from its folders "
-        f"(`{out}`). The campaign: {len(positions)} positions "
-        f"({', '.join(position['label'] for position in positions)}; the paper has 37), each through the "
-        f"{program['start_c']:g}…{program['max_c']:g}…{program['start_c']:g} °C staircase with "
-        f"{program['hold_s']} s holds (the paper's: 60 s), seed {campaign['seed']}, "
-        f"{min(walls):.0f}–{max(walls):.0f} s of wall time a position.", "",
-        *generated_page.stamp("make demo", started, load_at_start), "",
-        *fit_section(out / "fit"), "",
-        *compare_section(out / "fit"), "",
-        *field_section(out / "fit", runs)])
+    generated_page.write(
+        PAGE,
+        [
+            "# The paper's figures beside the twin's",
+            "",
+            "`make demo` runs the paper's calibration (Sensors 2018, 18, 2536) end to end in the digital twin, "
+            "with the commands a rig takes: `campaign`, `fit`, `compare`, `upload` into the twin's IMU, "
+            "field-warming and field-cooling runs on the uploaded surfaces, `validate` "
+            "([calibration](calibration.md)). The tables below come from its folders "
+            f"(`{out}`). The campaign: {len(positions)} positions "
+            f"({', '.join(position['label'] for position in positions)}; the paper has 37), each through the "
+            f"{program['start_c']:g}…{program['max_c']:g}…{program['start_c']:g} °C staircase with "
+            f"{program['hold_s']} s holds (the paper's: 60 s), seed {campaign['seed']}, "
+            f"{min(walls):.0f}–{max(walls):.0f} s of wall time a position.",
+            "",
+            *generated_page.stamp("make demo", started, load_at_start),
+            "",
+            *fit_section(out / "fit"),
+            "",
+            *compare_section(out / "fit"),
+            "",
+            *field_section(out / "fit", runs),
+        ],
+    )
 
 
 def main() -> None:
@@ -236,8 +299,19 @@ def main() -> None:
     started, load_at_start = generated_page.now(), generated_page.load_average()
 
     step(f"1. calibration campaign in the twin: {POSITIONS}, each -10 -> 45 -> -10 degC")
-    thermotilt("campaign", "--twin", "--positions", POSITIONS, "--hold-seconds", str(HOLD_SECONDS),
-               "--rest-seconds", "0", "--out", str(out / "campaign"), "--force")
+    thermotilt(
+        "campaign",
+        "--twin",
+        "--positions",
+        POSITIONS,
+        "--hold-seconds",
+        str(HOLD_SECONDS),
+        "--rest-seconds",
+        "0",
+        "--out",
+        str(out / "campaign"),
+        "--force",
+    )
 
     step("2. fit the paper's surfaces (Tables 2-3), with statistics and the model-family comparison")
     thermotilt("fit", str(out / "campaign"), "--out", str(out / "fit"), "--compare-families")
@@ -252,9 +326,27 @@ def main() -> None:
     step("5. field tests with the uploaded coefficients, then the paper's RMS check")
     runs = {name: out / name for name in ("field-warming", "field-cooling")}
     with ThreadPoolExecutor(len(runs)) as pool:
-        results = list(pool.map(lambda item: subprocess.run(
-            [*THERMOTILT, "simulate", item[0], "--duration", str(FIELD_SECONDS), "--eeprom", str(eeprom),
-             "--out", str(item[1]), "--force"], capture_output=True, text=True), runs.items()))
+        results = list(
+            pool.map(
+                lambda item: subprocess.run(
+                    [
+                        *THERMOTILT,
+                        "simulate",
+                        item[0],
+                        "--duration",
+                        str(FIELD_SECONDS),
+                        "--eeprom",
+                        str(eeprom),
+                        "--out",
+                        str(item[1]),
+                        "--force",
+                    ],
+                    capture_output=True,
+                    text=True,
+                ),
+                runs.items(),
+            )
+        )
     for (name, run), result in zip(runs.items(), results):
         print(f"$ thermotilt simulate {name} --duration {FIELD_SECONDS} --eeprom {eeprom} --out {run}")
         print(result.stdout, end="")
@@ -265,8 +357,10 @@ def main() -> None:
 
     write_paper_comparison(out, runs, started, load_at_start)
     minutes = (time.monotonic() - begin) / 60.0
-    step(f"done in {minutes:.1f} min; reports: {out}/fit/report.md, "
-         f"{out}/field-warming/validation/report.md, {out}/field-cooling/validation/report.md, {PAGE}")
+    step(
+        f"done in {minutes:.1f} min; reports: {out}/fit/report.md, "
+        f"{out}/field-warming/validation/report.md, {out}/field-cooling/validation/report.md, {PAGE}"
+    )
 
 
 if __name__ == "__main__":

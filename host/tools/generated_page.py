@@ -53,19 +53,23 @@ def load_average() -> str:
 def stamp(command: str, started: datetime.datetime, load_at_start: str) -> list[str]:
     """When, where and by what a page was written, and how long that took."""
     took_s = (now() - started).total_seconds()
-    return [f"Written by `{command}` (do not edit: run it again to refresh the page).", "",
-            f"- date: {started:%Y-%m-%d %H:%M} UTC",
-            f"- machine: {machine()}",
-            f"- load average when it started: {load_at_start} (other jobs slow the timed figures down)",
-            f"- command: `{command}`, which took {took_s // 60:.0f} min {took_s % 60:.0f} s"]
+    return [
+        f"Written by `{command}` (do not edit: run it again to refresh the page).",
+        "",
+        f"- date: {started:%Y-%m-%d %H:%M} UTC",
+        f"- machine: {machine()}",
+        f"- load average when it started: {load_at_start} (other jobs slow the timed figures down)",
+        f"- command: `{command}`, which took {took_s // 60:.0f} min {took_s % 60:.0f} s",
+    ]
 
 
 def table(header: tuple[str, ...], rows: list[tuple]) -> list[str]:
     def cell(value) -> str:
         return str(value).replace("|", "\\|").replace("\n", " ")
 
-    return (["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-            + ["| " + " | ".join(cell(value) for value in row) + " |" for row in rows])
+    return ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)] + [
+        "| " + " | ".join(cell(value) for value in row) + " |" for row in rows
+    ]
 
 
 def now() -> datetime.datetime:

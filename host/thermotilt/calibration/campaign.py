@@ -113,8 +113,10 @@ def select_positions(text: str | None) -> list[Position]:
         raise CampaignError("--positions names no position; use all or labels like 0,X+15,Y-30")
     unknown = [label for label in labels if label not in by_label]
     if unknown:
-        raise CampaignError(f"unknown position(s) {', '.join(unknown)}; use labels like 0, X+5, X-45, Y+30 "
-                            f"(the paper's: 0 and +-5..45 in 5 deg steps on X and Y)")
+        raise CampaignError(
+            f"unknown position(s) {', '.join(unknown)}; use labels like 0, X+5, X-45, Y+30 "
+            f"(the paper's: 0 and +-5..45 in 5 deg steps on X and Y)"
+        )
     duplicates = sorted({label for label in labels if labels.count(label) > 1})
     if duplicates:
         raise CampaignError(f"position(s) {', '.join(duplicates)} listed twice")
@@ -145,8 +147,9 @@ class CampaignFile:
         self.records = {record.label: record for record in records}
 
     @classmethod
-    def start(cls, out_dir: Path, header: dict[str, Any], positions: list[Position],
-              resume: bool, force: bool) -> CampaignFile:
+    def start(
+        cls, out_dir: Path, header: dict[str, Any], positions: list[Position], resume: bool, force: bool
+    ) -> CampaignFile:
         path = out_dir / CAMPAIGN_FILE
         fresh = [PositionRecord(p.label, p.incl_x_deg, p.incl_y_deg) for p in positions]
         if not path.exists():
@@ -168,8 +171,10 @@ class CampaignFile:
         wanted = {key: value for key, value in header.items() if key != "created_utc"}
         changed = [key for key in wanted if settings[key] != wanted[key]]
         if changed:
-            raise CampaignError(f"cannot resume {out_dir}: its {', '.join(changed)} differ from this "
-                                f"command's; give the same settings or start again with --force")
+            raise CampaignError(
+                f"cannot resume {out_dir}: its {', '.join(changed)} differ from this "
+                f"command's; give the same settings or start again with --force"
+            )
         known = {record.label for record in records}
         records += [record for record in fresh if record.label not in known]
         campaign = cls(out_dir, {**header, "created_utc": earlier.get("created_utc")}, records)
@@ -227,16 +232,22 @@ def _run_in_worker(setup: TwinSetup, position: Position, out_dir: Path) -> Posit
     return run_twin_position(setup, position, out_dir, _progress_queue, _stop_event)
 
 
-def run_twin_position(setup: TwinSetup, position: Position, out_dir: Path,
-                      progress_queue: Any = None, stop_event: Any = None) -> PositionRecord:
+def run_twin_position(
+    setup: TwinSetup, position: Position, out_dir: Path, progress_queue: Any = None, stop_event: Any = None
+) -> PositionRecord:
     """One position in the twin, in this process; puts the simulated seconds
     into ``progress_queue`` as they pass (a whole position's by its end) and
     stops when ``stop_event`` is set."""
     from ..twin import simulate
     from ..twin.boards import TwinError
 
-    record = PositionRecord(position.label, position.incl_x_deg, position.incl_y_deg,
-                            seed=setup.position_seed(position), started_utc=_utc_now())
+    record = PositionRecord(
+        position.label,
+        position.incl_x_deg,
+        position.incl_y_deg,
+        seed=setup.position_seed(position),
+        started_utc=_utc_now(),
+    )
     partial = _fresh_partial(out_dir, position.label)
     reported = 0.0
 
@@ -259,10 +270,12 @@ def run_twin_position(setup: TwinSetup, position: Position, out_dir: Path,
         progress_queue.put(scenario.duration_s - reported)
     record.sim_seconds = summary.sim_seconds
     record.wall_seconds = summary.wall_seconds
-    record.firmware = {board: report.firmware for board, report in summary.boards.items()
-                       if report.firmware is not None}
-    record.reported_errors = [f"{board}: {error}" for board, report in summary.boards.items()
-                              for error in report.reported_errors]
+    record.firmware = {
+        board: report.firmware for board, report in summary.boards.items() if report.firmware is not None
+    }
+    record.reported_errors = [
+        f"{board}: {error}" for board, report in summary.boards.items() for error in report.reported_errors
+    ]
     if summary.interrupted:
         record.status = INTERRUPTED
         return record
@@ -283,8 +296,9 @@ class CampaignOutcome:
 class _Campaign:
     """campaign.json started (or resumed) in out_dir; ``todo`` the positions not yet done."""
 
-    def _start(self, out_dir: Path, positions: list[Position], header: dict[str, Any],
-               resume: bool, force: bool) -> None:
+    def _start(
+        self, out_dir: Path, positions: list[Position], header: dict[str, Any], resume: bool, force: bool
+    ) -> None:
         try:
             out_dir.mkdir(parents=True, exist_ok=True)
         except OSError as error:
@@ -299,8 +313,9 @@ class TwinCampaign(_Campaign):
     """A campaign in the twin: the plan checked and campaign.json started
     on construction, the positions not yet done run by ``run``."""
 
-    def __init__(self, out_dir: Path, positions: list[Position], setup: TwinSetup,
-                 resume: bool = False, force: bool = False):
+    def __init__(
+        self, out_dir: Path, positions: list[Position], setup: TwinSetup, resume: bool = False, force: bool = False
+    ):
         from ..physics import ModelError
 
         try:
@@ -320,9 +335,13 @@ class TwinCampaign(_Campaign):
         self.setup = setup
         self._start(out_dir, positions, header, resume, force)
 
-    def run(self, jobs: int, progress: Callable[[float], None] | None = None,
-            on_position: Callable[[PositionRecord], None] | None = None,
-            cluster: Client | None = None) -> CampaignOutcome:
+    def run(
+        self,
+        jobs: int,
+        progress: Callable[[float], None] | None = None,
+        on_position: Callable[[PositionRecord], None] | None = None,
+        cluster: Client | None = None,
+    ) -> CampaignOutcome:
         """``progress`` gets simulated seconds as they pass, all positions
         together; from a Dask ``cluster`` (``connect_cluster``) each
         position's once it is back."""
@@ -338,8 +357,9 @@ class TwinCampaign(_Campaign):
         elif jobs <= 1 or len(self.todo) <= 1:
             interrupted = _run_here(self.todo, self.setup, self.out_dir, progress, finished)
         else:
-            interrupted = _run_in_workers(self.todo, self.setup, self.out_dir,
-                                          min(jobs, len(self.todo)), progress, finished)
+            interrupted = _run_in_workers(
+                self.todo, self.setup, self.out_dir, min(jobs, len(self.todo)), progress, finished
+            )
         if not interrupted:
             shutil.rmtree(self.out_dir / PARTIAL_DIR, ignore_errors=True)
         return CampaignOutcome([self.file.records[p.label] for p in self.positions], interrupted)
@@ -357,9 +377,13 @@ class _ProgressNow:
             self._progress(seconds)
 
 
-def _run_here(todo: list[Position], setup: TwinSetup, out_dir: Path,
-              progress: Callable[[float], None] | None,
-              finished: Callable[[PositionRecord], None]) -> bool:
+def _run_here(
+    todo: list[Position],
+    setup: TwinSetup,
+    out_dir: Path,
+    progress: Callable[[float], None] | None,
+    finished: Callable[[PositionRecord], None],
+) -> bool:
     for position in todo:
         record = run_twin_position(setup, position, out_dir, _ProgressNow(progress))
         finished(record)
@@ -368,15 +392,21 @@ def _run_here(todo: list[Position], setup: TwinSetup, out_dir: Path,
     return False
 
 
-def _run_in_workers(todo: list[Position], setup: TwinSetup, out_dir: Path, jobs: int,
-                    progress: Callable[[float], None] | None,
-                    finished: Callable[[PositionRecord], None]) -> bool:
+def _run_in_workers(
+    todo: list[Position],
+    setup: TwinSetup,
+    out_dir: Path,
+    jobs: int,
+    progress: Callable[[float], None] | None,
+    finished: Callable[[PositionRecord], None],
+) -> bool:
     # spawn: a forked child would inherit the parent's threads (tqdm's) and locks.
     context = multiprocessing.get_context("spawn")
     progress_queue, stop = context.Queue(), context.Event()
     interrupted = False
-    with ProcessPoolExecutor(jobs, mp_context=context, initializer=_start_worker,
-                             initargs=(progress_queue, stop)) as pool:
+    with ProcessPoolExecutor(
+        jobs, mp_context=context, initializer=_start_worker, initargs=(progress_queue, stop)
+    ) as pool:
         running: dict[Future[PositionRecord], Position] = {
             pool.submit(_run_in_worker, setup, position, out_dir): position for position in todo
         }
@@ -416,8 +446,9 @@ def _drain(progress_queue: Any, progress: Callable[[float], None] | None) -> Non
 
 def _worker_failed(position: Position, error: Exception) -> PositionRecord:
     """A worker that died or raised: the position failed, not the campaign."""
-    return PositionRecord(position.label, position.incl_x_deg, position.incl_y_deg,
-                          status=FAILED, error=f"worker failed: {error}")
+    return PositionRecord(
+        position.label, position.incl_x_deg, position.incl_y_deg, status=FAILED, error=f"worker failed: {error}"
+    )
 
 
 def twin_build_problem() -> str | None:
@@ -441,8 +472,10 @@ def connect_cluster(address: str) -> Iterator[Client]:
         from distributed import Client
         from distributed.comm import get_address_host_port
     except ImportError:
-        raise CampaignError("--scheduler needs Dask's distributed package: "
-                            "pip install -r host/requirements.txt (or the thermotilt[dask] extra)") from None
+        raise CampaignError(
+            "--scheduler needs Dask's distributed package: "
+            "pip install -r host/requirements.txt (or the thermotilt[dask] extra)"
+        ) from None
     try:
         get_address_host_port(address)
     except ValueError as error:
@@ -455,8 +488,10 @@ def connect_cluster(address: str) -> Iterator[Client]:
         try:
             client.wait_for_workers(1, timeout=CONNECT_TIMEOUT_S)
         except TimeoutError:
-            raise CampaignError(f"the Dask scheduler at {address} has no workers after {CONNECT_TIMEOUT_S} s; "
-                                f"start `dask worker {address}` on each machine") from None
+            raise CampaignError(
+                f"the Dask scheduler at {address} has no workers after {CONNECT_TIMEOUT_S} s; "
+                f"start `dask worker {address}` on each machine"
+            ) from None
         for worker, problem in client.run(twin_build_problem, on_error="return").items():
             if problem is not None:
                 raise CampaignError(f"Dask worker {worker} cannot run the twin: {problem}")
@@ -512,23 +547,34 @@ def run_twin_position_shipped(setup: TwinSetup, position: Position, stop_name: s
         record = run_twin_position(setup, position, Path(scratch), counted, _ClusterStop(stop_name))
         written = Path(scratch) if record.status == DONE else Path(scratch) / PARTIAL_DIR
         folder = written / position.label
-        files = {path.relative_to(folder).as_posix(): path.read_bytes()
-                 for path in sorted(folder.rglob("*")) if path.is_file()}
+        files = {
+            path.relative_to(folder).as_posix(): path.read_bytes()
+            for path in sorted(folder.rglob("*"))
+            if path.is_file()
+        }
     if record.error is not None:
         record.error = f"on Dask worker {get_worker().address}: {record.error}"
     return ShippedPosition(record, counted.total, files)
 
 
-def _run_on_cluster(todo: list[Position], setup: TwinSetup, out_dir: Path, client: Client,
-                    progress: Callable[[float], None] | None,
-                    finished: Callable[[PositionRecord], None]) -> bool:
+def _run_on_cluster(
+    todo: list[Position],
+    setup: TwinSetup,
+    out_dir: Path,
+    client: Client,
+    progress: Callable[[float], None] | None,
+    finished: Callable[[PositionRecord], None],
+) -> bool:
     from distributed import Event, as_completed
 
     campaign_id = uuid.uuid4().hex
     stop = Event(f"thermotilt-stop-{campaign_id}", client=client)
-    running = {client.submit(run_twin_position_shipped, setup, position, stop.name,
-                             key=f"thermotilt-{position.label}-{campaign_id}"): position
-               for position in todo}
+    running = {
+        client.submit(
+            run_twin_position_shipped, setup, position, stop.name, key=f"thermotilt-{position.label}-{campaign_id}"
+        ): position
+        for position in todo
+    }
     try:
         for future in as_completed(running, loop=client.loop):
             finished(_write_shipped(out_dir, running[future], future, progress))
@@ -541,8 +587,9 @@ def _run_on_cluster(todo: list[Position], setup: TwinSetup, out_dir: Path, clien
     return False
 
 
-def _write_shipped(out_dir: Path, position: Position, future: Any,
-                   progress: Callable[[float], None] | None) -> PositionRecord:
+def _write_shipped(
+    out_dir: Path, position: Position, future: Any, progress: Callable[[float], None] | None
+) -> PositionRecord:
     """A position back from a Dask worker, written as run_twin_position
     writes one here."""
     try:
@@ -586,8 +633,9 @@ class BoardsSetup:
 class BoardsCampaign(_Campaign):
     """A campaign on real boards, one position after another."""
 
-    def __init__(self, out_dir: Path, positions: list[Position], setup: BoardsSetup,
-                 resume: bool = False, force: bool = False):
+    def __init__(
+        self, out_dir: Path, positions: list[Position], setup: BoardsSetup, resume: bool = False, force: bool = False
+    ):
         header = {
             "format": FORMAT,
             "rig": "boards",
@@ -609,8 +657,9 @@ class BoardsCampaign(_Campaign):
                 on_position(record)
             if record.status != DONE:
                 # With hardware a failure needs a person: the next position waits for --resume.
-                return CampaignOutcome([self.file.records[p.label] for p in self.positions],
-                                       record.status == INTERRUPTED)
+                return CampaignOutcome(
+                    [self.file.records[p.label] for p in self.positions], record.status == INTERRUPTED
+                )
         shutil.rmtree(self.out_dir / PARTIAL_DIR, ignore_errors=True)
         return CampaignOutcome([self.file.records[p.label] for p in self.positions], False)
 
@@ -648,12 +697,16 @@ def run_boards_position(setup: BoardsSetup, position: Position, out_dir: Path) -
     begin = time.monotonic()
     chamber = None
     try:
-        with serial.serial_for_url(setup.imu_port, baudrate=setup.baud, timeout=0.05) as imu, \
-                serial.serial_for_url(setup.chamber_port, baudrate=setup.baud, timeout=0.05) as chamber:
+        with (
+            serial.serial_for_url(setup.imu_port, baudrate=setup.baud, timeout=0.05) as imu,
+            serial.serial_for_url(setup.chamber_port, baudrate=setup.baud, timeout=0.05) as chamber,
+        ):
             chamber_seq = SequenceCounter()
             imu_client, chamber_client = CommandClient(imu), CommandClient(chamber, seq=chamber_seq)
-            record.firmware = {"imu_reader": _board_version(imu_client, setup.imu_port),
-                               "thermal_chamber": _board_version(chamber_client, setup.chamber_port)}
+            record.firmware = {
+                "imu_reader": _board_version(imu_client, setup.imu_port),
+                "thermal_chamber": _board_version(chamber_client, setup.chamber_port),
+            }
             imu_client.command("RESEED")
             for command in chamber_program(CALIBRATION_MIN_C, CALIBRATION_MAX_C, setup.options, 1):
                 chamber_client.command(command.frame_type, command.values)
@@ -662,9 +715,17 @@ def run_boards_position(setup: BoardsSetup, position: Position, out_dir: Path) -
             rig = Rig(setup.options.ambient_c, position.incl_x_deg, position.incl_y_deg, position.label)
             watch = ProgramWatch(setup.heartbeat_s / 4 if setup.heartbeat_s else None, chamber_seq)
             options = replace(setup.options, incl_x_deg=position.incl_x_deg, incl_y_deg=position.incl_y_deg)
-            summary = log_boards(imu, partial, chamber, rig=rig, program=watch, firmware=record.firmware,
-                                 description=f"campaign position {position.label} on real boards",
-                                 scenario="cycle", options=asdict(options))
+            summary = log_boards(
+                imu,
+                partial,
+                chamber,
+                rig=rig,
+                program=watch,
+                firmware=record.firmware,
+                description=f"campaign position {position.label} on real boards",
+                scenario="cycle",
+                options=asdict(options),
+            )
             if summary.end_reason != PROGRAM_DONE:
                 _stop_chamber(chamber)
     except (serial.SerialException, OSError) as error:
@@ -679,8 +740,9 @@ def run_boards_position(setup: BoardsSetup, position: Position, out_dir: Path) -
         _stop_chamber(chamber)
         return record
     record.wall_seconds = round(time.monotonic() - begin, 3)
-    record.reported_errors = [f"{board}: {error}" for board, report in summary.boards.items()
-                              for error in report.reported_errors]
+    record.reported_errors = [
+        f"{board}: {error}" for board, report in summary.boards.items() for error in report.reported_errors
+    ]
     if summary.end_reason == RUN_INTERRUPTED:
         record.status = INTERRUPTED
     elif summary.end_reason != PROGRAM_DONE:

@@ -33,60 +33,90 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     campaign = commands.add_parser(
         "campaign", help="the paper's calibration: every tilt position through a -10..45..-10 degC cycle"
     )
-    campaign.add_argument("--out", required=True, help="campaign folder: one run folder per position "
-                          "and campaign.json")
+    campaign.add_argument("--out", required=True, help="campaign folder: one run folder per position and campaign.json")
     campaign.add_argument("--twin", action="store_true", help="run it in the digital twin")
-    campaign.add_argument("--positions", default="all",
-                          help="all (default, the paper's 37) or labels, e.g. 0,X+15,X-15,Y+30")
-    campaign.add_argument("--jobs", type=within(int, 1, 256), default=os.cpu_count() or 1,
-                          help="twin positions run at once (default: the CPU count)")
-    campaign.add_argument("--scheduler", metavar="ADDRESS",
-                          help="run the twin positions on the Dask cluster of this scheduler, "
-                               "e.g. tcp://HOST:8786, instead of --jobs local processes")
+    campaign.add_argument(
+        "--positions", default="all", help="all (default, the paper's 37) or labels, e.g. 0,X+15,X-15,Y+30"
+    )
+    campaign.add_argument(
+        "--jobs",
+        type=within(int, 1, 256),
+        default=os.cpu_count() or 1,
+        help="twin positions run at once (default: the CPU count)",
+    )
+    campaign.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="run the twin positions on the Dask cluster of this scheduler, "
+        "e.g. tcp://HOST:8786, instead of --jobs local processes",
+    )
     campaign.add_argument("--imu-port", help="real boards: the IMU reader's serial port")
     campaign.add_argument("--chamber-port", help="real boards: the thermal chamber's serial port")
     campaign.add_argument("--baud", type=int, default=115200, help="real boards' line speed (default 115200)")
-    campaign.add_argument("--heartbeat-seconds", type=within(int, 0, 3600), default=60,
-                          help="real boards: the chamber stops itself after this long without a frame "
-                               "from the host (default 60; 0 turns it off)")
-    campaign.add_argument("--resume", action="store_true",
-                          help="finish an interrupted campaign in --out, keeping its finished positions")
+    campaign.add_argument(
+        "--heartbeat-seconds",
+        type=within(int, 0, 3600),
+        default=60,
+        help="real boards: the chamber stops itself after this long without a frame "
+        "from the host (default 60; 0 turns it off)",
+    )
+    campaign.add_argument(
+        "--resume", action="store_true", help="finish an interrupted campaign in --out, keeping its finished positions"
+    )
     campaign.add_argument("--force", action="store_true", help="start --out again from nothing")
     add_model_options(campaign)
     add_program_options(campaign)
     campaign.set_defaults(run=_campaign)
 
-    fit = commands.add_parser(
-        "fit", help="fit the paper's drift surfaces to a campaign's run logs, with statistics"
+    fit = commands.add_parser("fit", help="fit the paper's drift surfaces to a campaign's run logs, with statistics")
+    fit.add_argument(
+        "campaign", type=existing_folder, help="folder of run logs (*/run.csv, *.csv); positions by their incl_x/y_deg"
     )
-    fit.add_argument("campaign", type=existing_folder,
-                     help="folder of run logs (*/run.csv, *.csv); positions by their incl_x/y_deg")
     fit.add_argument("--out", required=True, help="folder for coefficients.json, .bin and .h")
-    fit.add_argument("--settle-seconds", type=settle_seconds,
-                     help="skip rows this soon after a table move (default 120)")
-    fit.add_argument("--axes", nargs="+", choices=("X", "Y"), default=["X", "Y"],
-                     help="axes to fit (default X Y); the others stay uncorrected")
-    fit.add_argument("--compare-families", action="store_true",
-                     help="also score poly11, poly22 (the paper's), poly22+rate and poly33 by "
-                          "leave-one-position-out CV RMSE and BIC; writes families.json")
+    fit.add_argument(
+        "--settle-seconds", type=settle_seconds, help="skip rows this soon after a table move (default 120)"
+    )
+    fit.add_argument(
+        "--axes",
+        nargs="+",
+        choices=("X", "Y"),
+        default=["X", "Y"],
+        help="axes to fit (default X Y); the others stay uncorrected",
+    )
+    fit.add_argument(
+        "--compare-families",
+        action="store_true",
+        help="also score poly11, poly22 (the paper's), poly22+rate and poly33 by "
+        "leave-one-position-out CV RMSE and BIC; writes families.json",
+    )
     fit.set_defaults(run=_fit)
 
     compare = commands.add_parser(
         "compare", help="a fit beside the paper's Tables 2-3 or a model's surfaces: surface and coefficient differences"
     )
     compare.add_argument("fit_dir", type=existing_folder, help="a folder written by thermotilt fit")
-    compare.add_argument("--reference", default="paper",
-                         help="paper (default) or a model file (TOML) whose drift surfaces to compare with")
+    compare.add_argument(
+        "--reference",
+        default="paper",
+        help="paper (default) or a model file (TOML) whose drift surfaces to compare with",
+    )
     compare.set_defaults(run=_compare)
 
     validate = commands.add_parser(
         "validate", help="the paper's field check: RMS about the 25 degC reading before and after compensation"
     )
-    validate.add_argument("run_path", metavar="RUN", type=existing_run,
-                          help="a run folder or run.csv (e.g. simulate field-warming, or a real log)")
-    validate.add_argument("--coefficients", metavar="FIT_DIR",
-                          help="compensate here with a fit's surfaces (a folder from thermotilt fit) or "
-                               "'paper'; default: the firmware's own compensated output")
+    validate.add_argument(
+        "run_path",
+        metavar="RUN",
+        type=existing_run,
+        help="a run folder or run.csv (e.g. simulate field-warming, or a real log)",
+    )
+    validate.add_argument(
+        "--coefficients",
+        metavar="FIT_DIR",
+        help="compensate here with a fit's surfaces (a folder from thermotilt fit) or "
+        "'paper'; default: the firmware's own compensated output",
+    )
     validate.add_argument("--out", help="folder for report.md and its figures (default RUN/validation)")
     validate.set_defaults(run=_validate)
 
@@ -96,8 +126,9 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     upload.add_argument("fit_dir", help="a folder written by thermotilt fit (its coefficients.json)")
     upload.add_argument("--port", required=True, help="the IMU reader's serial port (or the twin's --pty port)")
     upload.add_argument("--baud", type=within(int, 1), default=115200, help="line speed (default 115200)")
-    upload.add_argument("--no-save", action="store_true",
-                        help="upload to RAM only (coef_source U): no SAVECOE, no reset")
+    upload.add_argument(
+        "--no-save", action="store_true", help="upload to RAM only (coef_source U): no SAVECOE, no reset"
+    )
     upload.set_defaults(run=_upload)
 
 
@@ -123,12 +154,19 @@ def _campaign(args: argparse.Namespace) -> int:
         raise UsageError("campaign needs --twin, or --imu-port and --chamber-port for real boards")
     if boards and args.scheduler:
         raise UsageError("--scheduler runs twin positions on a Dask cluster; it needs --twin")
-    program = ScenarioOptions(hold_s=args.hold_seconds, rest_s=args.rest_seconds, ambient_c=args.ambient,
-                              hold_start=args.hold_start, controller=args.controller)
+    program = ScenarioOptions(
+        hold_s=args.hold_seconds,
+        rest_s=args.rest_seconds,
+        ambient_c=args.ambient,
+        hold_start=args.hold_start,
+        controller=args.controller,
+    )
 
     def confirm(position: Position) -> bool:
-        prompt = (f"Set the tilt table to {position.label} (X {position.incl_x_deg:+g} deg, "
-                  f"Y {position.incl_y_deg:+g} deg), then press Enter (q stops): ")
+        prompt = (
+            f"Set the tilt table to {position.label} (X {position.incl_x_deg:+g} deg, "
+            f"Y {position.incl_y_deg:+g} deg), then press Enter (q stops): "
+        )
         try:
             return input(prompt).strip().lower() not in ("q", "quit")
         except EOFError:
@@ -142,19 +180,44 @@ def _campaign(args: argparse.Namespace) -> int:
             # Connected before campaign.json is written, so a wrong address leaves nothing to --resume.
             cluster = resources.enter_context(connect_cluster(args.scheduler)) if args.scheduler else None
             if boards:
-                campaign = BoardsCampaign(out_dir, positions, BoardsSetup(
-                    args.imu_port, args.chamber_port, program, confirm, baud=args.baud,
-                    heartbeat_s=args.heartbeat_seconds), resume=args.resume, force=args.force)
+                campaign = BoardsCampaign(
+                    out_dir,
+                    positions,
+                    BoardsSetup(
+                        args.imu_port,
+                        args.chamber_port,
+                        program,
+                        confirm,
+                        baud=args.baud,
+                        heartbeat_s=args.heartbeat_seconds,
+                    ),
+                    resume=args.resume,
+                    force=args.force,
+                )
             else:
-                campaign = TwinCampaign(out_dir, positions, TwinSetup(
-                    program, seed=args.seed, model_path=args.model, enable=tuple(args.enable),
-                    disable=tuple(args.disable)), resume=args.resume, force=args.force)
+                campaign = TwinCampaign(
+                    out_dir,
+                    positions,
+                    TwinSetup(
+                        program,
+                        seed=args.seed,
+                        model_path=args.model,
+                        enable=tuple(args.enable),
+                        disable=tuple(args.disable),
+                    ),
+                    resume=args.resume,
+                    force=args.force,
+                )
         except CampaignError as error:
             raise UsageError(str(error)) from None
         done = len(campaign.positions) - len(campaign.todo)
         where = f" on {args.imu_port} and {args.chamber_port}" if boards else ""
-        print(f"campaign of {len(campaign.positions)} positions{where} -> {out_dir}"
-              + (f" ({done} already done)" if done else "") + f": {len(campaign.todo)} to run", end="")
+        print(
+            f"campaign of {len(campaign.positions)} positions{where} -> {out_dir}"
+            + (f" ({done} already done)" if done else "")
+            + f": {len(campaign.todo)} to run",
+            end="",
+        )
         if boards:
             print(flush=True)
             return _finish_campaign(campaign.run(on_position=report_position), out_dir)
@@ -177,8 +240,7 @@ def _ctrl_c_after_block() -> Iterator[None]:
     KeyboardInterrupt that lands while it takes its lock into a
     RuntimeError, a traceback instead of exit 130. A Ctrl-C this process
     ignores (a background job's) stays ignored."""
-    if (threading.current_thread() is not threading.main_thread()
-            or signal.getsignal(signal.SIGINT) is signal.SIG_IGN):
+    if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
         yield
         return
     pressed: list[int] = []
@@ -217,13 +279,14 @@ def _finish_campaign(outcome: CampaignOutcome, out_dir: Path) -> int:
         return interrupted()
     failed = [record for record in outcome.records if record.status == FAILED]
     if failed:
-        raise UsageError(f"{len(failed)} position(s) failed: "
-                         + "; ".join(f"{record.label}: {record.error}" for record in failed)
-                         + "; fix it, then add --resume")
+        raise UsageError(
+            f"{len(failed)} position(s) failed: "
+            + "; ".join(f"{record.label}: {record.error}" for record in failed)
+            + "; fix it, then add --resume"
+        )
     left = [record.label for record in outcome.records if record.status != DONE]
     if left:
-        raise UsageError(f"stopped with {len(left)} position(s) to run ({', '.join(left)}); "
-                         "add --resume to run them")
+        raise UsageError(f"stopped with {len(left)} position(s) to run ({', '.join(left)}); add --resume to run them")
     print(f"all {len(outcome.records)} positions done; fit them with: thermotilt fit {out_dir} --out FIT_DIR")
     return 0
 
@@ -248,18 +311,26 @@ def _fit(args: argparse.Namespace) -> int:
         report = write_fit_report(out_dir, fits, campaign, format_families(families) if families else None)
     except OSError as error:
         raise UsageError(f"cannot write {out_dir}: {error.strerror or error}") from None
-    print(f"{len(campaign.positions)} positions, {sum(fit.points for fit in fits)} points"
-          + (f" ({campaign.skipped_rows} rows with empty cells skipped)" if campaign.skipped_rows else ""))
+    print(
+        f"{len(campaign.positions)} positions, {sum(fit.points for fit in fits)} points"
+        + (f" ({campaign.skipped_rows} rows with empty cells skipped)" if campaign.skipped_rows else "")
+    )
     if campaign.stabilizing_rows:
-        print(f"{campaign.stabilizing_rows} rows left out: the chamber had not yet reached its "
-              f"program's setpoint (docs/calibration.md)")
+        print(
+            f"{campaign.stabilizing_rows} rows left out: the chamber had not yet reached its "
+            f"program's setpoint (docs/calibration.md)"
+        )
     print(format_table(fits))
-    print("bounds: Newey-West (HAC) 95 % within each position; coefficients.json also has the "
-          "OLS bounds, which ignore the rows' autocorrelation")
+    print(
+        "bounds: Newey-West (HAC) 95 % within each position; coefficients.json also has the "
+        "OLS bounds, which ignore the rows' autocorrelation"
+    )
     if families is not None:
         print(format_families(families))
-    print(f"wrote {out_dir / 'coefficients.json'}, coefficients.bin (EEPROM block), coefficients.h, "
-          f"{report.name} with figures")
+    print(
+        f"wrote {out_dir / 'coefficients.json'}, coefficients.bin (EEPROM block), coefficients.h, "
+        f"{report.name} with figures"
+    )
     return 0
 
 

@@ -125,33 +125,57 @@ def compare(fits: dict[str, FittedSurface], reference: str) -> list[SurfaceCompa
             continue
         fitted = fit.surface
         domain = calibrated_domain(fit)
-        temperature, acceleration = np.meshgrid(np.linspace(*domain, GRID_POINTS),
-                                                np.linspace(*fit.acceleration_range_lsb, GRID_POINTS))
+        temperature, acceleration = np.meshgrid(
+            np.linspace(*domain, GRID_POINTS), np.linspace(*fit.acceleration_range_lsb, GRID_POINTS)
+        )
         difference = _relative(fitted, temperature, acceleration) - _relative(surfaces[key], temperature, acceleration)
         half = widths[key] if widths is not None else fit.hac_half_widths
-        sigmas = {term: (getattr(fitted, term) - getattr(surfaces[key], term)) / half[term]
-                  if half[term] > 0 else float("inf") for term in COEFFICIENT_NAMES}
+        sigmas = {
+            term: (getattr(fitted, term) - getattr(surfaces[key], term)) / half[term]
+            if half[term] > 0
+            else float("inf")
+            for term in COEFFICIENT_NAMES
+        }
         published = TABLES[(key[1], key[0])].rmse if widths is not None else None
-        comparisons.append(SurfaceComparison(key, domain, float(np.sqrt(np.mean(difference**2))),
-                                             float(np.max(np.abs(difference))), sigmas,
-                                             "paper" if widths is not None else "fit", fit.rmse_lsb, published))
+        comparisons.append(
+            SurfaceComparison(
+                key,
+                domain,
+                float(np.sqrt(np.mean(difference**2))),
+                float(np.max(np.abs(difference))),
+                sigmas,
+                "paper" if widths is not None else "fit",
+                fit.rmse_lsb,
+                published,
+            )
+        )
     if not comparisons:
         raise CalibrationDataError("the fit has no X or Y surface to compare")
     return comparisons
 
 
 def format_comparison(comparisons: list[SurfaceComparison], reference: str) -> str:
-    lines = [f"against {reference}: surfaces relative to 25 degC over the fit's acceleration range and "
-             f"its part of {CALIBRATED_C[0]:g}..{CALIBRATED_C[1]:g} degC",
-             f"  {'fit':<4}{'degC':>14}{'RMS LSB':>10}{'max LSB':>10}   coefficient difference / 95 % half-width"]
+    lines = [
+        f"against {reference}: surfaces relative to 25 degC over the fit's acceleration range and "
+        f"its part of {CALIBRATED_C[0]:g}..{CALIBRATED_C[1]:g} degC",
+        f"  {'fit':<4}{'degC':>14}{'RMS LSB':>10}{'max LSB':>10}   coefficient difference / 95 % half-width",
+    ]
     for comparison in comparisons:
         sigmas = "  ".join(f"{term} {value:+.1f}" for term, value in comparison.coefficient_sigmas.items())
         span = "{:.1f}..{:.1f}".format(*comparison.temperature_range_c)
-        lines.append(f"  {comparison.key:<4}{span:>14}{comparison.rms_lsb:>10.2f}{comparison.max_lsb:>10.2f}   "
-                     f"{sigmas} (half-widths: {comparison.half_width_from})")
+        lines.append(
+            f"  {comparison.key:<4}{span:>14}{comparison.rms_lsb:>10.2f}{comparison.max_lsb:>10.2f}   "
+            f"{sigmas} (half-widths: {comparison.half_width_from})"
+        )
     published = [c for c in comparisons if c.reference_rmse_lsb is not None]
     if published:
         lines.append("the scatter the surfaces leave: the fit's RMSE / Tables 2-3's, LSB")
-        lines.append("  " + "   ".join(f"{c.key} {c.fit_rmse_lsb:.2f} / {c.reference_rmse_lsb:.2f} "
-                                     f"({c.fit_rmse_lsb / c.reference_rmse_lsb:.2f}x)" for c in published))
+        lines.append(
+            "  "
+            + "   ".join(
+                f"{c.key} {c.fit_rmse_lsb:.2f} / {c.reference_rmse_lsb:.2f} "
+                f"({c.fit_rmse_lsb / c.reference_rmse_lsb:.2f}x)"
+                for c in published
+            )
+        )
     return "\n".join(lines)

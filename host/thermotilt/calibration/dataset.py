@@ -142,18 +142,25 @@ def load(folder: Path, settle_s: float | None = None) -> Campaign:
             mounting = np.zeros(len(rows), dtype=int)
             used = settled(time_s, mounting, numbers["since_move_s"][rows], settle_s)
             if has_chamber:
-                kept, before_setpoint = staircase(texts["phase"][rows], numbers["chamber_c"][rows],
-                                                  numbers["setpoint_c"][rows], mounting)
+                kept, before_setpoint = staircase(
+                    texts["phase"][rows], numbers["chamber_c"][rows], numbers["setpoint_c"][rows], mounting
+                )
                 if before_setpoint.any() and not kept.any():
-                    raise CalibrationDataError(f"{label}: the chamber's inner face never came within "
-                                               f"{REACHED_BAND_C:g} degC of its program's setpoint")
+                    raise CalibrationDataError(
+                        f"{label}: the chamber's inner face never came within "
+                        f"{REACHED_BAND_C:g} degC of its program's setpoint"
+                    )
                 stabilizing += int(np.count_nonzero(before_setpoint))
                 used &= kept
             used_rows = rows[used]
-            columns = np.column_stack([
-                numbers["imu_temp_c"][used_rows], numbers["ax_filt"][used_rows], numbers["ay_filt"][used_rows],
-                _temperature_rates(numbers["time_s"][used_rows], numbers["imu_temp_c"][used_rows]),
-            ])
+            columns = np.column_stack(
+                [
+                    numbers["imu_temp_c"][used_rows],
+                    numbers["ax_filt"][used_rows],
+                    numbers["ay_filt"][used_rows],
+                    _temperature_rates(numbers["time_s"][used_rows], numbers["imu_temp_c"][used_rows]),
+                ]
+            )
             comp_set = texts["comp_set"][used_rows]
             for set_name, set_parts in parts.items():
                 cells = columns[comp_set == set_name]

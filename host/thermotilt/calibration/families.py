@@ -77,8 +77,15 @@ def score(campaign: Campaign, family: str, set_name: str, axis: str) -> FamilySc
     rows = len(residual)
     params, *_ = np.linalg.lstsq(total_gram, total_moment, rcond=None)
     sse = float(np.sum((residual - columns @ params) ** 2))
-    return FamilyScore(family, set_name, axis, terms, float(np.sqrt(squared_error / rows)),
-                       float(np.sqrt(sse / (rows - terms))), gaussian_bic(sse, rows, terms))
+    return FamilyScore(
+        family,
+        set_name,
+        axis,
+        terms,
+        float(np.sqrt(squared_error / rows)),
+        float(np.sqrt(sse / (rows - terms))),
+        gaussian_bic(sse, rows, terms),
+    )
 
 
 def gaussian_bic(sse: float, rows: int, parameters: int) -> float:
@@ -92,8 +99,7 @@ def gaussian_bic(sse: float, rows: int, parameters: int) -> float:
 
 
 def compare_families(campaign: Campaign, axes: tuple[str, ...]) -> list[FamilyScore]:
-    return [score(campaign, family, set_name, axis)
-            for axis in axes for set_name in SETS for family in FAMILIES]
+    return [score(campaign, family, set_name, axis) for axis in axes for set_name in SETS for family in FAMILIES]
 
 
 def recommend(scores: list[FamilyScore]) -> dict[str, str]:
@@ -102,8 +108,10 @@ def recommend(scores: list[FamilyScore]) -> dict[str, str]:
     choices = {}
     for axis in dict.fromkeys(s.axis for s in scores):
         mine = [s for s in scores if s.axis == axis and s.determined]
-        best = {set_name: min(s.cv_rmse_lsb for s in mine if s.set_name == set_name)
-                for set_name in {s.set_name for s in mine}}
+        best = {
+            set_name: min(s.cv_rmse_lsb for s in mine if s.set_name == set_name)
+            for set_name in {s.set_name for s in mine}
+        }
 
         def excess(family: str) -> float:
             return max(s.cv_rmse_lsb / best[s.set_name] - 1.0 for s in mine if s.family == family)
@@ -112,8 +120,11 @@ def recommend(scores: list[FamilyScore]) -> dict[str, str]:
         if not families:
             continue
         acceptable = [family for family in families if excess(family) <= RECOMMEND_WITHIN]
-        choices[axis] = (min(acceptable, key=lambda family: (len(FAMILIES[family]), family))
-                         if acceptable else min(families, key=excess))
+        choices[axis] = (
+            min(acceptable, key=lambda family: (len(FAMILIES[family]), family))
+            if acceptable
+            else min(families, key=excess)
+        )
     return choices
 
 
@@ -121,25 +132,38 @@ def extrapolating(scores: list[FamilyScore]) -> list[str]:
     """Axes where the paper's family predicts a left-out position far worse
     than it fits the rest: too few levels of that axis's acceleration, so a
     quadratic in it extrapolates."""
-    return sorted({s.axis for s in scores
-                   if s.family == PAPER_FAMILY and s.cv_rmse_lsb > EXTRAPOLATION_RATIO * s.rmse_lsb})
+    return sorted(
+        {s.axis for s in scores if s.family == PAPER_FAMILY and s.cv_rmse_lsb > EXTRAPOLATION_RATIO * s.rmse_lsb}
+    )
 
 
 def format_families(scores: list[FamilyScore]) -> str:
-    lines = ["model families (leave-one-position-out CV RMSE decides; BIC counts rows as independent):",
-             f"{'family':<13}{'terms':>6}  {'set':<8}{'axis':<5}{'CV RMSE':>10}{'RMSE':>9}{'BIC':>14}"]
+    lines = [
+        "model families (leave-one-position-out CV RMSE decides; BIC counts rows as independent):",
+        f"{'family':<13}{'terms':>6}  {'set':<8}{'axis':<5}{'CV RMSE':>10}{'RMSE':>9}{'BIC':>14}",
+    ]
     for s in scores:
         line = f"{s.family:<13}{s.terms:>6}  {'warming' if s.set_name == 'W' else 'cooling':<8}{s.axis:<5}"
-        lines.append(line + (f"{s.cv_rmse_lsb:>10.2f}{s.rmse_lsb:>9.2f}{s.bic:>14.1f}" if s.determined else
-                             "  not determined: its terms do not vary independently in this campaign"))
+        lines.append(
+            line
+            + (
+                f"{s.cv_rmse_lsb:>10.2f}{s.rmse_lsb:>9.2f}{s.bic:>14.1f}"
+                if s.determined
+                else "  not determined: its terms do not vary independently in this campaign"
+            )
+        )
     for axis, choice in recommend(scores).items():
-        lines.append(f"recommended for {axis}: {choice} (the fewest terms within {RECOMMEND_WITHIN:.0%} of the "
-                     f"best CV RMSE" + ("; the paper's family)" if choice == PAPER_FAMILY
-                                        else f"; the paper used {PAPER_FAMILY})"))
+        lines.append(
+            f"recommended for {axis}: {choice} (the fewest terms within {RECOMMEND_WITHIN:.0%} of the "
+            f"best CV RMSE"
+            + ("; the paper's family)" if choice == PAPER_FAMILY else f"; the paper used {PAPER_FAMILY})")
+        )
     for axis in extrapolating(scores):
-        lines.append(f"note: on {axis} the {PAPER_FAMILY} surface predicts a left-out position more than "
-                     f"{EXTRAPOLATION_RATIO:g}x worse than it fits: the campaign has too few inclinations on "
-                     f"{axis} for a quadratic in its acceleration; add positions on {axis}")
+        lines.append(
+            f"note: on {axis} the {PAPER_FAMILY} surface predicts a left-out position more than "
+            f"{EXTRAPOLATION_RATIO:g}x worse than it fits: the campaign has too few inclinations on "
+            f"{axis} for a quadratic in its acceleration; add positions on {axis}"
+        )
     return "\n".join(lines)
 
 

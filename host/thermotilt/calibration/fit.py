@@ -63,8 +63,12 @@ class SurfaceFit:
     acceleration_range_lsb: tuple[float, float]
 
 
-def design(temperature_c: np.ndarray, acceleration: np.ndarray,
-           powers: tuple[tuple[int, ...], ...] = _POWERS, rate_c_per_s: np.ndarray | None = None) -> np.ndarray:
+def design(
+    temperature_c: np.ndarray,
+    acceleration: np.ndarray,
+    powers: tuple[tuple[int, ...], ...] = _POWERS,
+    rate_c_per_s: np.ndarray | None = None,
+) -> np.ndarray:
     """Columns T^i a^j (and dT/dt^k for a third power) on scaled variables."""
     variables = [temperature_c / _TEMPERATURE_SCALE, acceleration / _ACCELERATION_SCALE]
     if rate_c_per_s is not None:
@@ -152,8 +156,7 @@ def fit_surface(data: SetData, set_name: str, axis: str) -> SurfaceFit:
 
 
 def fit_campaign(campaign: Campaign, axes: tuple[str, ...] = FIT_AXES) -> list[SurfaceFit]:
-    return [fit_surface(campaign.sets[set_name], set_name, axis)
-            for axis in axes for set_name in SETS]
+    return [fit_surface(campaign.sets[set_name], set_name, axis) for axis in axes for set_name in SETS]
 
 
 def coefficient_table(fits: list[SurfaceFit]) -> CoefficientTable:
@@ -170,7 +173,9 @@ def _fit_json(fit: SurfaceFit) -> dict:
         "points": fit.points,
         "coefficients": {
             term: {"value": value, "ols_95": list(ols), "hac_95": list(hac)}
-            for term, value, ols, hac in zip(COEFFICIENT_NAMES, fit.surface, fit.ols_bounds, fit.hac_bounds, strict=True)
+            for term, value, ols, hac in zip(
+                COEFFICIENT_NAMES, fit.surface, fit.ols_bounds, fit.hac_bounds, strict=True
+            )
         },
         "hac_lags_rows": fit.hac_lags,
         "sse": fit.sse,
@@ -229,18 +234,25 @@ def format_table(fits: list[SurfaceFit]) -> str:
     lines = []
     for axis in dict.fromkeys(fit.axis for fit in fits):
         pair = [fit for fit in fits if fit.axis == axis]
-        lines.append(f"{axis} axis" + "".join(f"  | {('warming' if f.set_name == 'W' else 'cooling'):<44}"
-                                               for f in pair))
+        lines.append(
+            f"{axis} axis" + "".join(f"  | {('warming' if f.set_name == 'W' else 'cooling'):<44}" for f in pair)
+        )
         for index, term in enumerate(COEFFICIENT_NAMES):
             cells = "".join(
-                f"  | {f.surface[index]:>11.4g} (HAC {f.hac_bounds[index][0]:.4g}, {f.hac_bounds[index][1]:.4g})"
-                .ljust(47) for f in pair
+                f"  | {f.surface[index]:>11.4g} (HAC {f.hac_bounds[index][0]:.4g}, {f.hac_bounds[index][1]:.4g})".ljust(
+                    47
+                )
+                for f in pair
             )
             lines.append(f"  {term:<6}{cells}")
-        for label, getter in (("SSE", lambda f: f"{f.sse:.4g}"), ("R2", lambda f: f"{f.r_squared:.4f}"),
-                              ("adj R2", lambda f: f"{f.adjusted_r_squared:.4f}"),
-                              ("RMSE", lambda f: f"{f.rmse:.3f} LSB"), ("points", lambda f: str(f.points)),
-                              ("T range", lambda f: "{:.1f} .. {:.1f} degC".format(*f.temperature_range_c)),
-                              ("a range", lambda f: "{:.0f} .. {:.0f} LSB".format(*f.acceleration_range_lsb))):
+        for label, getter in (
+            ("SSE", lambda f: f"{f.sse:.4g}"),
+            ("R2", lambda f: f"{f.r_squared:.4f}"),
+            ("adj R2", lambda f: f"{f.adjusted_r_squared:.4f}"),
+            ("RMSE", lambda f: f"{f.rmse:.3f} LSB"),
+            ("points", lambda f: str(f.points)),
+            ("T range", lambda f: "{:.1f} .. {:.1f} degC".format(*f.temperature_range_c)),
+            ("a range", lambda f: "{:.0f} .. {:.0f} LSB".format(*f.acceleration_range_lsb)),
+        ):
             lines.append(f"  {label:<6}" + "".join(f"  | {getter(f):<44}" for f in pair))
     return "\n".join(lines)

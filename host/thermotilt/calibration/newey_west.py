@@ -63,8 +63,7 @@ def hac_panel_covariance(ols: RegressionResults, groups: np.ndarray, maxlags: in
     return covariance * observations / (observations - parameters)
 
 
-def hac_panel_bounds(ols: RegressionResults, groups: np.ndarray, maxlags: int,
-                     confidence: float) -> np.ndarray:
+def hac_panel_bounds(ols: RegressionResults, groups: np.ndarray, maxlags: int, confidence: float) -> np.ndarray:
     """(lower, upper) per parameter: t bounds on groups - 1 degrees of freedom."""
     errors = np.sqrt(np.diag(hac_panel_covariance(ols, groups, maxlags)))
     quantile = stats.t.ppf(0.5 + confidence / 2.0, len(group_bounds(groups)) - 1)

@@ -49,8 +49,12 @@ def validation_figure(validation: Validation, path: Path) -> str:
     return _save(figure, path)
 
 
-def write_validation_report(out_dir: Path, validation: Validation, coefficients: Coefficients | None,
-                            paper: dict[tuple[str, str], tuple[float, float]] | None) -> Path:
+def write_validation_report(
+    out_dir: Path,
+    validation: Validation,
+    coefficients: Coefficients | None,
+    paper: dict[tuple[str, str], tuple[float, float]] | None,
+) -> Path:
     out_dir.mkdir(parents=True, exist_ok=True)
     figure = validation_figure(validation, out_dir / "field.png")
     lines = [
@@ -77,22 +81,27 @@ def drift_figure(campaign: Campaign, path: Path) -> str:
     """Figure 10: each axis's residual (reading minus its 25 °C reading)
     against temperature, one colour per tilt position, both sets."""
     legend_rows = -(-len(campaign.positions) // LEGEND_COLUMNS)
-    figure, axes = plt.subplots(1, len(FIT_AXES), figsize=(6 * len(FIT_AXES), 4.6 + 0.17 * legend_rows),
-                                squeeze=False)
+    figure, axes = plt.subplots(1, len(FIT_AXES), figsize=(6 * len(FIT_AXES), 4.6 + 0.17 * legend_rows), squeeze=False)
     colours = plt.get_cmap("viridis")(np.linspace(0, 1, max(1, len(campaign.positions))))
     for axis, plot in zip(FIT_AXES, axes[0]):
         for data in campaign.sets.values():
             for start, end in group_bounds(data.position):
                 # A position's shape shows in a few thousand of its rows.
                 rows = slice(start, end, max(1, (end - start) // FIGURE_ROWS_PER_POSITION))
-                plot.plot(data.temperature_c[rows], data.residual[axis][rows], ".", markersize=1,
-                          color=colours[data.position[start]])
+                plot.plot(
+                    data.temperature_c[rows],
+                    data.residual[axis][rows],
+                    ".",
+                    markersize=1,
+                    color=colours[data.position[start]],
+                )
         for index, position in enumerate(campaign.positions):
             # A campaign's positions are named "folder (x .. deg, y .. deg)"; the folder is the label.
             plot.plot([], [], "o", color=colours[index], label=position.split(" (")[0])
         # Below the plot: "best" would search every point for a free corner.
-        plot.legend(fontsize="x-small", ncol=LEGEND_COLUMNS, markerscale=0.6, loc="upper center",
-                    bbox_to_anchor=(0.5, -0.16))
+        plot.legend(
+            fontsize="x-small", ncol=LEGEND_COLUMNS, markerscale=0.6, loc="upper center", bbox_to_anchor=(0.5, -0.16)
+        )
         plot.set_xlabel("IMU temperature (°C)")
         plot.set_ylabel(f"{axis}: reading − reading at 25 °C (LSB)")
         plot.set_title(f"{axis} axis, {len(campaign.positions)} positions")
@@ -107,11 +116,13 @@ def surface_figure(fits: list[SurfaceFit], campaign: Campaign, path: Path) -> st
         temperature, acceleration = data.temperature_c, data.acceleration[fit.axis]
         residual = data.residual[fit.axis]
         step = max(1, len(temperature) // 4000)
-        grid_t, grid_a = np.meshgrid(np.linspace(*fit.temperature_range_c, 30),
-                                     np.linspace(*fit.acceleration_range_lsb, 30))
+        grid_t, grid_a = np.meshgrid(
+            np.linspace(*fit.temperature_range_c, 30), np.linspace(*fit.acceleration_range_lsb, 30)
+        )
         plot = figure.add_subplot(len(fits), 2, 2 * row + 1, projection="3d")
-        plot.plot_surface(grid_t, grid_a, fit.surface.evaluate(grid_t, grid_a), alpha=0.45,
-                          color=SET_COLOURS[fit.set_name])
+        plot.plot_surface(
+            grid_t, grid_a, fit.surface.evaluate(grid_t, grid_a), alpha=0.45, color=SET_COLOURS[fit.set_name]
+        )
         plot.scatter(temperature[::step], acceleration[::step], residual[::step], s=1, color="black")
         plot.set_xlabel("T (°C)")
         plot.set_ylabel("a (LSB)")
@@ -119,8 +130,9 @@ def surface_figure(fits: list[SurfaceFit], campaign: Campaign, path: Path) -> st
         plot.set_title(f"{fit.axis} {SET_NAMES[fit.set_name]}: RMSE {fit.rmse:.1f} LSB")
         misfit = figure.add_subplot(len(fits), 2, 2 * row + 2)
         predicted = fit.surface.evaluate(temperature, acceleration)
-        misfit.plot(temperature[::step], (residual - predicted)[::step], ".", markersize=1,
-                    color=SET_COLOURS[fit.set_name])
+        misfit.plot(
+            temperature[::step], (residual - predicted)[::step], ".", markersize=1, color=SET_COLOURS[fit.set_name]
+        )
         misfit.axhline(0.0, color="black", linewidth=0.8)
         misfit.set_xlabel("IMU temperature (°C)")
         misfit.set_ylabel("data − surface (LSB)")
@@ -128,8 +140,7 @@ def surface_figure(fits: list[SurfaceFit], campaign: Campaign, path: Path) -> st
     return _save(figure, path)
 
 
-def write_fit_report(out_dir: Path, fits: list[SurfaceFit], campaign: Campaign,
-                     families: str | None = None) -> Path:
+def write_fit_report(out_dir: Path, fits: list[SurfaceFit], campaign: Campaign, families: str | None = None) -> Path:
     drift = drift_figure(campaign, out_dir / "drift.png")
     surfaces = surface_figure(fits, campaign, out_dir / "surfaces.png")
     lines = [

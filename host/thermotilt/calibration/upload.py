@@ -95,8 +95,9 @@ def read_table(fit_dir: Path) -> CoefficientTable:
     for (set_name, axis), surface in surfaces.items():
         for term, value in zip(COEFFICIENT_NAMES, surface, strict=True):
             if not math.isfinite(value) or abs(value) > FLOAT32_MAX:
-                raise UploadError(f"{path}: {set_name}{axis} {term} = {value:g}, which the firmware's float32 "
-                                  "cannot hold")
+                raise UploadError(
+                    f"{path}: {set_name}{axis} {term} = {value:g}, which the firmware's float32 cannot hold"
+                )
     return CoefficientTable(surfaces).to_float32()
 
 
@@ -162,31 +163,49 @@ class _Session:
             source = self.coef_source("; the coefficients are in RAM, not saved")
             if source != "U":
                 raise UploadError(f"after the upload {self.name} runs coef_source {source}, not U")
-            return UploadResult(self.name, version["firmware_version"], table, CoefficientTable(read_back),
-                                None, False, None, source, 0)
+            return UploadResult(
+                self.name, version["firmware_version"], table, CoefficientTable(read_back), None, False, None, source, 0
+            )
         saved_timeout = self.client.timeout_s
         self.client.timeout_s = SAVE_TIMEOUT_S
         try:
-            self.command("SAVECOE", "SAVECOE", (), "; the EEPROM may hold part of the block, which the board "
-                         "loads only if its CRC holds")
+            self.command(
+                "SAVECOE",
+                "SAVECOE",
+                (),
+                "; the EEPROM may hold part of the block, which the board loads only if its CRC holds",
+            )
         finally:
             self.client.timeout_s = saved_timeout
         restart = self.restart()
         source = self.coef_source(SAVED_UNCHECKED)
         if source != "E":
-            raise UploadError(f"after the reset {self.name} runs coef_source {source}, not E"
-                              f"{self.reported(restart)}")
+            raise UploadError(f"after the reset {self.name} runs coef_source {source}, not E{self.reported(restart)}")
         if self.wait(lambda frame: frame.type == "IMU", IMU_FRAME_WAIT_S, since=restart) is None:
-            raise UploadError(f"no IMU frame from {self.name} within {IMU_FRAME_WAIT_S:g} s after the reset"
-                              f"{self.reported(restart)}; ICF says coef_source E")
-        after_reset = {(s, a): self.read_back(s, a, table.surface(s, a), " after the reset", AFTER_RESET)
-                       for s in SETS for a in AXES}
+            raise UploadError(
+                f"no IMU frame from {self.name} within {IMU_FRAME_WAIT_S:g} s after the reset"
+                f"{self.reported(restart)}; ICF says coef_source E"
+            )
+        after_reset = {
+            (s, a): self.read_back(s, a, table.surface(s, a), " after the reset", AFTER_RESET)
+            for s in SETS
+            for a in AXES
+        }
         imu = [frame for frame in self.since(restart) if frame.type == "IMU"]
         wrong = sorted({frame["coef_source"] for frame in imu} - {"E"})
         if wrong:
             raise UploadError(f"after the reset {self.name} sent IMU frames with coef_source {', '.join(wrong)}, not E")
-        return UploadResult(self.name, version["firmware_version"], table, CoefficientTable(read_back),
-                            CoefficientTable(after_reset), True, restart["reset_cause"], source, len(imu))
+        return UploadResult(
+            self.name,
+            version["firmware_version"],
+            table,
+            CoefficientTable(read_back),
+            CoefficientTable(after_reset),
+            True,
+            restart["reset_cause"],
+            source,
+            len(imu),
+        )
 
     def command(self, what: str, frame_type: str, values: Iterable[Any] = (), consequence: str = "") -> Any:
         try:
@@ -194,16 +213,19 @@ class _Session:
         except CommandRefused as error:
             raise UploadError(f"{what} refused by {self.name}: {error.code} {error.detail}{consequence}") from None
         except CommandTimeout as error:
-            raise UploadError(f"{what}: no answer from {self.name} within {error.timeout_s:g} s, "
-                              f"{error.attempts} attempt(s){consequence}") from None
+            raise UploadError(
+                f"{what}: no answer from {self.name} within {error.timeout_s:g} s, "
+                f"{error.attempts} attempt(s){consequence}"
+            ) from None
 
     def hello(self) -> Frame:
         self.client.wait_for(lambda frame: True, BOOT_WAIT_S)
         try:
             answer = self.client.command("VERSION")
         except CommandTimeout:
-            raise UploadError(f"{self.name} is silent: no answer to VERSION (is it the IMU reader, and at "
-                              "this baud rate?)") from None
+            raise UploadError(
+                f"{self.name} is silent: no answer to VERSION (is it the IMU reader, and at this baud rate?)"
+            ) from None
         except CommandRefused as error:
             raise UploadError(f"VERSION refused by {self.name}: {error.code} {error.detail}") from None
         versions = [frame for frame in answer.data if frame.type == "VER"]
@@ -213,15 +235,18 @@ class _Session:
         if version["device"] != "imu_reader":
             raise UploadError(f"{self.name} is the {version['device']}, not the imu_reader")
         if version["protocol_version"] != PROTOCOL_VERSION:
-            raise UploadError(f"{self.name} speaks protocol {version['protocol_version']}, this host "
-                              f"{PROTOCOL_VERSION}: update the firmware or the host")
+            raise UploadError(
+                f"{self.name} speaks protocol {version['protocol_version']}, this host "
+                f"{PROTOCOL_VERSION}: update the firmware or the host"
+            )
         return version
 
     def read_back(self, set_name: str, axis: str, sent: Surface, when: str, consequence: str) -> Surface:
         what = f"GETCOE {set_name} {axis}{when}"
         answer = self.command(what, "GETCOE", [set_name, axis], consequence)
-        coe = [frame for frame in answer.data if frame.type == "COE"
-               and (frame["set"], frame["axis"]) == (set_name, axis)]
+        coe = [
+            frame for frame in answer.data if frame.type == "COE" and (frame["set"], frame["axis"]) == (set_name, axis)
+        ]
         if not coe:
             raise UploadError(f"{what}: {self.name} answered without its COE frame{consequence}")
         printed = Surface(*(coe[-1][term] for term in COEFFICIENT_NAMES))
@@ -243,19 +268,22 @@ class _Session:
         self.command("RESET", "RESET", (), SAVED_UNCHECKED + " (reset the board, then check coef_source)")
         restart = self.wait(lambda frame: frame.type == "VER", RESTART_WAIT_S, since=mark)
         if restart is None:
-            raise UploadError(f"{self.name} did not come back within {RESTART_WAIT_S:g} s of RESET (an old "
-                              "bootloader that leaves the watchdog on keeps resetting: see docs/reliability.md)"
-                              + SAVED_UNCHECKED)
+            raise UploadError(
+                f"{self.name} did not come back within {RESTART_WAIT_S:g} s of RESET (an old "
+                "bootloader that leaves the watchdog on keeps resetting: see docs/reliability.md)" + SAVED_UNCHECKED
+            )
         if restart["reset_cause"] != "COMMANDED":
-            raise UploadError(f"after RESET {self.name} reported reset_cause {restart['reset_cause']}, not "
-                              f"COMMANDED{self.reported(restart)}" + SAVED_UNCHECKED)
+            raise UploadError(
+                f"after RESET {self.name} reported reset_cause {restart['reset_cause']}, not "
+                f"COMMANDED{self.reported(restart)}" + SAVED_UNCHECKED
+            )
         return restart
 
     def since(self, first: Frame | int) -> list[Frame]:
         """The unclaimed frames from `first` (a frame, or an index) on."""
         if isinstance(first, int):
             return self.frames[first:]
-        return self.frames[next(i for i, frame in enumerate(self.frames) if frame is first):]
+        return self.frames[next(i for i, frame in enumerate(self.frames) if frame is first) :]
 
     def wait(self, wanted: Callable[[Frame], bool], timeout_s: float, since: Frame | int) -> Frame | None:
         """A wanted frame already received from `since` on, or the next within timeout_s."""
@@ -265,25 +293,36 @@ class _Session:
         return self.client.wait_for(wanted, timeout_s)
 
     def reported(self, since: Frame) -> str:
-        errors = list(dict.fromkeys(f"{frame['code']} {frame['detail']}" for frame in self.since(since)
-                                    if frame.type == "ERR" and frame["cmd_seq"] == -1))
+        errors = list(
+            dict.fromkeys(
+                f"{frame['code']} {frame['detail']}"
+                for frame in self.since(since)
+                if frame.type == "ERR" and frame["cmd_seq"] == -1
+            )
+        )
         return f" (it reported {', '.join(errors)})" if errors else ""
 
 
 def format_result(result: UploadResult) -> str:
     columns = "".join(f"{term:>12}" for term in COEFFICIENT_NAMES)
-    lines = [f"imu_reader {result.firmware_version} on {result.port}: read back equal to what was sent at "
-             f"COE's {COE_SIGNIFICANT_DIGITS} significant digits",
-             f"  set axis{columns}  read back  after reset"]
+    lines = [
+        f"imu_reader {result.firmware_version} on {result.port}: read back equal to what was sent at "
+        f"COE's {COE_SIGNIFICANT_DIGITS} significant digits",
+        f"  set axis{columns}  read back  after reset",
+    ]
     for set_name in SETS:
         for axis in AXES:
             values = "".join(f"{value:>12.4e}" for value in result.sent.surface(set_name, axis))
             after = "equal" if result.after_reset is not None else "-"
             lines.append(f"  {set_name}   {axis}   {values}  {'equal':<9}  {after}")
     if result.saved:
-        lines.append(f"saved to EEPROM; after the reset ({result.reset_cause}) the board runs them: coef_source "
-                     f"{result.coef_source} in ICF and in {result.imu_frames_checked} IMU frames")
+        lines.append(
+            f"saved to EEPROM; after the reset ({result.reset_cause}) the board runs them: coef_source "
+            f"{result.coef_source} in ICF and in {result.imu_frames_checked} IMU frames"
+        )
     else:
-        lines.append(f"in RAM only (coef_source {result.coef_source}): a reset or power cycle restores the "
-                     "EEPROM's coefficients; upload without --no-save to keep them")
+        lines.append(
+            f"in RAM only (coef_source {result.coef_source}): a reset or power cycle restores the "
+            "EEPROM's coefficients; upload without --no-save to keep them"
+        )
     return "\n".join(lines)

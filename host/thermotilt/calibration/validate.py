@@ -42,8 +42,13 @@ CALIBRATED_INCLINATION_DEG = 45.0
 LSB_PER_G = 1.0 / 0.061e-3
 PAPER_ACCELERATION_LSB = LSB_PER_G * math.sin(math.radians(CALIBRATED_INCLINATION_DEG))
 SET_NAMES = {"W": "warming", "C": "cooling"}
-_NEEDED = ("time_s", "imu_temp_c", "comp_set", "coef_source",
-           *(f"a{axis.lower()}_{kind}" for axis in FIT_AXES for kind in ("filt", "comp")))
+_NEEDED = (
+    "time_s",
+    "imu_temp_c",
+    "comp_set",
+    "coef_source",
+    *(f"a{axis.lower()}_{kind}" for axis in FIT_AXES for kind in ("filt", "comp")),
+)
 
 
 @dataclass(frozen=True)
@@ -95,9 +100,11 @@ class Validation:
 
 def paper_domain() -> Domain:
     keys = [f"{s}{a}" for s in SETS for a in FIT_AXES]
-    return Domain({key: CALIBRATED_C for key in keys},
-                  {key: (-PAPER_ACCELERATION_LSB, PAPER_ACCELERATION_LSB) for key in keys},
-                  "the paper's calibration (-10..45 degC, +-45 deg)")
+    return Domain(
+        {key: CALIBRATED_C for key in keys},
+        {key: (-PAPER_ACCELERATION_LSB, PAPER_ACCELERATION_LSB) for key in keys},
+        "the paper's calibration (-10..45 degC, +-45 deg)",
+    )
 
 
 def load_coefficients(source: str) -> Coefficients:
@@ -108,9 +115,11 @@ def load_coefficients(source: str) -> Coefficients:
     fits = read_fit(Path(source))
     surfaces = {(s, a): ZERO_SURFACE for s in SETS for a in AXES}
     surfaces.update({(key[0], key[1]): fit.surface for key, fit in fits.items()})
-    domain = Domain({key: fit.temperature_range_c for key, fit in fits.items()},
-                    {key: fit.acceleration_range_lsb for key, fit in fits.items()},
-                    f"the fit in {source}")
+    domain = Domain(
+        {key: fit.temperature_range_c for key, fit in fits.items()},
+        {key: fit.acceleration_range_lsb for key, fit in fits.items()},
+        f"the fit in {source}",
+    )
     return Coefficients(CoefficientTable(surfaces), domain, source)
 
 
@@ -156,15 +165,31 @@ def validate(run: Path, coefficients: Coefficients | None = None) -> Validation:
                 after = before - surface.evaluate(t, before)
             series.setdefault(f"{axis} before", np.full(usable_rows, np.nan))[in_set] = before
             series.setdefault(f"{axis} after", np.full(usable_rows, np.nan))[in_set] = after
-            results.append(AxisResult(set_name, axis, int(in_set.sum()), _rms_about_25(t, before),
-                                      _rms_about_25(t, after), _outside(domain, set_name, axis, t, before)))
+            results.append(
+                AxisResult(
+                    set_name,
+                    axis,
+                    int(in_set.sum()),
+                    _rms_about_25(t, before),
+                    _rms_about_25(t, after),
+                    _outside(domain, set_name, axis, t, before),
+                )
+            )
     difference = None
     if coefficients is not None:
         difference = max(float(np.nanmax(np.abs(series[f"{axis} after"] - firmware[axis]))) for axis in FIT_AXES)
-    return Validation(str(path), usable_rows, log.rows - usable_rows,
-                      (float(temperature.min()), float(temperature.max())), after_from,
-                      f"coef_source {'/'.join(sources)}",
-                      domain.source if domain else None, results, difference, series)
+    return Validation(
+        str(path),
+        usable_rows,
+        log.rows - usable_rows,
+        (float(temperature.min()), float(temperature.max())),
+        after_from,
+        f"coef_source {'/'.join(sources)}",
+        domain.source if domain else None,
+        results,
+        difference,
+        series,
+    )
 
 
 def _rms_about_25(temperature: np.ndarray, values: np.ndarray) -> float | None:
@@ -172,14 +197,12 @@ def _rms_about_25(temperature: np.ndarray, values: np.ndarray) -> float | None:
     return None if reference is None else float(np.sqrt(np.mean((values - reference) ** 2)))
 
 
-def _outside(domain: Domain | None, set_name: str, axis: str, temperature: np.ndarray,
-             acceleration: np.ndarray) -> int:
+def _outside(domain: Domain | None, set_name: str, axis: str, temperature: np.ndarray, acceleration: np.ndarray) -> int:
     key = f"{set_name}{axis}"
     if domain is None or key not in domain.temperature_c:
         return 0
     (t_low, t_high), (a_low, a_high) = domain.temperature_c[key], domain.acceleration_lsb[key]
-    outside = ((temperature < t_low) | (temperature > t_high)
-               | (acceleration < a_low) | (acceleration > a_high))
+    outside = (temperature < t_low) | (temperature > t_high) | (acceleration < a_low) | (acceleration > a_high)
     return int(outside.sum())
 
 
@@ -191,26 +214,34 @@ def format_validation(validation: Validation, paper: dict[tuple[str, str], tuple
         return "n/a" if value is None else f"{value:.1f}"
 
     low, high = validation.temperature_range_c
-    lines = [f"{validation.run}: {validation.rows} rows, IMU temperature {low:.1f}..{high:.1f} degC"
-             + (f" ({validation.skipped_rows} rows with empty cells skipped)" if validation.skipped_rows else ""),
-             f"after = {validation.after_from}",
-             "RMS about the 25 degC reading, LSB:",
-             f"{'set':<8}{'axis':<6}{'rows':>8}{'before':>10}{'after':>10}"
-             + (f"{'paper before':>14}{'paper after':>13}" if paper else "")]
+    lines = [
+        f"{validation.run}: {validation.rows} rows, IMU temperature {low:.1f}..{high:.1f} degC"
+        + (f" ({validation.skipped_rows} rows with empty cells skipped)" if validation.skipped_rows else ""),
+        f"after = {validation.after_from}",
+        "RMS about the 25 degC reading, LSB:",
+        f"{'set':<8}{'axis':<6}{'rows':>8}{'before':>10}{'after':>10}"
+        + (f"{'paper before':>14}{'paper after':>13}" if paper else ""),
+    ]
     for result in validation.results:
-        line = (f"{SET_NAMES[result.set_name]:<8}{result.axis:<6}{result.rows:>8}"
-                f"{lsb(result.rms_before_lsb):>10}{lsb(result.rms_after_lsb):>10}")
+        line = (
+            f"{SET_NAMES[result.set_name]:<8}{result.axis:<6}{result.rows:>8}"
+            f"{lsb(result.rms_before_lsb):>10}{lsb(result.rms_after_lsb):>10}"
+        )
         if paper and (result.set_name, result.axis) in paper:
             before, after = paper[(result.set_name, result.axis)]
             line += f"{before:>14.0f}{after:>13.0f}"
         lines.append(line)
     if validation.firmware_difference_lsb is not None:
-        lines.append(f"the firmware's own compensated output ({validation.sources}) differs from this "
-                     f"by at most {validation.firmware_difference_lsb:.2f} LSB")
+        lines.append(
+            f"the firmware's own compensated output ({validation.sources}) differs from this "
+            f"by at most {validation.firmware_difference_lsb:.2f} LSB"
+        )
     for result in validation.results:
         if result.rms_before_lsb is None:
-            lines.append(f"note: the {SET_NAMES[result.set_name]} rows never come "
-                         f"within {REFERENCE_BAND_C:g} degC of {REFERENCE_C:g} degC: no reference, no RMS")
+            lines.append(
+                f"note: the {SET_NAMES[result.set_name]} rows never come "
+                f"within {REFERENCE_BAND_C:g} degC of {REFERENCE_C:g} degC: no reference, no RMS"
+            )
             break
     return "\n".join(lines)
 
@@ -218,8 +249,10 @@ def format_validation(validation: Validation, paper: dict[tuple[str, str], tuple
 def range_warnings(validation: Validation) -> list[str]:
     warnings = []
     if validation.domain_source is None:
-        warnings.append("the coefficients' fitted range is unknown (coefficients from EEPROM or uploaded): "
-                        "give --coefficients FIT_DIR to check the run against it")
+        warnings.append(
+            "the coefficients' fitted range is unknown (coefficients from EEPROM or uploaded): "
+            "give --coefficients FIT_DIR to check the run against it"
+        )
         return warnings
     for result in validation.results:
         if result.outside_rows:
@@ -227,5 +260,6 @@ def range_warnings(validation: Validation) -> list[str]:
             warnings.append(
                 f"{result.axis}: {result.outside_rows} of {result.rows} {SET_NAMES[result.set_name]} rows "
                 f"({share:.1f} %) lie outside the range of {validation.domain_source}: "
-                f"the surface is extrapolated there")
+                f"the surface is extrapolated there"
+            )
     return warnings

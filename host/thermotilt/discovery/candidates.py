@@ -71,8 +71,7 @@ class Candidate:
         (per-axis candidates) or to the one value given."""
         current = model.terms[self.name][self.parameter]
         if self.per_axis:
-            table = {key: (float(current[key]) if model.enabled(self.name) else self.null)
-                     for key in self.kind.keys}
+            table = {key: (float(current[key]) if model.enabled(self.name) else self.null) for key in self.kind.keys}
             for channel, value in values.items():
                 table[channel.lower()] = value
             parameter: Any = table
@@ -82,28 +81,40 @@ class Candidate:
 
 
 CANDIDATES: tuple[Candidate, ...] = (
-    Candidate("sensor_lag", "time_constant_s", "s", ACCELERATION_CHANNELS, per_axis=False,
-              probe=2.0, additive=False, search=(0.1, 3600.0)),
-    Candidate("rate_sensitivity", "lsb_per_c_per_s", "LSB per degC/s", ACCELERATION_CHANNELS,
-              per_axis=True, probe=100.0),
-    Candidate("hysteresis", "cooling_offset_lsb", "LSB", ACCELERATION_CHANNELS, per_axis=True,
-              probe=10.0),
-    Candidate("sensitivity_loss", "gain_loss_at_1g", "", ACCELERATION_CHANNELS, per_axis=False,
-              probe=0.01),
-    Candidate("scale_tempco", "ppm_per_c", "ppm/degC", ACCELERATION_CHANNELS, per_axis=True,
-              probe=100.0),
+    Candidate(
+        "sensor_lag",
+        "time_constant_s",
+        "s",
+        ACCELERATION_CHANNELS,
+        per_axis=False,
+        probe=2.0,
+        additive=False,
+        search=(0.1, 3600.0),
+    ),
+    Candidate(
+        "rate_sensitivity", "lsb_per_c_per_s", "LSB per degC/s", ACCELERATION_CHANNELS, per_axis=True, probe=100.0
+    ),
+    Candidate("hysteresis", "cooling_offset_lsb", "LSB", ACCELERATION_CHANNELS, per_axis=True, probe=10.0),
+    Candidate("sensitivity_loss", "gain_loss_at_1g", "", ACCELERATION_CHANNELS, per_axis=False, probe=0.01),
+    Candidate("scale_tempco", "ppm_per_c", "ppm/degC", ACCELERATION_CHANNELS, per_axis=True, probe=100.0),
     Candidate("cross_axis", "share", "", ACCELERATION_CHANNELS, per_axis=True, probe=0.001),
-    Candidate("temperature_offset", "offset_c", "degC", ("temperature",), per_axis=False,
-              probe=0.1),
-    Candidate("drive_dead_zone", "threshold_duty", "", CHAMBER_CHANNELS, per_axis=False,
-              probe=0.02, linear=False),
+    Candidate("temperature_offset", "offset_c", "degC", ("temperature",), per_axis=False, probe=0.1),
+    Candidate("drive_dead_zone", "threshold_duty", "", CHAMBER_CHANNELS, per_axis=False, probe=0.02, linear=False),
     # From a small passive heatsink (5 K/W) to the declared cold plate.
-    Candidate("heatsink", "ambient_conductance_w_per_k", "W/K", CHAMBER_CHANNELS, per_axis=False,
-              probe=-0.5, additive=False, search=(0.2, 50.0)),
-    Candidate("thermistor_offset", "offset_c", "degC", CHAMBER_CHANNELS, per_axis=True,
-              probe=0.1),
-    Candidate("joule_heating", "exponent", "", CHAMBER_CHANNELS, per_axis=False, probe=-0.1,
-              additive=False, search=(1.0, 2.0)),
+    Candidate(
+        "heatsink",
+        "ambient_conductance_w_per_k",
+        "W/K",
+        CHAMBER_CHANNELS,
+        per_axis=False,
+        probe=-0.5,
+        additive=False,
+        search=(0.2, 50.0),
+    ),
+    Candidate("thermistor_offset", "offset_c", "degC", CHAMBER_CHANNELS, per_axis=True, probe=0.1),
+    Candidate(
+        "joule_heating", "exponent", "", CHAMBER_CHANNELS, per_axis=False, probe=-0.1, additive=False, search=(1.0, 2.0)
+    ),
 )
 BY_NAME: Mapping[str, Candidate] = {candidate.name: candidate for candidate in CANDIDATES}
 
@@ -141,5 +152,7 @@ def experiment(names: frozenset[str]) -> str:
     """The experiment that tells these candidates apart."""
     if names in _EXPERIMENTS:
         return _EXPERIMENTS[names]
-    return ("a run that changes what the candidates depend on differently: other inclinations, "
-            "other ramp rates, longer holds")
+    return (
+        "a run that changes what the candidates depend on differently: other inclinations, "
+        "other ramp rates, longer holds"
+    )

@@ -15,31 +15,54 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     discover = commands.add_parser(
         "discover", help="where a measured run and the model's replay disagree, and which effect explains it"
     )
-    discover.add_argument("measured", metavar="MEASURED", type=existing_run,
-                          help="a run folder or run.csv (true_* columns are ignored)")
+    discover.add_argument(
+        "measured", metavar="MEASURED", type=existing_run, help="a run folder or run.csv (true_* columns are ignored)"
+    )
     discover.add_argument("--model", help="physics model file (default: the packaged default.toml)")
     discover.add_argument("--out", required=True, help="folder for discovery.json, model.toml, report.md")
-    discover.add_argument("--settle-seconds", type=settle_seconds, default=SETTLE_S,
-                          help=f"leave out rows this close to the start and to a table move (default {SETTLE_S:g})")
-    discover.add_argument("--twin", action="store_true",
-                          help="MEASURED is a twin run: run its scenario (summary.json) again with the "
-                               "model before and after discovery and report the gap to each")
+    discover.add_argument(
+        "--settle-seconds",
+        type=settle_seconds,
+        default=SETTLE_S,
+        help=f"leave out rows this close to the start and to a table move (default {SETTLE_S:g})",
+    )
+    discover.add_argument(
+        "--twin",
+        action="store_true",
+        help="MEASURED is a twin run: run its scenario (summary.json) again with the "
+        "model before and after discovery and report the gap to each",
+    )
     discover.set_defaults(run=_discover)
 
     hide = commands.add_parser(
         "hide-effect", help="a measured-looking run with one candidate effect hidden in it, for testing discover"
     )
-    hide.add_argument("--inputs", required=True, metavar="RUN", type=existing_run,
-                      help="a run (folder or run.csv) whose chamber temperature, drive and table angles to reuse, "
-                           "e.g. from thermotilt simulate")
+    hide.add_argument(
+        "--inputs",
+        required=True,
+        metavar="RUN",
+        type=existing_run,
+        help="a run (folder or run.csv) whose chamber temperature, drive and table angles to reuse, "
+        "e.g. from thermotilt simulate",
+    )
     hide.add_argument("--effect", required=True, help="a candidate's name, none or random")
     hide.add_argument("--seed", type=seed, default=1, help="noise and draw seed")
-    hide.add_argument("--snr", type=within(float, 0.01, 1000.0),
-                      help="effect RMS over noise RMS on its channel (default: drawn from 0.5..8)")
-    hide.add_argument("--channel", choices=("temperature", "X", "Y", "Z", "inner", "outer"),
-                      help="the channel the effect is sized on (default: drawn)")
-    hide.add_argument("--noise", choices=("model", "white", "autocorrelated"), default="model",
-                      help="the model's noise terms, white noise only, or 5x the model's flicker")
+    hide.add_argument(
+        "--snr",
+        type=within(float, 0.01, 1000.0),
+        help="effect RMS over noise RMS on its channel (default: drawn from 0.5..8)",
+    )
+    hide.add_argument(
+        "--channel",
+        choices=("temperature", "X", "Y", "Z", "inner", "outer"),
+        help="the channel the effect is sized on (default: drawn)",
+    )
+    hide.add_argument(
+        "--noise",
+        choices=("model", "white", "autocorrelated"),
+        default="model",
+        help="the model's noise terms, white noise only, or 5x the model's flicker",
+    )
     hide.add_argument("--model", help="physics model file the effect is added to (default: the packaged one)")
     hide.add_argument("--out", required=True, help="folder for run.csv and truth.json")
     hide.set_defaults(run=_hide_effect)
@@ -73,8 +96,13 @@ def _discover(args: argparse.Namespace) -> int:
             from .twin_gap import twin_gap
 
             model_path = report.write_model_file(outcome, measured, model.source, out_dir)
-            twin = twin_gap(Path(args.measured), measured,
-                            {"before": model, "after": Model.load(model_path)}, out_dir, progress=print)
+            twin = twin_gap(
+                Path(args.measured),
+                measured,
+                {"before": model, "after": Model.load(model_path)},
+                out_dir,
+                progress=print,
+            )
         result = report.write(outcome, measured, model.source, out_dir, twin, model_path)
     except DiscoveryDataError as error:
         raise UsageError(str(error)) from None
@@ -94,14 +122,28 @@ def _hide_effect(args: argparse.Namespace) -> int:
 
     try:
         model = Model.load(args.model)
-        truth = hide_effect(Path(args.inputs), Path(args.out), args.effect, args.seed, snr=args.snr,
-                            channel=args.channel, noise=args.noise, model=model, progress=print)
+        truth = hide_effect(
+            Path(args.inputs),
+            Path(args.out),
+            args.effect,
+            args.seed,
+            snr=args.snr,
+            channel=args.channel,
+            noise=args.noise,
+            model=model,
+            progress=print,
+        )
     except (ModelError, DiscoveryDataError, NativeLibraryError) as error:
         raise UsageError(str(error)) from None
     except OSError as error:
         raise UsageError(f"cannot write {args.out}: {error.strerror or error}") from None
-    hidden = (f"{truth.effect} on {truth.channel} ({truth.parameter} {truth.value:.4g}, "
-              f"SNR {truth.snr:.2f})" if truth.effect != "none" else "no effect")
-    print(f"wrote {args.out}/run.csv with {hidden}, {truth.noise} noise "
-          f"({truth.noise_rms:.3g} RMS); the truth is in truth.json")
+    hidden = (
+        f"{truth.effect} on {truth.channel} ({truth.parameter} {truth.value:.4g}, SNR {truth.snr:.2f})"
+        if truth.effect != "none"
+        else "no effect"
+    )
+    print(
+        f"wrote {args.out}/run.csv with {hidden}, {truth.noise} noise "
+        f"({truth.noise_rms:.3g} RMS); the truth is in truth.json"
+    )
     return 0

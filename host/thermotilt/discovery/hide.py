@@ -64,8 +64,7 @@ CHS_DECIMALS = 2
 # The firmware's frame cadence (firmware/imu_reader DEFAULT_DECIMATION).
 DECIMATION = 10
 # The chamber's columns, copied from the input run's nearest row.
-_CHAMBER_COLUMNS = ("ambient_c", "setpoint_c", "chamber_c", "outer_c", "pwm", "direction",
-                    "phase", "chamber_fault")
+_CHAMBER_COLUMNS = ("ambient_c", "setpoint_c", "chamber_c", "outer_c", "pwm", "direction", "phase", "chamber_fault")
 
 
 @dataclass(frozen=True)
@@ -91,10 +90,14 @@ def noisy(model: Model, noise: str) -> Model:
         return model.with_terms({"bias_instability": False, "drift_repeatability": False})
     if noise == "autocorrelated":
         floors = model.terms["bias_instability"]["allan_floor_lsb"]
-        return with_values(model, "bias_instability", {
-            "enabled": True,
-            "allan_floor_lsb": {axis: AUTOCORRELATED_FLICKER_FACTOR * floors[axis] for axis in "xyz"},
-        })
+        return with_values(
+            model,
+            "bias_instability",
+            {
+                "enabled": True,
+                "allan_floor_lsb": {axis: AUTOCORRELATED_FLICKER_FACTOR * floors[axis] for axis in "xyz"},
+            },
+        )
     raise ValueError(f"unknown noise {noise!r}; choose from {', '.join(NOISES)}")
 
 
@@ -103,8 +106,7 @@ def _generate(measured: Measured, model: Model, seed: int) -> dict[str, np.ndarr
     processing of every sample: per-sample arrays on the grid."""
     grid = SampleGrid.of(measured.time_s, measured.mounting)
     chamber_c = grid.sample(measured.time_s, measured.chamber_c)
-    row = np.minimum(np.searchsorted(measured.time_s, grid.time_s, side="right") - 1,
-                     len(measured.time_s) - 1)
+    row = np.minimum(np.searchsorted(measured.time_s, grid.time_s, side="right") - 1, len(measured.time_s) - 1)
     incl_x = measured.incl_x_deg[row].tolist()
     incl_y = measured.incl_y_deg[row].tolist()
     sensor = Sensor(model, seed, float(chamber_c[0]))
@@ -113,16 +115,22 @@ def _generate(measured: Measured, model: Model, seed: int) -> dict[str, np.ndarr
     for index, environment_c in enumerate(chamber_c.tolist()):
         sample = sensor.step(SAMPLE_PERIOD_S, environment_c, incl_x[index], incl_y[index])
         registers[:, index] = (sample.ax, sample.ay, sample.az, sample.temperature_raw)
-    processed = native.imu_process(registers[0], registers[1], registers[2], registers[3],
-                                   grid.reset, decimation=DECIMATION)
-    processed.update(raw_x=registers[0], raw_y=registers[1], raw_z=registers[2],
-                     grid_time_s=grid.time_s, incl_x=np.asarray(incl_x), incl_y=np.asarray(incl_y))
+    processed = native.imu_process(
+        registers[0], registers[1], registers[2], registers[3], grid.reset, decimation=DECIMATION
+    )
+    processed.update(
+        raw_x=registers[0],
+        raw_y=registers[1],
+        raw_z=registers[2],
+        grid_time_s=grid.time_s,
+        incl_x=np.asarray(incl_x),
+        incl_y=np.asarray(incl_y),
+    )
     return processed
 
 
 def _channel_values(processed: Mapping[str, np.ndarray], frames: np.ndarray) -> dict[str, np.ndarray]:
-    return {channel: processed[output][frames].astype(float)
-            for channel, output in FIRMWARE_OUTPUTS.items()}
+    return {channel: processed[output][frames].astype(float) for channel, output in FIRMWARE_OUTPUTS.items()}
 
 
 def thermistor_reading(time_s: np.ndarray, face_c: np.ndarray, model: Model) -> np.ndarray:
@@ -139,8 +147,13 @@ def thermistor_reading(time_s: np.ndarray, face_c: np.ndarray, model: Model) -> 
     return reading
 
 
-def _frames_measured(inputs: Measured, processed: Mapping[str, np.ndarray], frames: np.ndarray,
-                     model: Model, change: ChamberChange | None = None) -> Measured:
+def _frames_measured(
+    inputs: Measured,
+    processed: Mapping[str, np.ndarray],
+    frames: np.ndarray,
+    model: Model,
+    change: ChamberChange | None = None,
+) -> Measured:
     """The generated frames as a Measured: the same inputs at the frame
     times, the inner face as its thermistor reads it and each reading held
     from one chamber status frame to the next, as a logger holds them; with
@@ -167,11 +180,20 @@ def _frames_measured(inputs: Measured, processed: Mapping[str, np.ndarray], fram
         if channel in CHAMBER_CHANNELS:
             del values[channel], used[channel]
     return Measured(
-        source="generated", time_s=time_s, chamber_c=reading_c,
-        incl_x_deg=inputs.incl_x_deg[row], incl_y_deg=inputs.incl_y_deg[row], mounting=mounting,
-        ambient_c=inputs.ambient_c[row], outer_c=outer_c, duty=inputs.duty[row],
-        direction=inputs.direction[row], status=status,
-        observed=values, used=used, skipped_rows=0,
+        source="generated",
+        time_s=time_s,
+        chamber_c=reading_c,
+        incl_x_deg=inputs.incl_x_deg[row],
+        incl_y_deg=inputs.incl_y_deg[row],
+        mounting=mounting,
+        ambient_c=inputs.ambient_c[row],
+        outer_c=outer_c,
+        duty=inputs.duty[row],
+        direction=inputs.direction[row],
+        status=status,
+        observed=values,
+        used=used,
+        skipped_rows=0,
         skipped_channels={c: why for c, why in inputs.skipped_channels.items() if c in CHAMBER_CHANNELS},
     )
 
@@ -192,11 +214,17 @@ class ChamberChange:
         inner_after, outer_after = reading_offsets_c(changed)
         # Both replays start from the same faces: the run with the effect
         # begins with readings shifted by the offsets' change.
-        shifted = replace(inputs, chamber_c=inputs.chamber_c + (inner_after - inner_before),
-                          outer_c=inputs.outer_c + (outer_after - outer_before))
+        shifted = replace(
+            inputs,
+            chamber_c=inputs.chamber_c + (inner_after - inner_before),
+            outer_c=inputs.outer_c + (outer_after - outer_before),
+        )
         before, after = chamber_replay(inputs, model), chamber_replay(shifted, changed)
-        return cls(face_c=after["face"] - before["face"], outer_c=after["outer"] - before["outer"],
-                   inner_offset_c=inner_after - inner_before)
+        return cls(
+            face_c=after["face"] - before["face"],
+            outer_c=after["outer"] - before["outer"],
+            inner_offset_c=inner_after - inner_before,
+        )
 
 
 class _NotExcited(Exception):
@@ -204,8 +232,9 @@ class _NotExcited(Exception):
     parameter's bounds: the inputs hardly excite it there."""
 
 
-def _scaled(candidate: Candidate, model: Model, frames: Measured, channel: str,
-            target_rms: float, sign: float) -> tuple[float, float]:
+def _scaled(
+    candidate: Candidate, model: Model, frames: Measured, channel: str, target_rms: float, sign: float
+) -> tuple[float, float]:
     """The parameter value whose replayed effect on the channel has this RMS,
     and that RMS."""
     used = frames.used[channel]
@@ -229,7 +258,7 @@ def _scaled(candidate: Candidate, model: Model, frames: Measured, channel: str,
     # model's (or, for a term the model has off, from its least) towards
     # one bound, the effect growing on the way.
     start = start if model.enabled(candidate.name) else low
-    for end in ((high, low) if sign > 0 else (low, high)):
+    for end in (high, low) if sign > 0 else (low, high):
         if end == start or effect_rms(end) < target_rms:
             continue
         near, far = math.log(start), math.log(end)
@@ -267,9 +296,7 @@ def hide_effect(
     if effect == "random":
         effect = CANDIDATES[int(rng.integers(len(CANDIDATES)))].name
     if effect != "none" and effect not in BY_NAME:
-        raise DiscoveryDataError(
-            f"unknown effect {effect!r}; choose none, random or one of {', '.join(BY_NAME)}"
-        )
+        raise DiscoveryDataError(f"unknown effect {effect!r}; choose none, random or one of {', '.join(BY_NAME)}")
     inputs = load_measured(inputs_path, inputs_only=True)
     faces = replace(inputs, chamber_c=inner_face_c(inputs.time_s, inputs.chamber_c, model, inputs.status))
     base_model = noisy(model, noise)
@@ -279,8 +306,14 @@ def hide_effect(
     generated = _frames_measured(faces, processed, frames, model)
 
     truth_model = base_model
-    hidden: dict[str, object] = {"channel": None, "parameter": None, "value": None,
-                                 "model_value": None, "snr": None, "effect_rms": None}
+    hidden: dict[str, object] = {
+        "channel": None,
+        "parameter": None,
+        "value": None,
+        "model_value": None,
+        "snr": None,
+        "effect_rms": None,
+    }
     if effect == "none":
         noise_rms = _noise_rms(generated, model, channel or "X")
     else:
@@ -314,30 +347,38 @@ def hide_effect(
         if channel in CHAMBER_CHANNELS:
             change = ChamberChange.of(inputs, model, candidate.changed(model, {channel: value}))
             generated = _frames_measured(faces, processed, frames, model, change)
-            processed = _generate(replace(faces, chamber_c=faces.chamber_c + change.face_c),
-                                  truth_model, seed)
+            processed = _generate(replace(faces, chamber_c=faces.chamber_c + change.face_c), truth_model, seed)
         else:
             processed = _generate(faces, truth_model, seed)
-        hidden = {"channel": channel, "parameter": candidate.parameter, "value": value,
-                  "model_value": candidate.value(model, channel), "snr": effect_rms / noise_rms,
-                  "effect_rms": effect_rms}
+        hidden = {
+            "channel": channel,
+            "parameter": candidate.parameter,
+            "value": value,
+            "model_value": candidate.value(model, channel),
+            "snr": effect_rms / noise_rms,
+            "effect_rms": effect_rms,
+        }
     out_dir.mkdir(parents=True, exist_ok=True)
     _write_run(out_dir / "run.csv", inputs_path, processed, frames, generated.chamber_c, generated.outer_c)
-    truth = Truth(effect=effect, noise_rms=noise_rms, noise=noise, seed=seed,
-                  inputs=str(inputs_path), **hidden)  # type: ignore[arg-type]
+    truth = Truth(effect=effect, noise_rms=noise_rms, noise=noise, seed=seed, inputs=str(inputs_path), **hidden)  # type: ignore[arg-type]
     (out_dir / "truth.json").write_text(json.dumps(vars(truth), indent=2) + "\n", encoding="utf-8")
     return truth
 
 
-def _write_run(path: Path, inputs_path: Path, processed: Mapping[str, np.ndarray],
-               frames: np.ndarray, chamber_c: np.ndarray, outer_c: np.ndarray) -> None:
+def _write_run(
+    path: Path,
+    inputs_path: Path,
+    processed: Mapping[str, np.ndarray],
+    frames: np.ndarray,
+    chamber_c: np.ndarray,
+    outer_c: np.ndarray,
+) -> None:
     columns = read_run_columns(str(RunFolder.of(inputs_path).log))
     input_time = columns.numbers["time_s"]
     known = np.isfinite(input_time)
     input_rows = np.flatnonzero(known)
     time_s = processed["grid_time_s"][frames]
-    nearest = input_rows[np.minimum(np.searchsorted(input_time[known], time_s, side="right") - 1,
-                                    len(input_rows) - 1)]
+    nearest = input_rows[np.minimum(np.searchsorted(input_time[known], time_s, side="right") - 1, len(input_rows) - 1)]
     since_move = np.zeros(len(frames))
     start = time_s[0]
     last = (None, None)
@@ -368,7 +409,8 @@ def _write_run(path: Path, inputs_path: Path, processed: Mapping[str, np.ndarray
                 incl_x_deg=format_number(float(processed["incl_x"][sample]), 3),
                 incl_y_deg=format_number(float(processed["incl_y"][sample]), 3),
                 since_move_s=format_number(float(since_move[index]), 3),
-                ax_raw=str(int(processed["raw_x"][sample])), ay_raw=str(int(processed["raw_y"][sample])),
+                ax_raw=str(int(processed["raw_x"][sample])),
+                ay_raw=str(int(processed["raw_y"][sample])),
                 az_raw=str(int(processed["raw_z"][sample])),
                 ax_filt=format_number(float(processed["ax_filt"][sample]), 1),
                 ay_filt=format_number(float(processed["ay_filt"][sample]), 1),
@@ -412,8 +454,7 @@ def staircase_inputs(
         for level, hold in segments:
             duration = abs(level - driven_c) / ramp_c_per_s + hold
             for _ in range(int(round(duration / period_s))):
-                driven_c += float(np.clip(level - driven_c, -ramp_c_per_s * period_s,
-                                          ramp_c_per_s * period_s))
+                driven_c += float(np.clip(level - driven_c, -ramp_c_per_s * period_s, ramp_c_per_s * period_s))
                 face_c += (driven_c - face_c) * lag
                 rows.append((time_s, level, face_c, incl_x, incl_y, time_s - moved))
                 time_s += period_s
@@ -421,8 +462,14 @@ def staircase_inputs(
     with open(path, "w", newline="", encoding="utf-8") as stream:
         writer = RunLogWriter(stream, with_truth=False, flush_each_row=False)
         for time_s, setpoint, chamber, incl_x, incl_y, since_move in rows:
-            values = {"time_s": f"{time_s:.3f}", "ambient_c": "22.000", "setpoint_c": f"{setpoint:.3f}",
-                      "chamber_c": f"{chamber:.3f}", "incl_x_deg": f"{incl_x:.3f}",
-                      "incl_y_deg": f"{incl_y:.3f}", "since_move_s": f"{since_move:.3f}"}
+            values = {
+                "time_s": f"{time_s:.3f}",
+                "ambient_c": "22.000",
+                "setpoint_c": f"{setpoint:.3f}",
+                "chamber_c": f"{chamber:.3f}",
+                "incl_x_deg": f"{incl_x:.3f}",
+                "incl_y_deg": f"{incl_y:.3f}",
+                "since_move_s": f"{since_move:.3f}",
+            }
             writer.write_row(values)
     return path

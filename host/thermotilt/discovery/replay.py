@@ -51,7 +51,10 @@ CHAMBER_CHANNELS = tuple(CHAMBER_CHANNEL_COLUMNS)
 CHANNELS = tuple(CHANNEL_COLUMNS) + CHAMBER_CHANNELS
 # Channel -> the firmware output (thermotilt.native) it is.
 FIRMWARE_OUTPUTS: Mapping[str, str] = {
-    "temperature": "temp_c", "X": "ax_filt", "Y": "ay_filt", "Z": "az_filt",
+    "temperature": "temp_c",
+    "X": "ax_filt",
+    "Y": "ay_filt",
+    "Z": "az_filt",
 }
 ACCELERATION_CHANNELS = ("X", "Y", "Z")
 INPUT_COLUMNS = ("time_s", "chamber_c", "incl_x_deg", "incl_y_deg")
@@ -111,8 +114,9 @@ class Measured:
         return tuple(channel for channel in CHANNELS if channel in self.used)
 
 
-def settled_rows(time_s: np.ndarray, mounting: np.ndarray, since_move_s: np.ndarray,
-                 settle_s: float = SETTLE_S) -> np.ndarray:
+def settled_rows(
+    time_s: np.ndarray, mounting: np.ndarray, since_move_s: np.ndarray, settle_s: float = SETTLE_S
+) -> np.ndarray:
     """The rows settled after a table move (run.positions) and at least
     settle_s after the run's first row: the replay seeds its filters there,
     where the real ones may have run for long before."""
@@ -144,9 +148,7 @@ def load_measured(path: Path, settle_s: float = SETTLE_S, inputs_only: bool = Fa
     if np.count_nonzero(known) < 2:
         empty = [column for column in INPUT_COLUMNS if not np.isfinite(numbers[column]).any()]
         why = f"no {', '.join(empty)}" if empty else "too few rows with all of them"
-        raise DiscoveryDataError(
-            f"{csv_path}: the replay needs {', '.join(INPUT_COLUMNS)} and the log has {why}"
-        )
+        raise DiscoveryDataError(f"{csv_path}: the replay needs {', '.join(INPUT_COLUMNS)} and the log has {why}")
     time_s = numbers["time_s"][known]
     steps = np.diff(time_s)
     if np.any(steps <= 0):
@@ -161,8 +163,9 @@ def load_measured(path: Path, settle_s: float = SETTLE_S, inputs_only: bool = Fa
     observed: dict[str, np.ndarray] = {}
     used: dict[str, np.ndarray] = {}
     skipped_channels: dict[str, str] = {}
-    chamber_missing = [column for column, name in zip(CHAMBER_INPUT_COLUMNS, CHAMBER_INPUTS)
-                       if not np.isfinite(chamber[name]).all()]
+    chamber_missing = [
+        column for column, name in zip(CHAMBER_INPUT_COLUMNS, CHAMBER_INPUTS) if not np.isfinite(chamber[name]).all()
+    ]
     for channel, column in {**CHANNEL_COLUMNS, **CHAMBER_CHANNEL_COLUMNS}.items():
         values = numbers[column][known]
         compared = chamber_rows(time_s, chamber["status"]) if channel in CHAMBER_CHANNELS else settled
@@ -178,16 +181,13 @@ def load_measured(path: Path, settle_s: float = SETTLE_S, inputs_only: bool = Fa
             skipped_channels[channel] = f"the log has no {column}"
         elif np.count_nonzero(mask) < 2:
             skipped_channels[channel] = (
-                f"fewer than 2 rows of {column} at least {settle_s:g} s after the start "
-                "and after a table move"
+                f"fewer than 2 rows of {column} at least {settle_s:g} s after the start and after a table move"
             )
         else:
             observed[channel] = values
             used[channel] = mask
     if not used and not inputs_only:
-        raise DiscoveryDataError(
-            f"{csv_path}: no channel to compare: " + "; ".join(skipped_channels.values())
-        )
+        raise DiscoveryDataError(f"{csv_path}: no channel to compare: " + "; ".join(skipped_channels.values()))
     return Measured(
         source=str(csv_path),
         time_s=time_s,
@@ -244,8 +244,7 @@ class SampleGrid:
     def of(cls, time_s: np.ndarray, mounting: np.ndarray) -> SampleGrid:
         count = int(round((time_s[-1] - time_s[0]) / SAMPLE_PERIOD_S)) + 1
         grid = time_s[0] + SAMPLE_PERIOD_S * np.arange(count)
-        row_index = np.minimum(np.rint((time_s - time_s[0]) / SAMPLE_PERIOD_S).astype(np.int64),
-                               count - 1)
+        row_index = np.minimum(np.rint((time_s - time_s[0]) / SAMPLE_PERIOD_S).astype(np.int64), count - 1)
         reset = np.zeros(count, dtype=bool)
         reset[row_index[np.flatnonzero(np.diff(mounting, prepend=-1))]] = True
         return cls(grid, row_index, reset)
@@ -281,20 +280,21 @@ def sensor_values(measured: Measured, model: Model, steps: np.ndarray, seed: int
     sensor = Sensor(model, seed, float(chamber_c[0]))
     values = np.empty((4, len(steps)))
     previous = measured.time_s[steps[0]] - SAMPLE_PERIOD_S
-    for index, (time_s, environment_c, incl_x, incl_y) in enumerate(zip(
-        measured.time_s[steps].tolist(), middle_c.tolist(),
-        measured.incl_x_deg[steps].tolist(), measured.incl_y_deg[steps].tolist(),
-    )):
+    for index, (time_s, environment_c, incl_x, incl_y) in enumerate(
+        zip(
+            measured.time_s[steps].tolist(),
+            middle_c.tolist(),
+            measured.incl_x_deg[steps].tolist(),
+            measured.incl_y_deg[steps].tolist(),
+        )
+    ):
         sample = sensor.step(time_s - previous, environment_c, incl_x, incl_y)
         previous = time_s
-        values[:, index] = (
-            sample.reported_c, sample.unrounded_ax, sample.unrounded_ay, sample.unrounded_az
-        )
+        values[:, index] = (sample.reported_c, sample.unrounded_ax, sample.unrounded_ay, sample.unrounded_az)
     return values
 
 
-def inner_face_c(time_s: np.ndarray, chamber_c: np.ndarray, model: Model,
-                 status: np.ndarray) -> np.ndarray:
+def inner_face_c(time_s: np.ndarray, chamber_c: np.ndarray, model: Model, status: np.ndarray) -> np.ndarray:
     """The inner face's temperature at every row from its thermistor's
     reading, taken where it was new (the status rows: a logger holds it
     between), as the model's `thermistor_lag` implies: a first-order lag
@@ -306,8 +306,9 @@ def inner_face_c(time_s: np.ndarray, chamber_c: np.ndarray, model: Model,
     tau = float(model.terms["thermistor_lag"]["time_constant_s"])
     early = np.interp(time_s - FACE_RATE_HALF_WINDOW_S, read_s, reading)
     late = np.interp(time_s + FACE_RATE_HALF_WINDOW_S, read_s, reading)
-    span = (np.minimum(time_s + FACE_RATE_HALF_WINDOW_S, read_s[-1])
-            - np.maximum(time_s - FACE_RATE_HALF_WINDOW_S, read_s[0]))
+    span = np.minimum(time_s + FACE_RATE_HALF_WINDOW_S, read_s[-1]) - np.maximum(
+        time_s - FACE_RATE_HALF_WINDOW_S, read_s[0]
+    )
     return np.interp(time_s, read_s, reading) + tau * (late - early) / np.maximum(span, 1e-9)
 
 
@@ -319,8 +320,9 @@ def reading_offsets_c(model: Model) -> tuple[float, float]:
     return float(offsets["inner"]), float(offsets["outer"])
 
 
-def chamber_replay(measured: Measured, model: Model,
-                   start_shift_c: tuple[float, float] = (0.0, 0.0)) -> dict[str, np.ndarray]:
+def chamber_replay(
+    measured: Measured, model: Model, start_shift_c: tuple[float, float] = (0.0, 0.0)
+) -> dict[str, np.ndarray]:
     """The model's chamber driven open loop from one status frame to the
     next, the drive of each held until the next: at every row (its latest
     status) the inner and outer readings, and the inner face. It starts at
@@ -328,8 +330,9 @@ def chamber_replay(measured: Measured, model: Model,
     status = np.flatnonzero(measured.status)
     first = int(status[0])
     chamber = Chamber(model, float(measured.ambient_c[first]))
-    chamber.start_at_readings(float(measured.chamber_c[first]) + start_shift_c[0],
-                              float(measured.outer_c[first]) + start_shift_c[1])
+    chamber.start_at_readings(
+        float(measured.chamber_c[first]) + start_shift_c[0], float(measured.outer_c[first]) + start_shift_c[1]
+    )
     values = np.empty((3, len(status)))
     values[:, 0] = (*chamber.readings_c(), chamber.inner_c)
     time_s = measured.time_s[status].tolist()
@@ -358,15 +361,15 @@ def _sensor_replay(measured: Measured, model: Model, grid: SampleGrid) -> dict[s
     # hold they put the firmware's temperature on a step for good.
     temperature_c = registered_temperature_c(model, samples[0])
     filtered = native.imu_process_unrounded(samples[1], samples[2], samples[3], temperature_c, grid.reset)
-    return {channel: filtered[output][grid.row_index].astype(float)
-            for channel, output in FIRMWARE_OUTPUTS.items()}
+    return {channel: filtered[output][grid.row_index].astype(float) for channel, output in FIRMWARE_OUTPUTS.items()}
 
 
 def _sensor_key(model: Model) -> str:
     """What of the model the sensor replay depends on."""
     parts = {name: values for name, values in model.terms.items() if name in SENSOR_TERM_NAMES}
-    parts.update(sensor=model.constants["sensor"], lag=model.terms["thermistor_lag"],
-                 offset=reading_offsets_c(model)[0])
+    parts.update(
+        sensor=model.constants["sensor"], lag=model.terms["thermistor_lag"], offset=reading_offsets_c(model)[0]
+    )
     return json.dumps(plain(parts), sort_keys=True)
 
 
@@ -403,8 +406,7 @@ class Replay:
         nuisance columns."""
         base = chamber_replay(self.measured, model)
         moved = [chamber_replay(self.measured, model, shift) for shift in ((1.0, 0.0), (0.0, 1.0))]
-        return {channel: np.column_stack([m[channel] - base[channel] for m in moved])
-                for channel in CHAMBER_CHANNELS}
+        return {channel: np.column_stack([m[channel] - base[channel] for m in moved]) for channel in CHAMBER_CHANNELS}
 
 
 def replay(measured: Measured, model: Model) -> dict[str, np.ndarray]:

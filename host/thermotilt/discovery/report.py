@@ -22,8 +22,13 @@ def _number(value: float) -> float | None:
     return None if not math.isfinite(value) else value
 
 
-def document(outcome: Outcome, measured: Measured, model_in: str, model_out: Path,
-             twin: dict[str, dict[str, float]] | None = None) -> dict[str, Any]:
+def document(
+    outcome: Outcome,
+    measured: Measured,
+    model_in: str,
+    model_out: Path,
+    twin: dict[str, dict[str, float]] | None = None,
+) -> dict[str, Any]:
     return {
         "measured": measured.source,
         "model_in": model_in,
@@ -46,8 +51,11 @@ def document(outcome: Outcome, measured: Measured, model_in: str, model_out: Pat
         ],
         "not_testable": outcome.not_testable,
         "gap": {
-            channel: {"unit": UNITS[channel], "replay": gap,
-                      **({"twin": twin[channel]} if twin and twin.get(channel) else {})}
+            channel: {
+                "unit": UNITS[channel],
+                "replay": gap,
+                **({"twin": twin[channel]} if twin and twin.get(channel) else {}),
+            }
             for channel, gap in outcome.gap.items()
         },
         "regimes": regimes(outcome, measured),
@@ -91,10 +99,8 @@ def _regime_labels(measured: Measured) -> dict[str, np.ndarray]:
     quarter = np.minimum(((time_s - time_s[0]) / max(np.ptp(time_s), 1e-9) * 4).astype(int), 3)
     return {
         "temperature": np.array([f"{low:g}…{low + BAND_C:g} °C" for low in band]),
-        "rate": np.where(rate > HOLDING_C_PER_S, "warming",
-                         np.where(rate < -HOLDING_C_PER_S, "cooling", "holding")),
-        "position": np.array([f"X {x:+g}°, Y {y:+g}°" for x, y in
-                              zip(measured.incl_x_deg, measured.incl_y_deg)]),
+        "rate": np.where(rate > HOLDING_C_PER_S, "warming", np.where(rate < -HOLDING_C_PER_S, "cooling", "holding")),
+        "position": np.array([f"X {x:+g}°, Y {y:+g}°" for x, y in zip(measured.incl_x_deg, measured.incl_y_deg)]),
         "time": np.array([f"quarter {q + 1}" for q in quarter]),
     }
 
@@ -108,8 +114,10 @@ def regimes(outcome: Outcome, measured: Measured) -> dict[str, list[dict[str, An
     for channel in measured.channels:
         used = measured.used[channel]
         centred = {}
-        for when, residual in (("before", outcome.residual_before[channel]),
-                               ("after", outcome.residual_after[channel])):
+        for when, residual in (
+            ("before", outcome.residual_before[channel]),
+            ("after", outcome.residual_after[channel]),
+        ):
             centred[when] = residual - (residual[used].mean() if channel in ACCELERATION_CHANNELS else 0.0)
         rows = []
         for kind, label in labels.items():
@@ -117,8 +125,10 @@ def regimes(outcome: Outcome, measured: Measured) -> dict[str, list[dict[str, An
                 inside = used & (label == name)
                 entry: dict[str, Any] = {"regime": kind, "name": name, "rows": int(np.count_nonzero(inside))}
                 for when, residual in centred.items():
-                    entry[when] = {"mean": float(residual[inside].mean()),
-                                   "rms": float(np.sqrt(np.mean(residual[inside] ** 2)))}
+                    entry[when] = {
+                        "mean": float(residual[inside].mean()),
+                        "rms": float(np.sqrt(np.mean(residual[inside] ** 2))),
+                    }
                 rows.append(entry)
         table[channel] = rows
     return table
@@ -135,8 +145,10 @@ def _figure(outcome: Outcome, measured: Measured, path: Path) -> None:
     temperature = measured.observed.get("temperature")
     for row, channel in enumerate(channels):
         used = measured.used[channel]
-        for label, residual, colour in (("before", outcome.residual_before[channel], "tab:red"),
-                                        ("after", outcome.residual_after[channel], "tab:blue")):
+        for label, residual, colour in (
+            ("before", outcome.residual_before[channel], "tab:red"),
+            ("after", outcome.residual_after[channel], "tab:blue"),
+        ):
             shown = residual[used] - (residual[used].mean() if channel in ACCELERATION_CHANNELS else 0.0)
             axes[row][0].plot(measured.time_s[used], shown, ".", ms=1, color=colour, label=label)
             if temperature is not None:
@@ -155,13 +167,20 @@ def write_model_file(outcome: Outcome, measured: Measured, model_in: str, out_di
     out_dir.mkdir(parents=True, exist_ok=True)
     model_path = out_dir / "model.toml"
     names = ", ".join(effect.candidate for effect in outcome.effects) or "nothing"
-    write_model(outcome.model, model_path,
-                f"thermotilt discover: {model_in} with what {measured.source} showed ({names})")
+    write_model(
+        outcome.model, model_path, f"thermotilt discover: {model_in} with what {measured.source} showed ({names})"
+    )
     return model_path
 
 
-def write(outcome: Outcome, measured: Measured, model_in: str, out_dir: Path,
-          twin: dict[str, dict[str, float]] | None = None, model_path: Path | None = None) -> dict[str, Any]:
+def write(
+    outcome: Outcome,
+    measured: Measured,
+    model_in: str,
+    out_dir: Path,
+    twin: dict[str, dict[str, float]] | None = None,
+    model_path: Path | None = None,
+) -> dict[str, Any]:
     """Everything; model_path: model.toml as write_model_file already wrote it."""
     if model_path is None:
         model_path = write_model_file(outcome, measured, model_in, out_dir)
@@ -182,59 +201,84 @@ def _markdown(result: dict[str, Any]) -> str:
         "",
     ]
     if result["effects"]:
-        lines += ["| effect | channel | parameter | value | 95 % interval | adjusted p | gap reduction |",
-                  "|---|---|---|---|---|---|---|"]
+        lines += [
+            "| effect | channel | parameter | value | 95 % interval | adjusted p | gap reduction |",
+            "|---|---|---|---|---|---|---|",
+        ]
         for effect in result["effects"]:
-            (parameter, value), = effect["parameters"].items()
+            ((parameter, value),) = effect["parameters"].items()
             low, high = effect["interval_95"][parameter]
-            lines.append(f"| {effect['name']} | {effect['channel']} | {parameter} ({effect['unit']}) | "
-                         f"{value:.4g} | {low:.4g} … {high:.4g} | {effect['adjusted_p']:.2g} | "
-                         f"{100 * effect['gap_reduction']:.0f} % |")
+            lines.append(
+                f"| {effect['name']} | {effect['channel']} | {parameter} ({effect['unit']}) | "
+                f"{value:.4g} | {low:.4g} … {high:.4g} | {effect['adjusted_p']:.2g} | "
+                f"{100 * effect['gap_reduction']:.0f} % |"
+            )
         lines.append("")
     for group in result["ambiguous"]:
-        lines += [f"Ambiguous on {group['channel']}: {', '.join(group['names'])} explain the same "
-                  f"residual on this run. To tell them apart: {group['experiment']}.", ""]
+        lines += [
+            f"Ambiguous on {group['channel']}: {', '.join(group['names'])} explain the same "
+            f"residual on this run. To tell them apart: {group['experiment']}.",
+            "",
+        ]
     if result["not_testable"]:
-        lines += ["Not testable on this run (nothing in it excites them): "
-                  + ", ".join(result["not_testable"]) + ".", ""]
+        lines += [
+            "Not testable on this run (nothing in it excites them): " + ", ".join(result["not_testable"]) + ".",
+            "",
+        ]
     for channel, why in result["skipped_channels"].items():
         lines += [f"Channel {channel} skipped: {why}.", ""]
-    lines += ["## Gap per channel (RMS of measured minus replay, and minus the twin run again when "
-              "it was; acceleration about its mean)", "",
-              "| channel | column | replay before | replay after | twin before | twin after |",
-              "|---|---|---|---|---|---|"]
+    lines += [
+        "## Gap per channel (RMS of measured minus replay, and minus the twin run again when "
+        "it was; acceleration about its mean)",
+        "",
+        "| channel | column | replay before | replay after | twin before | twin after |",
+        "|---|---|---|---|---|---|",
+    ]
     for channel, gap in result["gap"].items():
         unit = gap["unit"]
         twin = gap.get("twin", {})
         cells = [f"{twin[when]:.3f} {unit}" if when in twin else "" for when in ("before", "after")]
-        lines.append(f"| {channel} | {COLUMNS[channel]} | {gap['replay']['before']:.3f} {unit} | "
-                     f"{gap['replay']['after']:.3f} {unit} | {cells[0]} | {cells[1]} |")
+        lines.append(
+            f"| {channel} | {COLUMNS[channel]} | {gap['replay']['before']:.3f} {unit} | "
+            f"{gap['replay']['after']:.3f} {unit} | {cells[0]} | {cells[1]} |"
+        )
     lines += ["", "## Where the gap is: residual by regime (mean / RMS, before → after)", ""]
     for channel, rows in result["regimes"].items():
         unit = result["gap"][channel]["unit"]
         lines += [f"### {channel} ({unit})", "", "| regime | | rows | before | after |", "|---|---|---|---|---|"]
         for row in rows:
             before, after = row["before"], row["after"]
-            lines.append(f"| {row['regime']} | {row['name']} | {row['rows']} | "
-                         f"{before['mean']:+.3g} / {before['rms']:.3g} | {after['mean']:+.3g} / {after['rms']:.3g} |")
+            lines.append(
+                f"| {row['regime']} | {row['name']} | {row['rows']} | "
+                f"{before['mean']:+.3g} / {before['rms']:.3g} | {after['mean']:+.3g} / {after['rms']:.3g} |"
+            )
         lines.append("")
-    lines += ["![residuals before and after](residuals.png)", "",
-              f"Found means: Benjamini–Hochberg adjusted p below {result['rules']['fdr']} across every "
-              f"candidate and channel of a round, and at least "
-              f"{100 * result['rules']['min_gap_reduction']:.0f} % off the channel's RMS residual "
-              "(docs/discovery.md).", ""]
-    lines += ["## Every test", "", "| round | candidate | channel | value | p | adjusted p | gap reduction |",
-              "|---|---|---|---|---|---|---|"]
+    lines += [
+        "![residuals before and after](residuals.png)",
+        "",
+        f"Found means: Benjamini–Hochberg adjusted p below {result['rules']['fdr']} across every "
+        f"candidate and channel of a round, and at least "
+        f"{100 * result['rules']['min_gap_reduction']:.0f} % off the channel's RMS residual "
+        "(docs/discovery.md).",
+        "",
+    ]
+    lines += [
+        "## Every test",
+        "",
+        "| round | candidate | channel | value | p | adjusted p | gap reduction |",
+        "|---|---|---|---|---|---|---|",
+    ]
     for number, tests in enumerate(result["tests"], start=1):
         for test in tests:
             if not test["testable"]:
                 lines.append(f"| {number} | {test['name']} | {test['channel']} | not testable | | | |")
                 continue
-            lines.append(f"| {number} | {test['name']} | {test['channel']} | {test['value']:.4g} | "
-                         f"{test['p_value']:.2g} | {test['adjusted_p']:.2g} | "
-                         f"{100 * test['gap_reduction']:.0f} % |")
+            lines.append(
+                f"| {number} | {test['name']} | {test['channel']} | {test['value']:.4g} | "
+                f"{test['p_value']:.2g} | {test['adjusted_p']:.2g} | "
+                f"{100 * test['gap_reduction']:.0f} % |"
+            )
     return "\n".join(lines) + "\n"
-
 
 
 def summary_lines(result: dict) -> list[str]:
@@ -243,16 +287,21 @@ def summary_lines(result: dict) -> list[str]:
     for effect in result["effects"]:
         ((parameter, value),) = effect["parameters"].items()
         low, high = effect["interval_95"][parameter]
-        lines.append(f"  {effect['name']} on {effect['channel']}: {parameter} = {value:.4g} {effect['unit']} "
-                     f"(95 % {low:.4g} .. {high:.4g}), adjusted p {effect['adjusted_p']:.2g}, "
-                     f"gap -{100 * effect['gap_reduction']:.0f} %")
+        lines.append(
+            f"  {effect['name']} on {effect['channel']}: {parameter} = {value:.4g} {effect['unit']} "
+            f"(95 % {low:.4g} .. {high:.4g}), adjusted p {effect['adjusted_p']:.2g}, "
+            f"gap -{100 * effect['gap_reduction']:.0f} %"
+        )
     for group in result["ambiguous"]:
-        lines.append(f"  ambiguous on {group['channel']}: {', '.join(group['names'])}; "
-                     f"to separate them: {group['experiment']}")
+        lines.append(
+            f"  ambiguous on {group['channel']}: {', '.join(group['names'])}; to separate them: {group['experiment']}"
+        )
     if result["not_testable"]:
         lines.append(f"  not testable here: {', '.join(result['not_testable'])}")
     for channel, gap in result["gap"].items():
         twin_text = f"; twin {gap['twin']['before']:.3f} -> {gap['twin']['after']:.3f}" if "twin" in gap else ""
-        lines.append(f"  gap {channel}: {gap['replay']['before']:.3f} -> {gap['replay']['after']:.3f} "
-                     f"{gap['unit']} RMS{twin_text}")
+        lines.append(
+            f"  gap {channel}: {gap['replay']['before']:.3f} -> {gap['replay']['after']:.3f} "
+            f"{gap['unit']} RMS{twin_text}"
+        )
     return lines

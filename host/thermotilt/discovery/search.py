@@ -173,8 +173,11 @@ class DeclaredNoise:
         if channel not in ACCELERATION_CHANNELS:
             return cls()
         axis = channel.lower()
-        slope = (float(model.terms["drift_repeatability"]["sigma_lsb_per_c"][axis])
-                 if model.enabled("drift_repeatability") else 0.0)
+        slope = (
+            float(model.terms["drift_repeatability"]["sigma_lsb_per_c"][axis])
+            if model.enabled("drift_repeatability")
+            else 0.0
+        )
         flicker: tuple[tuple[float, float], ...] = ()
         if model.enabled("bias_instability"):
             floor = float(model.terms["bias_instability"]["allan_floor_lsb"][axis])
@@ -192,10 +195,16 @@ class Channel:
     model does not declare (the temperature register's 1/8 degC steps, or a
     real rig's)."""
 
-    def __init__(self, measured: Measured, channel: str, residual: np.ndarray,
-                 temperature_c: np.ndarray, noise: DeclaredNoise,
-                 start_response: np.ndarray | None = None,
-                 noise_residual: np.ndarray | None = None) -> None:
+    def __init__(
+        self,
+        measured: Measured,
+        channel: str,
+        residual: np.ndarray,
+        temperature_c: np.ndarray,
+        noise: DeclaredNoise,
+        start_response: np.ndarray | None = None,
+        noise_residual: np.ndarray | None = None,
+    ) -> None:
         """noise_residual: what the AR(1) is fitted to, if not the residual
         itself (the residual less an effect found in it: the noise is then
         not taken to hold that effect)."""
@@ -229,8 +238,14 @@ class Channel:
     def blocks(self, values: np.ndarray) -> np.ndarray:
         return np.bincount(self._block, weights=values) / self._counts
 
-    def _whitening(self, block_time: np.ndarray, excursion: np.ndarray, block_s: float,
-                   noise: DeclaredNoise, noise_blocks: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
+    def _whitening(
+        self,
+        block_time: np.ndarray,
+        excursion: np.ndarray,
+        block_s: float,
+        noise: DeclaredNoise,
+        noise_blocks: np.ndarray,
+    ) -> Callable[[np.ndarray], np.ndarray]:
         count = len(self.y)
         lag_s = np.abs(np.subtract.outer(block_time, block_time))
         same = np.equal.outer(self._mounting, self._mounting)
@@ -297,8 +312,7 @@ class Channel:
 class Search:
     """Rounds of candidate tests on one measured run."""
 
-    def __init__(self, measured: Measured, model: Model,
-                 progress: Callable[[str], None] | None = None) -> None:
+    def __init__(self, measured: Measured, model: Model, progress: Callable[[str], None] | None = None) -> None:
         self.measured = measured
         self.replay = Replay(measured)
         self.model = model
@@ -308,8 +322,7 @@ class Search:
         return self.replay(model)
 
     def residuals(self, predicted: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
-        return {channel: self.measured.observed[channel] - predicted[channel]
-                for channel in self.measured.channels}
+        return {channel: self.measured.observed[channel] - predicted[channel] for channel in self.measured.channels}
 
     def run(self) -> Outcome:
         model = self.model
@@ -320,27 +333,35 @@ class Search:
         for round_index in range(MAX_ROUNDS):
             self._progress(f"round {round_index + 1}: testing {len(CANDIDATES)} candidates")
             residual = self.residuals(base)
-            starts = (self.replay.chamber_start_response(model)
-                      if any(c in CHAMBER_CHANNELS for c in self.measured.channels) else {})
+            starts = (
+                self.replay.chamber_start_response(model)
+                if any(c in CHAMBER_CHANNELS for c in self.measured.channels)
+                else {}
+            )
             channels = {
-                channel: Channel(self.measured, channel, residual[channel], base["temperature"],
-                                 DeclaredNoise.of(model, channel), starts.get(channel))
+                channel: Channel(
+                    self.measured,
+                    channel,
+                    residual[channel],
+                    base["temperature"],
+                    DeclaredNoise.of(model, channel),
+                    starts.get(channel),
+                )
                 for channel in self.measured.channels
             }
-            regressors = {candidate.name: self._regressors(candidate, model, base)
-                          for candidate in CANDIDATES}
+            regressors = {candidate.name: self._regressors(candidate, model, base) for candidate in CANDIDATES}
             tests = self._tests(model, base, channels, regressors, done)
             outcome.rounds.append(tests)
             if round_index == 0:
-                outcome.not_testable = sorted(
-                    {t.candidate for t in tests}
-                    - {t.candidate for t in tests if t.testable}
-                )
+                outcome.not_testable = sorted({t.candidate for t in tests} - {t.candidate for t in tests if t.testable})
             # The chamber's reading drives the sensor's replay: an effect
             # found there changes every channel, so it goes in first.
             accepted = sorted(
-                (t for t in tests if t.adjusted_p < ALPHA and t.gap_reduction >= MIN_GAP_REDUCTION
-                 and self._within_bounds(t)),
+                (
+                    t
+                    for t in tests
+                    if t.adjusted_p < ALPHA and t.gap_reduction >= MIN_GAP_REDUCTION and self._within_bounds(t)
+                ),
                 key=lambda t: (t.channel not in CHAMBER_CHANNELS, -t.gap_reduction),
             )
             accepted = [t for t in accepted if not self._contradicted_elsewhere(t, model, base, channels)]
@@ -350,23 +371,29 @@ class Search:
             rivals = self._rivals(best, accepted[1:], channels[best.channel], regressors)
             if rivals:
                 names = tuple(sorted({best.candidate, *rivals}))
-                outcome.ambiguous.append(
-                    Ambiguity(names, best.channel, experiment(frozenset(names)))
-                )
+                outcome.ambiguous.append(Ambiguity(names, best.channel, experiment(frozenset(names))))
                 # The channel's residual still holds the unresolved effect,
                 # which would confound every later test on it.
                 done.update((candidate.name, best.channel) for candidate in CANDIDATES)
                 continue
             candidate = next(c for c in CANDIDATES if c.name == best.candidate)
-            best = self._refined(best, channels[best.channel], regressors[best.candidate][best.channel],
-                                 model, base, residual[best.channel], base["temperature"],
-                                 starts.get(best.channel))
+            best = self._refined(
+                best,
+                channels[best.channel],
+                regressors[best.candidate][best.channel],
+                model,
+                base,
+                residual[best.channel],
+                base["temperature"],
+                starts.get(best.channel),
+            )
             effect, model = self._add(candidate, best, model)
             outcome.effects.append(effect)
             # One value acting on every channel is set once, where it
             # explained most.
-            done.update([best.key] if candidate.per_axis
-                        else [(candidate.name, channel) for channel in candidate.channels])
+            done.update(
+                [best.key] if candidate.per_axis else [(candidate.name, channel) for channel in candidate.channels]
+            )
             base = self.predict(model)
         outcome.model = model
         outcome.residual_after = self.residuals(base)
@@ -380,23 +407,28 @@ class Search:
         }
         return outcome
 
-    def _regressors(self, candidate: Candidate, model: Model,
-                    base: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+    def _regressors(self, candidate: Candidate, model: Model, base: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
         """Per channel, the replayed effect of one unit of the parameter
         (rows), from a replay with the parameter moved by `probe`."""
         channels = [c for c in candidate.channels if c in self.measured.channels]
         if not channels:
             return {}
         low, high = candidate.bounds
-        steps = {c: candidate.probe if low <= candidate.value(model, c) + candidate.probe <= high
-                 else -candidate.probe for c in channels}
-        moved = self.predict(candidate.changed(
-            model, {c: candidate.value(model, c) + steps[c] for c in channels}
-        ))
+        steps = {
+            c: candidate.probe if low <= candidate.value(model, c) + candidate.probe <= high else -candidate.probe
+            for c in channels
+        }
+        moved = self.predict(candidate.changed(model, {c: candidate.value(model, c) + steps[c] for c in channels}))
         return {c: (moved[c] - base[c]) / steps[c] for c in channels}
 
-    def _tests(self, model: Model, base: Mapping[str, np.ndarray], channels: Mapping[str, Channel],
-               regressors: dict[str, dict[str, np.ndarray]], done: set[tuple[str, str]]) -> list[Test]:
+    def _tests(
+        self,
+        model: Model,
+        base: Mapping[str, np.ndarray],
+        channels: Mapping[str, Channel],
+        regressors: dict[str, dict[str, np.ndarray]],
+        done: set[tuple[str, str]],
+    ) -> list[Test]:
         """Every candidate on every channel it acts on. A candidate that is
         not additive (a time constant) is fitted first and tested through
         the effect at its fitted value; its regressor is then that effect."""
@@ -416,8 +448,14 @@ class Search:
             tests = [replace(t, adjusted_p=by_key.get(t.key, float("nan"))) for t in tests]
         return tests
 
-    def _test(self, candidate: Candidate, channel: Channel, regressor_rows: np.ndarray, model: Model,
-              base: Mapping[str, np.ndarray]) -> tuple[Test, np.ndarray | None]:
+    def _test(
+        self,
+        candidate: Candidate,
+        channel: Channel,
+        regressor_rows: np.ndarray,
+        model: Model,
+        base: Mapping[str, np.ndarray],
+    ) -> tuple[Test, np.ndarray | None]:
         """One candidate on one channel: the test, and the effect at the
         fitted value (rows; None when not testable)."""
         channel_name = channel.name
@@ -433,21 +471,33 @@ class Search:
         else:
             if candidate.additive:
                 start = candidate.value(model, channel_name) + float(channel.fit(g[:, None]).params[0])
-                value, interval, effect_rows = self._gauss_newton(candidate, channel_name, model,
-                                                                  base, channel, start)
+                value, interval, effect_rows = self._gauss_newton(candidate, channel_name, model, base, channel, start)
             else:
-                value, interval, effect_rows = self._fit_nonlinear(candidate, channel_name, model,
-                                                                   base, channel)
+                value, interval, effect_rows = self._fit_nonlinear(candidate, channel_name, model, base, channel)
             effect_blocks = channel.blocks(effect_rows[channel.rows])
-            p_value = (float(channel.fit(effect_blocks[:, None]).pvalues[0])
-                       if np.any(effect_blocks) else 1.0)
-        test = Test(candidate.name, channel_name, testable=True, value=value, interval=interval,
-                    p_value=p_value, gap_reduction=channel.reduction(effect_rows[channel.rows]))
+            p_value = float(channel.fit(effect_blocks[:, None]).pvalues[0]) if np.any(effect_blocks) else 1.0
+        test = Test(
+            candidate.name,
+            channel_name,
+            testable=True,
+            value=value,
+            interval=interval,
+            p_value=p_value,
+            gap_reduction=channel.reduction(effect_rows[channel.rows]),
+        )
         return test, effect_rows
 
-    def _refined(self, best: Test, channel: Channel, regressor_rows: np.ndarray, model: Model,
-                 base: Mapping[str, np.ndarray], residual: np.ndarray, temperature_c: np.ndarray,
-                 start_response: np.ndarray | None) -> Test:
+    def _refined(
+        self,
+        best: Test,
+        channel: Channel,
+        regressor_rows: np.ndarray,
+        model: Model,
+        base: Mapping[str, np.ndarray],
+        residual: np.ndarray,
+        temperature_c: np.ndarray,
+        start_response: np.ndarray | None,
+    ) -> Test:
         """The found effect fitted again with the noise's AR(1) taken from
         the residual without it (one step of iterated feasible GLS): fitted
         to a residual that still held the effect, the AR(1) read the effect
@@ -455,21 +505,32 @@ class Search:
         candidate = BY_NAME[best.candidate]
         # The regressor of a linear candidate is per unit; the others' is
         # already their effect at the fitted value (_tests).
-        effect_rows = ((best.value - candidate.value(model, best.channel)) * regressor_rows
-                       if candidate.additive and candidate.linear else regressor_rows)
-        cleaner = Channel(self.measured, best.channel, residual, temperature_c,
-                          DeclaredNoise.of(model, best.channel), start_response,
-                          noise_residual=residual - effect_rows)
+        effect_rows = (
+            (best.value - candidate.value(model, best.channel)) * regressor_rows
+            if candidate.additive and candidate.linear
+            else regressor_rows
+        )
+        cleaner = Channel(
+            self.measured,
+            best.channel,
+            residual,
+            temperature_c,
+            DeclaredNoise.of(model, best.channel),
+            start_response,
+            noise_residual=residual - effect_rows,
+        )
         refined, _ = self._test(candidate, cleaner, regressor_rows, model, base)
         if not refined.testable or not self._within_bounds(refined):
             return best
         return replace(refined, adjusted_p=best.adjusted_p)
 
-    def _rivals(self, best: Test, others: list[Test], channel: Channel,
-                regressors: Mapping[str, Mapping[str, np.ndarray]]) -> list[str]:
+    def _rivals(
+        self, best: Test, others: list[Test], channel: Channel, regressors: Mapping[str, Mapping[str, np.ndarray]]
+    ) -> list[str]:
         """Others that explain the same residual: their effects on this run
         (whitened, beyond the nuisance) are collinear with the best's, or,
         fitted together with it, neither keeps a significant share of its own."""
+
         def effect(test: Test) -> np.ndarray:
             return channel.blocks(regressors[test.candidate][test.channel][channel.rows])
 
@@ -490,8 +551,9 @@ class Search:
                 rivals.append(other.candidate)
         return rivals
 
-    def _contradicted_elsewhere(self, test: Test, model: Model, base: Mapping[str, np.ndarray],
-                                channels: Mapping[str, Channel]) -> bool:
+    def _contradicted_elsewhere(
+        self, test: Test, model: Model, base: Mapping[str, np.ndarray], channels: Mapping[str, Channel]
+    ) -> bool:
         """Another channel's data reject the change the effect makes there
         (a thermistor offset that the sensor's own temperature contradicts
         is not the missing effect). Each other channel's residual is fitted
@@ -527,13 +589,27 @@ class Search:
         """The found value into the model."""
         value = test.value
         self._progress(f"found {candidate.name} on {test.channel}: {candidate.parameter} = {value:.4g}")
-        effect = Effect(candidate.name, test.channel, candidate.parameter, candidate.unit, value,
-                        test.interval, test.adjusted_p, test.gap_reduction)
+        effect = Effect(
+            candidate.name,
+            test.channel,
+            candidate.parameter,
+            candidate.unit,
+            value,
+            test.interval,
+            test.adjusted_p,
+            test.gap_reduction,
+        )
         return effect, candidate.changed(model, {test.channel: value})
 
-    def _gauss_newton(self, candidate: Candidate, channel_name: str, model: Model,
-                      base: Mapping[str, np.ndarray], channel: Channel, value: float
-                      ) -> tuple[float, tuple[float, float], np.ndarray]:
+    def _gauss_newton(
+        self,
+        candidate: Candidate,
+        channel_name: str,
+        model: Model,
+        base: Mapping[str, np.ndarray],
+        channel: Channel,
+        value: float,
+    ) -> tuple[float, tuple[float, float], np.ndarray]:
         """Least squares of the whitened blocks over an additive parameter
         whose effect is not linear in it (a dead zone), by Gauss-Newton
         steps from the linear fit's value, each slope from replays: the
@@ -549,8 +625,9 @@ class Search:
             current = effect(value)
             step = candidate.probe if value + candidate.probe <= high else -candidate.probe
             slope = (effect(value + step) - current) / step
-            result = channel.fit(channel.blocks(slope[channel.rows])[:, None],
-                                 left=channel.y - channel.blocks(current[channel.rows]))
+            result = channel.fit(
+                channel.blocks(slope[channel.rows])[:, None], left=channel.y - channel.blocks(current[channel.rows])
+            )
             change = float(result.params[0])
             value += change
             if abs(change) < GAUSS_NEWTON_TOLERANCE * abs(candidate.probe):
@@ -559,9 +636,9 @@ class Search:
         half_width = 1.96 * float(result.bse[0])
         return value, (value - half_width, value + half_width), effect(value)
 
-    def _fit_nonlinear(self, candidate: Candidate, channel_name: str, model: Model,
-                       base: Mapping[str, np.ndarray], channel: Channel
-                       ) -> tuple[float, tuple[float, float], np.ndarray]:
+    def _fit_nonlinear(
+        self, candidate: Candidate, channel_name: str, model: Model, base: Mapping[str, np.ndarray], channel: Channel
+    ) -> tuple[float, tuple[float, float], np.ndarray]:
         """Least squares of the whitened blocks over the parameter's value
         (log scale, within its bounds), each value a replay: the value, its
         interval from the replay's slope there (the linearised GLS), and the

@@ -33,8 +33,9 @@ def scenario_of(measured_dir: Path):
     if summary.source != TWIN:
         raise DiscoveryDataError(f"{path}: a run on real boards, with no seed or faults to run the twin with")
     if summary.options is None:
-        raise DiscoveryDataError(f"{path}: no scenario options (older runs did not record them), "
-                                 "so no scenario to run again")
+        raise DiscoveryDataError(
+            f"{path}: no scenario options (older runs did not record them), so no scenario to run again"
+        )
     if summary.imu_eeprom_preloaded_bytes:
         raise DiscoveryDataError(f"{path}: the run started from a preloaded EEPROM, which is not kept")
     try:
@@ -48,8 +49,13 @@ def scenario_of(measured_dir: Path):
         raise DiscoveryDataError(f"{path}: no scenario to run again ({error})") from None
 
 
-def twin_gap(measured_dir: Path, measured: Measured, models: Mapping[str, Model], out_dir: Path,
-             progress: Callable[[str], None] | None = None) -> dict[str, dict[str, float]]:
+def twin_gap(
+    measured_dir: Path,
+    measured: Measured,
+    models: Mapping[str, Model],
+    out_dir: Path,
+    progress: Callable[[str], None] | None = None,
+) -> dict[str, dict[str, float]]:
     """Per channel, the RMS of MEASURED minus the twin's run with each model
     (keyed as `models`: "before", "after"), over the rows discovery compares,
     the twin's values taken at MEASURED's times."""

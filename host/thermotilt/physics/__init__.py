@@ -23,10 +23,7 @@ from .terms.sensor import SURFACE_TERM_BOUNDS, SURFACE_TERM_NAMES
 
 
 def _kinds(names: tuple[str, ...]) -> Mapping[str, Mapping[str, ParameterKind]]:
-    return {
-        name: {p.name: p.kind for p in DECLARATIONS[name] if p.name != "enabled"}
-        for name in names
-    }
+    return {name: {p.name: p.kind for p in DECLARATIONS[name] if p.name != "enabled"} for name in names}
 
 
 # The parameters of each term (enabled aside) and of each hardware section.

@@ -88,13 +88,10 @@ class Chamber:
 
         # Explicit Euler is stable and accurate for steps well below the
         # shortest node time constant; longer steps are split.
-        time_constants = [
-            self._inner_capacity / max(self._leak + self._cell_conductance, 1e-12)
-        ]
+        time_constants = [self._inner_capacity / max(self._leak + self._cell_conductance, 1e-12)]
         if self._outer_node:
             time_constants.append(
-                self._outer_capacity
-                / max(self._cell_conductance + self._heatsink_conductance, 1e-12)
+                self._outer_capacity / max(self._cell_conductance + self._heatsink_conductance, 1e-12)
             )
         self._max_substep = 0.05 * min(time_constants)
 

@@ -36,14 +36,10 @@ class Fault:
         if not (math.isfinite(self.start_s) and self.start_s >= 0.0):
             raise ModelError(f"fault '{self.name}': start {self.start_s} s must be >= 0")
         if self.end_s is not None and not (math.isfinite(self.end_s) and self.end_s > self.start_s):
-            raise ModelError(
-                f"fault '{self.name}': end {self.end_s} s must be after start {self.start_s} s"
-            )
+            raise ModelError(f"fault '{self.name}': end {self.end_s} s must be after start {self.start_s} s")
         if FAULTS[self.name].takes_rate:
             if self.rate is None or not (0.0 < self.rate <= 1.0):
-                raise ModelError(
-                    f"fault '{self.name}' needs a rate, a probability per byte in (0, 1]"
-                )
+                raise ModelError(f"fault '{self.name}' needs a rate, a probability per byte in (0, 1]")
         elif self.rate is not None:
             raise ModelError(f"fault '{self.name}' takes no rate")
 
@@ -93,9 +89,7 @@ def read_faults(entries: Any, source: str) -> tuple[Fault, ...]:
         if not isinstance(name, str):
             raise ModelError(f"{where}: missing name")
         numbers = {
-            key: finite_number(entry[key], f"{where} {key}")
-            for key in ("start_s", "end_s", "rate")
-            if key in entry
+            key: finite_number(entry[key], f"{where} {key}") for key in ("start_s", "end_s", "rate") if key in entry
         }
         try:
             fault = Fault(

@@ -66,10 +66,7 @@ class Model:
         for section in document:
             if section not in DECLARATIONS and section != "faults":
                 raise ModelError(f"{source}: unknown section [{shown(section)}]")
-        tables = {
-            name: _read_table(document, name, parameters, source)
-            for name, parameters in DECLARATIONS.items()
-        }
+        tables = {name: _read_table(document, name, parameters, source) for name, parameters in DECLARATIONS.items()}
         return cls(
             source=source,
             terms=MappingProxyType({name: tables[name] for name in TERMS}),
@@ -98,11 +95,7 @@ class Model:
     def bound_terms(self, kind: type[AnyTerm]) -> list[AnyTerm]:
         """Every registered term of this kind (enabled or not), in registry
         order, as an object holding this model's values."""
-        return [
-            term(self.terms[name])
-            for name, term in REGISTRY.items()
-            if issubclass(term, kind)
-        ]
+        return [term(self.terms[name]) for name, term in REGISTRY.items() if issubclass(term, kind)]
 
     def _check_term(self, term: str) -> None:
         if term not in TERMS:
@@ -127,9 +120,7 @@ def _read_table(
     document: Mapping[str, Any], section: str, parameters: tuple[Parameter, ...], source: str
 ) -> Mapping[str, Any]:
     if section not in document:
-        return MappingProxyType(
-            {p.name: p.check(p.default, f"{source}: [{section}] {p.name}") for p in parameters}
-        )
+        return MappingProxyType({p.name: p.check(p.default, f"{source}: [{section}] {p.name}") for p in parameters})
     table = document[section]
     if not isinstance(table, dict):
         raise ModelError(f"{source}: [{section}] must be a table, got {reprlib.repr(table)}")
@@ -141,7 +132,5 @@ def _read_table(
     for parameter in parameters:
         if parameter.name not in table:
             raise ModelError(f"{source}: [{section}] missing parameter '{parameter.name}'")
-        values[parameter.name] = parameter.check(
-            table[parameter.name], f"{source}: [{section}] {parameter.name}"
-        )
+        values[parameter.name] = parameter.check(table[parameter.name], f"{source}: [{section}] {parameter.name}")
     return MappingProxyType(values)

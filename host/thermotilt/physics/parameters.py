@@ -74,9 +74,7 @@ class PerAxis:
         if not isinstance(value, dict) or set(value) != set(self.keys):
             shape = ", ".join(f"{key} = .." for key in self.keys)
             raise ModelError(f"{where}: expected a table {{{shape}}}, got {reprlib.repr(value)}")
-        return MappingProxyType(
-            {key: self.bounds.check(value[key], f"{where}.{key}") for key in self.keys}
-        )
+        return MappingProxyType({key: self.bounds.check(value[key], f"{where}.{key}") for key in self.keys})
 
 
 class Switch:
@@ -90,7 +88,7 @@ class Switch:
 
 @dataclass(frozen=True)
 class Surfaces:
-    """"paper" or a table of drift surfaces per set and axis, each term
+    """ "paper" or a table of drift surfaces per set and axis, each term
     p<i><j> (multiplying T^i a^j) within its own bounds."""
 
     term_names: tuple[str, ...]
@@ -110,9 +108,7 @@ class Surfaces:
             for axis in AXES:
                 terms = per_axis[axis]
                 if not isinstance(terms, list) or len(terms) != len(self.term_names):
-                    raise ModelError(
-                        f"{where}.{set_}.{axis}: expected 6 numbers {', '.join(self.term_names)}"
-                    )
+                    raise ModelError(f"{where}.{set_}.{axis}: expected 6 numbers {', '.join(self.term_names)}")
                 surfaces[set_][axis] = tuple(
                     bounds.check(term, f"{where}.{set_}.{axis} {name}")
                     for term, name, bounds in zip(terms, self.term_names, self.term_bounds)

@@ -163,9 +163,7 @@ class Sensor:
         # A table move is a new mounting of the sensor; the first position is 0.
         self._mounting = -1
 
-    def step(
-        self, dt_s: float, environment_c: float, incl_x_deg: float, incl_y_deg: float
-    ) -> SensorSample:
+    def step(self, dt_s: float, environment_c: float, incl_x_deg: float, incl_y_deg: float) -> SensorSample:
         """Advance dt_s and return the sample the registers then hold."""
         if not dt_s > 0.0:
             raise ValueError(f"dt_s must be > 0, got {dt_s}")
@@ -198,9 +196,7 @@ class Sensor:
         ideal_x, ideal_y, ideal_z = self._acceleration
 
         if self._drift is not None:
-            drift_x, drift_y, drift_z = self._drift(
-                drift_set, structure, ideal_x, ideal_y, ideal_z
-            )
+            drift_x, drift_y, drift_z = self._drift(drift_set, structure, ideal_x, ideal_y, ideal_z)
             raw_x, raw_y, raw_z = ideal_x + drift_x, ideal_y + drift_y, ideal_z + drift_z
         else:
             drift_x = drift_y = drift_z = 0.0

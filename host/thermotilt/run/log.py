@@ -66,6 +66,7 @@ TRUE_COLUMNS: tuple[str, ...] = (
 
 ALL_COLUMNS: tuple[str, ...] = COLUMNS + TRUE_COLUMNS
 
+
 def format_number(value: float | None, decimals: int) -> str:
     """Fixed decimals, so the same run always writes the same bytes; NaN and
     None (unknown) are empty cells."""
@@ -119,9 +120,7 @@ def read_run_log(path: str) -> list[dict[str, str]]:
     header = records[0]
     for number, cells in enumerate(records[1:], start=1):
         if len(cells) != len(header):
-            raise RunLogError(
-                f"{path}: row {number} has {len(cells)} cells, the header {len(header)}"
-            )
+            raise RunLogError(f"{path}: row {number} has {len(cells)} cells, the header {len(header)}")
     return [dict(zip(header, cells)) for cells in records[1:]]
 
 
@@ -158,9 +157,13 @@ def read_run_columns(path: str) -> RunColumns:
         with open(path, "rb") as stream:
             data = stream.read()
         frame = pd.read_csv(
-            io.BytesIO(data), dtype={column: str for column in header if column in TEXT_COLUMNS},
-            keep_default_na=False, na_values={column: [""] for column in numeric}, encoding="utf-8",
-            engine="c", on_bad_lines="error",
+            io.BytesIO(data),
+            dtype={column: str for column in header if column in TEXT_COLUMNS},
+            keep_default_na=False,
+            na_values={column: [""] for column in numeric},
+            encoding="utf-8",
+            engine="c",
+            on_bad_lines="error",
         )
         whole = data.count(b",") == (len(header) - 1) * (len(frame) + 1) and data.count(b'"') == 0
     except (OSError, ValueError, pd.errors.ParserError):

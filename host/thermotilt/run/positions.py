@@ -30,16 +30,18 @@ def since_move(time_s: np.ndarray, mounting: np.ndarray, since_move_s: np.ndarra
     return np.where(np.isfinite(since_move_s), since_move_s, time_s - first_of_mounting)
 
 
-def settled(time_s: np.ndarray, mounting: np.ndarray, since_move_s: np.ndarray,
-            settle_s: float = SETTLE_S) -> np.ndarray:
+def settled(
+    time_s: np.ndarray, mounting: np.ndarray, since_move_s: np.ndarray, settle_s: float = SETTLE_S
+) -> np.ndarray:
     """The rows at least settle_s after a table move (SETTLE_S: the
     firmware's filters have forgotten the move)."""
     with np.errstate(invalid="ignore"):
         return since_move(time_s, mounting, since_move_s) >= settle_s
 
 
-def staircase(phase: np.ndarray, chamber_c: np.ndarray, setpoint_c: np.ndarray,
-              mounting: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def staircase(
+    phase: np.ndarray, chamber_c: np.ndarray, setpoint_c: np.ndarray, mounting: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """(kept, stabilizing): the rows of each program run (phase W or C) from
     the first one whose inner face is within REACHED_BAND_C of its setpoint,
     and the program rows before it. Before that the chamber is still coming

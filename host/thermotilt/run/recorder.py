@@ -76,8 +76,7 @@ class BoardStream:
     gives the run's time for a reported error: simulated in the twin, wall
     seconds since the log began on a rig."""
 
-    def __init__(self, name: str, capture: Capture | None, clock: Callable[[], float],
-                 flush: bool = False) -> None:
+    def __init__(self, name: str, capture: Capture | None, clock: Callable[[], float], flush: bool = False) -> None:
         self.name = name
         self.reader = FrameReader()
         self.firmware: str | None = None
@@ -159,8 +158,9 @@ class FrameRecorder:
     def set_ambient(self, ambient_c: float | None) -> None:
         self._rig["ambient_c"] = format_number(ambient_c, 3)
 
-    def move_table(self, incl_x_deg: float | None, incl_y_deg: float | None,
-                   at_s: float | None = None, first_frame: bool = False) -> None:
+    def move_table(
+        self, incl_x_deg: float | None, incl_y_deg: float | None, at_s: float | None = None, first_frame: bool = False
+    ) -> None:
         """The table's angles (None: unknown) from now on. It moved at
         ``at_s`` on the clock record_imu's ``received_s`` uses, or, with
         ``first_frame``, just before the next IMU frame (a log that begins
@@ -180,8 +180,7 @@ class FrameRecorder:
             if self._program is not None:
                 self.end_reason = self._program.reason(frame) or self.end_reason
 
-    def record_imu(self, frame: Frame, received_s: float | None = None,
-                   truth: Mapping[str, str] | None = None) -> None:
+    def record_imu(self, frame: Frame, received_s: float | None = None, truth: Mapping[str, str] | None = None) -> None:
         """A row for an IMU frame that reached the host at ``received_s``
         (None: the frame's own board time counts); ``truth``: the twin's
         true_* cells."""

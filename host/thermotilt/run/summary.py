@@ -145,16 +145,20 @@ def summary_of(document: dict[str, Any]) -> RunSummary:
         return _unversioned(document)
     if schema != SCHEMA:
         if isinstance(schema, int) and not isinstance(schema, bool) and schema > SCHEMA:
-            raise RunSummaryError(f"summary schema {schema} is newer than this thermotilt reads "
-                                  f"({SCHEMA}); update thermotilt")
+            raise RunSummaryError(
+                f"summary schema {schema} is newer than this thermotilt reads ({SCHEMA}); update thermotilt"
+            )
         raise RunSummaryError(f"unknown summary schema {schema!r} (this thermotilt reads {SCHEMA})")
     values = {key: value for key, value in document.items() if key != "interrupted"}
     known = {item.name for item in fields(RunSummary)}
     unknown = sorted(set(values) - known)
     if unknown:
         raise RunSummaryError(f"unknown key '{unknown[0]}' for summary schema {SCHEMA}")
-    missing = sorted(item.name for item in fields(RunSummary)
-                     if item.default is MISSING and item.default_factory is MISSING and item.name not in values)
+    missing = sorted(
+        item.name
+        for item in fields(RunSummary)
+        if item.default is MISSING and item.default_factory is MISSING and item.name not in values
+    )
     if missing:
         raise RunSummaryError(f"missing key '{missing[0]}'")
     if values["source"] not in SOURCES:
@@ -199,18 +203,34 @@ def _unversioned(document: dict[str, Any]) -> RunSummary:
                 boards={name: BoardReport(firmware=version) for name, version in firmware.items()},
                 description=f"campaign position {document.get('position')}",
                 realtime=True,
-                positions=[{"at_s": 0.0, "label": document.get("position"),
-                            "incl_x_deg": None, "incl_y_deg": None}],
+                positions=[{"at_s": 0.0, "label": document.get("position"), "incl_x_deg": None, "incl_y_deg": None}],
             )
         if "scenario" not in document or "boards" not in document:
             raise RunSummaryError("not a run summary: no schema, and neither a twin's nor a rig's keys")
         known = {item.name for item in fields(BoardReport)}
-        boards = {name: BoardReport(**{key: value for key, value in report.items() if key in known})
-                  for name, report in document["boards"].items()}
-        taken = {key: document[key] for key in (
-            "scenario", "description", "options", "seed", "model", "terms", "faults",
-            "imu_eeprom_preloaded_bytes", "realtime", "sim_seconds", "speed_x_real_time",
-            "marks", "positions") if key in document}
+        boards = {
+            name: BoardReport(**{key: value for key, value in report.items() if key in known})
+            for name, report in document["boards"].items()
+        }
+        taken = {
+            key: document[key]
+            for key in (
+                "scenario",
+                "description",
+                "options",
+                "seed",
+                "model",
+                "terms",
+                "faults",
+                "imu_eeprom_preloaded_bytes",
+                "realtime",
+                "sim_seconds",
+                "speed_x_real_time",
+                "marks",
+                "positions",
+            )
+            if key in document
+        }
         return RunSummary(
             source=TWIN,
             rows=document["rows"],

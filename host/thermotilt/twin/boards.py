@@ -174,8 +174,12 @@ class FirmwareSymbols:
     caller."""
 
     def __init__(self, elf: Path | str) -> None:
-        listing = subprocess.run(["avr-nm", "--numeric-sort", "--print-size", "--demangle", "--defined-only",
-                                  str(_existing(Path(elf)))], check=True, capture_output=True, text=True).stdout
+        listing = subprocess.run(
+            ["avr-nm", "--numeric-sort", "--print-size", "--demangle", "--defined-only", str(_existing(Path(elf)))],
+            check=True,
+            capture_output=True,
+            text=True,
+        ).stdout
         self._sized: list[tuple[int, int, str]] = []
         self._labels: list[tuple[int, str]] = []
         for line in listing.splitlines():
@@ -407,9 +411,11 @@ class Board:
         width = self._lib.twin_profile_frames()
         buffer = (ctypes.c_uint32 * (kept.value * width))()
         count = self._lib.twin_profile_read(handle, buffer, kept.value)
-        addresses = buffer[:count * width]
-        samples = tuple(tuple(address for address in addresses[i:i + width] if address != _NO_FRAME)
-                        for i in range(0, len(addresses), width))
+        addresses = buffer[: count * width]
+        samples = tuple(
+            tuple(address for address in addresses[i : i + width] if address != _NO_FRAME)
+            for i in range(0, len(addresses), width)
+        )
         return Profile(self._profile_period, int(taken.value), samples)
 
     @property

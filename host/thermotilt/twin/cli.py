@@ -25,8 +25,11 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     simulate = commands.add_parser(
         "simulate", help="run both firmware images in the digital twin against the physics model"
     )
-    simulate.add_argument("scenario", help="fig8, cycle, campaign, field-warming, field-cooling, "
-                          "field-alternating or idle (both boards, no commands: for --pty)")
+    simulate.add_argument(
+        "scenario",
+        help="fig8, cycle, campaign, field-warming, field-cooling, "
+        "field-alternating or idle (both boards, no commands: for --pty)",
+    )
     simulate.add_argument("--out", help="output folder (default runs/SCENARIO-DATE-TIME)")
     simulate.add_argument("--force", action="store_true", help="overwrite an earlier run in --out")
     add_model_options(simulate)
@@ -34,20 +37,35 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     simulate.add_argument("--incl-x", type=inclination, default=0.0, help="table angle on X, degrees")
     simulate.add_argument("--incl-y", type=inclination, default=0.0, help="table angle on Y, degrees")
     simulate.add_argument("--positions", help="campaign subset, e.g. 0,X+30,Y-15")
-    simulate.add_argument("--duration", type=board_seconds,
-                          help="field scenarios: compress the day's profile into this many seconds; "
-                               "idle: run this long (default 3600)")
-    simulate.add_argument("--fault", action="append", default=[], metavar="NAME[=RATE][@START[-END]]",
-                          help="inject a fault, e.g. inner_open@120-180 or imu_uart_corrupt=0.001")
-    simulate.add_argument("--pty", action="store_true",
-                          help="also expose each board's serial port as a pseudo-terminal "
-                               "(paced to the wall clock unless --realtime off)")
-    simulate.add_argument("--realtime", choices=("on", "off"),
-                          help="on: a simulated second takes a wall second, as on a board; "
-                               "off: as fast as the host can (default on with --pty, off without)")
-    simulate.add_argument("--eeprom", metavar="FILE",
-                          help="start the IMU with this 148-byte coefficient block in its EEPROM "
-                               "(coefficients.bin from thermotilt fit)")
+    simulate.add_argument(
+        "--duration",
+        type=board_seconds,
+        help="field scenarios: compress the day's profile into this many seconds; idle: run this long (default 3600)",
+    )
+    simulate.add_argument(
+        "--fault",
+        action="append",
+        default=[],
+        metavar="NAME[=RATE][@START[-END]]",
+        help="inject a fault, e.g. inner_open@120-180 or imu_uart_corrupt=0.001",
+    )
+    simulate.add_argument(
+        "--pty",
+        action="store_true",
+        help="also expose each board's serial port as a pseudo-terminal "
+        "(paced to the wall clock unless --realtime off)",
+    )
+    simulate.add_argument(
+        "--realtime",
+        choices=("on", "off"),
+        help="on: a simulated second takes a wall second, as on a board; "
+        "off: as fast as the host can (default on with --pty, off without)",
+    )
+    simulate.add_argument(
+        "--eeprom",
+        metavar="FILE",
+        help="start the IMU with this 148-byte coefficient block in its EEPROM (coefficients.bin from thermotilt fit)",
+    )
     simulate.set_defaults(run=_simulate)
 
 
@@ -76,9 +94,11 @@ def _eeprom_block(path: str) -> bytes:
     data = read_at_most(path, IMU_EEPROM_BYTES)
     if len(data) not in (BLOCK_SIZE, IMU_EEPROM_BYTES):
         size = f"more than {IMU_EEPROM_BYTES}" if len(data) > IMU_EEPROM_BYTES else str(len(data))
-        raise UsageError(f"{path}: {size} bytes; --eeprom takes the {BLOCK_SIZE}-byte coefficient block "
-                         f"that thermotilt fit writes (coefficients.bin) or the {IMU_EEPROM_BYTES}-byte "
-                         f"EEPROM a run saved ({IMU_EEPROM_FILE})")
+        raise UsageError(
+            f"{path}: {size} bytes; --eeprom takes the {BLOCK_SIZE}-byte coefficient block "
+            f"that thermotilt fit writes (coefficients.bin) or the {IMU_EEPROM_BYTES}-byte "
+            f"EEPROM a run saved ({IMU_EEPROM_FILE})"
+        )
     return data
 
 
@@ -126,16 +146,25 @@ def _simulate(args: argparse.Namespace) -> int:
     with tqdm(total=round(scenario.duration_s), unit="sim s", disable=None, file=sys.stderr) as bar:
         try:
             result = simulate.run(
-                scenario, model, out_dir, seed=args.seed, pty=args.pty, on_pty=announce_pty,
-                progress=lambda t: bar.update(round(t) - bar.n), eeprom=eeprom, realtime=realtime,
+                scenario,
+                model,
+                out_dir,
+                seed=args.seed,
+                pty=args.pty,
+                on_pty=announce_pty,
+                progress=lambda t: bar.update(round(t) - bar.n),
+                eeprom=eeprom,
+                realtime=realtime,
             )
         except (TwinError, simulate.SimulationError) as error:
             raise UsageError(str(error)) from None
         except OSError as error:
             raise UsageError(f"cannot write {out_dir}: {error.strerror or error}") from None
     summary = result.summary
-    print(f"rows: {summary.rows}  simulated: {summary.sim_seconds:.0f} s  "
-          f"wall: {summary.wall_seconds:.1f} s  ({summary.speed_x_real_time}x real time)  ({summary.end_reason})")
+    print(
+        f"rows: {summary.rows}  simulated: {summary.sim_seconds:.0f} s  "
+        f"wall: {summary.wall_seconds:.1f} s  ({summary.speed_x_real_time}x real time)  ({summary.end_reason})"
+    )
     for board, report in summary.boards.items():
         print(f"{board}: {report.frames} frames, {report.rejected} rejected, {report.cycles} cycles")
         for refusal in report.refused_commands or ():

@@ -62,8 +62,14 @@ def holds(rows: list[dict[str, str]]) -> list[Hold]:
         if not np.isnan(setpoint[start]):
             window = (time_s >= time_s[index - 1] - SETTLED_WINDOW_S) & (time_s <= time_s[index - 1])
             window[:start] = False
-            found.append(Hold(float(setpoint[start]), float(time_s[start]), float(time_s[index - 1]),
-                              float(np.nanmean(chamber[window]))))
+            found.append(
+                Hold(
+                    float(setpoint[start]),
+                    float(time_s[start]),
+                    float(time_s[index - 1]),
+                    float(np.nanmean(chamber[window])),
+                )
+            )
         start = index
     return [hold for hold in found if hold.end_s - hold.start_s >= 2 * SETTLED_WINDOW_S]
 
@@ -82,8 +88,7 @@ def step_responses(rows: list[dict[str, str]]) -> list[StepResponse]:
         done = np.nonzero(progress >= COMPLETION_FRACTION)[0]
         completion = float(time_s[in_step][done[0]] - after.start_s) if done.size else float("nan")
         beyond = np.sign(change) * (chamber[in_step] - after.settled_c)
-        found.append(StepResponse(before.setpoint_c, after.setpoint_c, completion,
-                                  float(max(0.0, np.nanmax(beyond)))))
+        found.append(StepResponse(before.setpoint_c, after.setpoint_c, completion, float(max(0.0, np.nanmax(beyond)))))
     return found
 
 
@@ -126,13 +131,16 @@ def fig8_figures(rows: list[dict[str, str]]) -> dict:
     return {
         "ambient_c": round(ambient, 2),
         "holds": [
-            {"setpoint_c": hold.setpoint_c, "settled_c": round(hold.settled_c, 3),
-             "offset_c": round(hold.offset_c, 3)}
+            {"setpoint_c": hold.setpoint_c, "settled_c": round(hold.settled_c, 3), "offset_c": round(hold.offset_c, 3)}
             for hold in settled
         ],
         "steps": [
-            {"from_c": step.from_c, "to_c": step.to_c, "completion_s": round(step.completion_s, 2),
-             "overshoot_c": round(step.overshoot_c, 3)}
+            {
+                "from_c": step.from_c,
+                "to_c": step.to_c,
+                "completion_s": round(step.completion_s, 2),
+                "overshoot_c": round(step.overshoot_c, 3),
+            }
             for step in steps
         ],
         "crossing_overshoot_c": None if crossing is None else round(crossing.overshoot_c, 3),
@@ -143,25 +151,34 @@ def fig8_figures(rows: list[dict[str, str]]) -> dict:
 
 def fig8_table(figures: dict) -> list[str]:
     """Figure 8's four features beside the paper's statements."""
+
     def listed(values, form, unit):
         return ", ".join(format(value, form) for value in values) + f" {unit}"
 
     if not figures["holds"]:
-        return [f"Figure 8: no hold lasted {2 * SETTLED_WINDOW_S:g} s, too short to settle; its features "
-                f"need --hold-seconds of at least {2 * SETTLED_WINDOW_S:g}"]
+        return [
+            f"Figure 8: no hold lasted {2 * SETTLED_WINDOW_S:g} s, too short to settle; its features "
+            f"need --hold-seconds of at least {2 * SETTLED_WINDOW_S:g}"
+        ]
     below = [hold["offset_c"] for hold in figures["holds"] if hold["setpoint_c"] < figures["ambient_c"]]
     above = [hold["offset_c"] for hold in figures["holds"] if hold["setpoint_c"] > figures["ambient_c"]]
     crossing = figures["crossing_overshoot_c"]
     features = [
-        ("(a) 2 degC step time", f"about {PAPER_STEP_TIME_S:g} s",
-         listed([step["completion_s"] for step in figures["steps"]], ".1f", "s")),
+        (
+            "(a) 2 degC step time",
+            f"about {PAPER_STEP_TIME_S:g} s",
+            listed([step["completion_s"] for step in figures["steps"]], ".1f", "s"),
+        ),
         ("(b) offset below outside", f"about -{PAPER_OFFSET_C:g} degC", listed(below, "+.2f", "degC")),
         ("    offset above outside", f"about +{PAPER_OFFSET_C:g} degC", listed(above, "+.2f", "degC")),
-        ("(c) overshoot, crossing", "a transient overshoot",
-         "no crossing step" if crossing is None else
-         f"{crossing:.2f} degC (others at most {figures['other_overshoot_c']:.2f})"),
-        ("(d) IMU temperature offset", "consistently negative",
-         f"{figures['imu_temperature_offset_c']:+.2f} degC"),
+        (
+            "(c) overshoot, crossing",
+            "a transient overshoot",
+            "no crossing step"
+            if crossing is None
+            else f"{crossing:.2f} degC (others at most {figures['other_overshoot_c']:.2f})",
+        ),
+        ("(d) IMU temperature offset", "consistently negative", f"{figures['imu_temperature_offset_c']:+.2f} degC"),
     ]
     lines = [f"Figure 8 (outside {figures['ambient_c']:g} degC; offsets programmed - measured)"]
     lines += [f"{feature:<28} paper: {paper:<22} run: {measured}" for feature, paper, measured in features]
@@ -183,9 +200,10 @@ def drift_figures(rows: list[dict[str, str]], settled_fraction: float = 0.5) -> 
     raw output and the compensated output move (max - min, LSB)."""
     settled = settled_mask(rows, settled_fraction)
     temperature = _column(rows, "imu_temp_c")[settled]
-    figures = {"samples": int(settled.sum()),
-               "imu_temp_range_c": [round(float(np.nanmin(temperature)), 2),
-                                    round(float(np.nanmax(temperature)), 2)]}
+    figures = {
+        "samples": int(settled.sum()),
+        "imu_temp_range_c": [round(float(np.nanmin(temperature)), 2), round(float(np.nanmax(temperature)), 2)],
+    }
     for axis in ("x", "y"):
         raw = _column(rows, f"a{axis}_filt")[settled]
         compensated = _column(rows, f"a{axis}_comp")[settled]
@@ -202,16 +220,22 @@ def paper_figure_lines(scenario_name: str, rows: list[dict[str, str]]) -> list[s
     if scenario_name == "fig8":
         figures = fig8_figures(rows)
         for hold in figures["holds"]:
-            lines.append(f"hold {hold['setpoint_c']:g} degC: settled {hold['settled_c']:.2f}, "
-                         f"offset (programmed - measured) {hold['offset_c']:+.2f} degC")
+            lines.append(
+                f"hold {hold['setpoint_c']:g} degC: settled {hold['settled_c']:.2f}, "
+                f"offset (programmed - measured) {hold['offset_c']:+.2f} degC"
+            )
         for step in figures["steps"]:
-            lines.append(f"step {step['from_c']:g} -> {step['to_c']:g} degC: {step['completion_s']:.1f} s, "
-                         f"overshoot {step['overshoot_c']:.2f} degC")
+            lines.append(
+                f"step {step['from_c']:g} -> {step['to_c']:g} degC: {step['completion_s']:.1f} s, "
+                f"overshoot {step['overshoot_c']:.2f} degC"
+            )
         lines.extend(fig8_table(figures))
     # Holds shorter than the settling window give no drift to measure.
     elif scenario_name == "cycle" and holds(rows):
         figures = drift_figures(rows)
         for axis in ("x", "y"):
-            lines.append(f"{axis.upper()}: raw drift {figures[axis]['raw_span_lsb']:.0f} LSB, "
-                         f"compensated {figures[axis]['compensated_span_lsb']:.0f} LSB")
+            lines.append(
+                f"{axis.upper()}: raw drift {figures[axis]['raw_span_lsb']:.0f} LSB, "
+                f"compensated {figures[axis]['compensated_span_lsb']:.0f} LSB"
+            )
     return lines

@@ -34,7 +34,6 @@ CONTROL_SENT_S = 1.25
 PROGRAM_STARTED_S = 1.5
 
 
-
 # Ambient temperatures. Figure 8's 16..22 degC run must cross the outside
 # temperature between its 18 and 20 degC steps (the paper's overshoot), so
 # 19 degC; the calibration runs happen in a lab at 22 degC.
@@ -113,8 +112,9 @@ class ScenarioOptions:
     controller: str = DEFAULT_CONTROLLER
 
 
-def program_steps(start_c: float | np.ndarray, max_c: float | np.ndarray,
-                  step_c: float | np.ndarray) -> int | np.ndarray:
+def program_steps(
+    start_c: float | np.ndarray, max_c: float | np.ndarray, step_c: float | np.ndarray
+) -> int | np.ndarray:
     """Steps in one cycle of the chamber's staircase (lib/Program): warming
     from start to max (max included even off the step grid), then cooling
     back through the same setpoints. For settings SETPRG accepts, computed as
@@ -135,8 +135,13 @@ def _constant(value: float) -> Callable[[float], float]:
 
 def chamber_program(start_c: float, max_c: float, options: ScenarioOptions, cycles: int) -> list[Command]:
     """SETPRG, and SETCTL when the controller is not the firmware's default."""
-    commands = [Command(PROGRAM_SENT_S, "SETPRG", (start_c, max_c, PAPER_STEP_C, options.hold_s,
-                                                   options.rest_s, cycles, options.hold_start))]
+    commands = [
+        Command(
+            PROGRAM_SENT_S,
+            "SETPRG",
+            (start_c, max_c, PAPER_STEP_C, options.hold_s, options.rest_s, cycles, options.hold_start),
+        )
+    ]
     control = CONTROLLERS[options.controller]
     if control is not None:
         commands.append(Command(CONTROL_SENT_S, "SETCTL", control))
@@ -177,8 +182,12 @@ def fig8(options: ScenarioOptions) -> Scenario:
 
 def _cycle_length_s(options: ScenarioOptions, ambient_c: float) -> float:
     steps = program_steps(CALIBRATION_MIN_C, CALIBRATION_MAX_C, PAPER_STEP_C)
-    return (PROGRAM_STARTED_S + steps * options.hold_s + options.rest_s
-            + reach_allowance_s(CALIBRATION_MIN_C, steps, ambient_c, options))
+    return (
+        PROGRAM_STARTED_S
+        + steps * options.hold_s
+        + options.rest_s
+        + reach_allowance_s(CALIBRATION_MIN_C, steps, ambient_c, options)
+    )
 
 
 def cycle(options: ScenarioOptions) -> Scenario:
@@ -191,8 +200,9 @@ def cycle(options: ScenarioOptions) -> Scenario:
         duration_s=_cycle_length_s(options, ambient),
         uses_chamber=True,
         ambient_c=_constant(ambient),
-        positions=(TablePosition(0.0, _label(options.incl_x_deg, options.incl_y_deg),
-                                 options.incl_x_deg, options.incl_y_deg),),
+        positions=(
+            TablePosition(0.0, _label(options.incl_x_deg, options.incl_y_deg), options.incl_x_deg, options.incl_y_deg),
+        ),
         commands=(
             *chamber_program(CALIBRATION_MIN_C, CALIBRATION_MAX_C, options, 1),
             Command(PROGRAM_STARTED_S, "START"),
@@ -230,9 +240,7 @@ def campaign(options: ScenarioOptions) -> Scenario:
     labels = options.positions or tuple(known)
     unknown = [label for label in labels if label not in known]
     if unknown:
-        raise ScenarioError(
-            f"unknown position(s) {', '.join(unknown)}; use labels like 0, X+5, X-45, Y+30"
-        )
+        raise ScenarioError(f"unknown position(s) {', '.join(unknown)}; use labels like 0, X+5, X-45, Y+30")
     ambient = LAB_AMBIENT_C if options.ambient_c is None else options.ambient_c
     length = _cycle_length_s(options, ambient)
     positions, commands = [], []
@@ -269,8 +277,13 @@ def _ramp(begin_c: float, end_c: float, duration_s: float) -> Callable[[float], 
     return ambient
 
 
-def _field(name: str, description: str, paper_duration_s: float, options: ScenarioOptions,
-           profile: Callable[[float], Callable[[float], float]]) -> Scenario:
+def _field(
+    name: str,
+    description: str,
+    paper_duration_s: float,
+    options: ScenarioOptions,
+    profile: Callable[[float], Callable[[float], float]],
+) -> Scenario:
     duration = options.duration_s or paper_duration_s
     if duration != paper_duration_s:
         description += f", compressed into {duration:g} s"
@@ -280,8 +293,9 @@ def _field(name: str, description: str, paper_duration_s: float, options: Scenar
         duration_s=duration,
         uses_chamber=False,
         ambient_c=profile(duration),
-        positions=(TablePosition(0.0, _label(options.incl_x_deg, options.incl_y_deg),
-                                 options.incl_x_deg, options.incl_y_deg),),
+        positions=(
+            TablePosition(0.0, _label(options.incl_x_deg, options.incl_y_deg), options.incl_x_deg, options.incl_y_deg),
+        ),
     )
 
 
@@ -295,17 +309,25 @@ def _field_air_c(imu_reading_c: float) -> float:
 def field_warming(options: ScenarioOptions) -> Scenario:
     """Section 4.3, first test: 3 h in a black box outdoors, the IMU reading
     9 to 48 degC, rising at a steady 13 degC/h (Figure 16a, b)."""
-    return _field("field-warming", "field test: 3 h, the IMU reading 9 -> 48 degC on a straight ramp",
-                  3 * 3600.0, options,
-                  lambda duration: _ramp(_field_air_c(9.0), _field_air_c(48.0), duration))
+    return _field(
+        "field-warming",
+        "field test: 3 h, the IMU reading 9 -> 48 degC on a straight ramp",
+        3 * 3600.0,
+        options,
+        lambda duration: _ramp(_field_air_c(9.0), _field_air_c(48.0), duration),
+    )
 
 
 def field_cooling(options: ScenarioOptions) -> Scenario:
     """Section 4.3, second test: 9 h overnight, the IMU reading 26 to 16 degC,
     falling at a steady 1.1 degC/h (Figure 16c, d)."""
-    return _field("field-cooling", "field test: 9 h, the IMU reading 26 -> 16 degC on a straight ramp",
-                  9 * 3600.0, options,
-                  lambda duration: _ramp(_field_air_c(26.0), _field_air_c(16.0), duration))
+    return _field(
+        "field-cooling",
+        "field test: 9 h, the IMU reading 26 -> 16 degC on a straight ramp",
+        9 * 3600.0,
+        options,
+        lambda duration: _ramp(_field_air_c(26.0), _field_air_c(16.0), duration),
+    )
 
 
 def field_alternating(options: ScenarioOptions) -> Scenario:
@@ -316,8 +338,9 @@ def field_alternating(options: ScenarioOptions) -> Scenario:
         period = duration / 3.0
         return lambda t: 24.0 + 6.0 * math.sin(2.0 * math.pi * t / period)
 
-    return _field("field-alternating", "field test: 12 h alternating warming and cooling",
-                  12 * 3600.0, options, profile)
+    return _field(
+        "field-alternating", "field test: 12 h alternating warming and cooling", 12 * 3600.0, options, profile
+    )
 
 
 # Long enough for a session at the pseudo-terminals; Ctrl-C ends it sooner.
@@ -334,8 +357,9 @@ def idle(options: ScenarioOptions) -> Scenario:
         duration_s=options.duration_s or IDLE_DURATION_S,
         uses_chamber=True,
         ambient_c=_constant(ambient),
-        positions=(TablePosition(0.0, _label(options.incl_x_deg, options.incl_y_deg),
-                                 options.incl_x_deg, options.incl_y_deg),),
+        positions=(
+            TablePosition(0.0, _label(options.incl_x_deg, options.incl_y_deg), options.incl_x_deg, options.incl_y_deg),
+        ),
     )
 
 

@@ -99,8 +99,9 @@ class WallClockPacer:
     there, so a late wake-up is not added to the next. A twin that falls
     behind runs flat out until it is level again; it never skips steps."""
 
-    def __init__(self, clock: Callable[[], float] = time.monotonic,
-                 sleep: Callable[[float], None] = time.sleep) -> None:
+    def __init__(
+        self, clock: Callable[[], float] = time.monotonic, sleep: Callable[[float], None] = time.sleep
+    ) -> None:
         self._clock = clock
         self._sleep = sleep
         self._start = clock()
@@ -166,9 +167,7 @@ def check_faults(scenario: Scenario, model: Model) -> None:
     for fault in model.faults:
         kind = FAULTS[fault.name]
         if kind.board == CHAMBER and not scenario.uses_chamber:
-            raise SimulationError(
-                f"fault {fault.name} needs the chamber, but {scenario.name} runs the IMU alone"
-            )
+            raise SimulationError(f"fault {fault.name} needs the chamber, but {scenario.name} runs the IMU alone")
         if kind.needs_term is not None and not model.enabled(kind.needs_term):
             raise SimulationError(f"fault {fault.name} needs the {kind.needs_term} term enabled")
 
@@ -221,13 +220,15 @@ def run(
                 imu_eeprom_bytes = links[IMU].board.eeprom_size
                 if len(eeprom) > imu_eeprom_bytes:
                     raise SimulationError(
-                        f"{len(eeprom)} bytes do not fit the IMU's EEPROM of {imu_eeprom_bytes} bytes")
+                        f"{len(eeprom)} bytes do not fit the IMU's EEPROM of {imu_eeprom_bytes} bytes"
+                    )
                 links[IMU].board.write_eeprom(eeprom)
             if scenario.uses_chamber:
-                links[CHAMBER] = BoardLink.open(CHAMBER, Board.thermal_chamber(),
-                                                open(folder.capture(CHAMBER), "wb"))
-            recorder = FrameRecorder(RunLogWriter(csv_stream, with_truth=True, flush_each_row=False),
-                                     watch_program=scenario.ends_with_program)
+                links[CHAMBER] = BoardLink.open(CHAMBER, Board.thermal_chamber(), open(folder.capture(CHAMBER), "wb"))
+            recorder = FrameRecorder(
+                RunLogWriter(csv_stream, with_truth=True, flush_each_row=False),
+                watch_program=scenario.ends_with_program,
+            )
             lockstep = Lockstep(scenario, model, seed, links, recorder)
             try:
                 if pty:
@@ -275,8 +276,9 @@ class Lockstep:
     (``thermotilt.twin.faults.FaultTarget``): the boards by name, the
     chamber physics, the Peltier's leads and the seed."""
 
-    def __init__(self, scenario: Scenario, model: Model, seed: int, links: dict[str, BoardLink],
-                 recorder: FrameRecorder) -> None:
+    def __init__(
+        self, scenario: Scenario, model: Model, seed: int, links: dict[str, BoardLink], recorder: FrameRecorder
+    ) -> None:
         self.scenario = scenario
         self.seed = seed
         self.links = links
@@ -297,8 +299,9 @@ class Lockstep:
             if on_pty:
                 on_pty(link.name, path)
 
-    def play(self, progress: Callable[[float], None] | None = None, realtime: bool = False,
-             timing: StepTiming | None = None) -> str:
+    def play(
+        self, progress: Callable[[float], None] | None = None, realtime: bool = False, timing: StepTiming | None = None
+    ) -> str:
         """Steps to the scenario's end, or to the end of its chamber program
         (ends_with_program); returns why it stopped (the summary's end_reason)."""
         scenario, recorder, links = self.scenario, self.recorder, self.links

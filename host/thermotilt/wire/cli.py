@@ -36,8 +36,12 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
 
     log = commands.add_parser("log", help="log real boards (or the twin's --pty ports) to a run folder")
     log.add_argument("--port", required=True, help="the IMU reader's serial port")
-    log.add_argument("--out", required=True, metavar="FOLDER",
-                     help="run folder to write (run.csv, serial/, summary.json); FOLDER/run.csv names it too")
+    log.add_argument(
+        "--out",
+        required=True,
+        metavar="FOLDER",
+        help="run folder to write (run.csv, serial/, summary.json); FOLDER/run.csv names it too",
+    )
     log.add_argument("--chamber-port", help="the thermal chamber's serial port, if logged too")
     log.add_argument("--baud", type=int, default=115200, help="line speed (default 115200)")
     log.add_argument("--duration", type=board_seconds, help="stop after this many seconds of board time")
@@ -109,8 +113,9 @@ def _log_folder(out: str) -> Path:
     if path.suffix.lower() != ".csv":
         return path
     if path.name != LOG_FILE:
-        raise UsageError(f"--out {out}: a run folder's log is {LOG_FILE}; give the folder, "
-                         f"e.g. --out {path.with_suffix('')}")
+        raise UsageError(
+            f"--out {out}: a run folder's log is {LOG_FILE}; give the folder, e.g. --out {path.with_suffix('')}"
+        )
     return path.parent
 
 
@@ -133,9 +138,11 @@ def _log(args: argparse.Namespace) -> int:
     except LogError as error:
         raise UsageError(str(error)) from None
     boards = summary.boards.values()
-    print(f"rows: {summary.rows}  frames: {sum(report.frames for report in boards)}  "
-          f"rejected: {sum(report.rejected for report in boards)}  "
-          f"gaps: {sum(report.sequence_gaps for report in boards)}  ({summary.end_reason})")
+    print(
+        f"rows: {summary.rows}  frames: {sum(report.frames for report in boards)}  "
+        f"rejected: {sum(report.rejected for report in boards)}  "
+        f"gaps: {sum(report.sequence_gaps for report in boards)}  ({summary.end_reason})"
+    )
     for name, report in summary.boards.items():
         for error in report.reported_errors:
             print(f"{name} reported {error}")

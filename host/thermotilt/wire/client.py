@@ -79,9 +79,7 @@ class CommandTimeout(CommandError):
         self.attempts = attempts
         self.timeout_s = timeout_s
         unknown = " (not retried: the board's state is unknown, ask STATUS)" if command in NOT_RETRIED else ""
-        super().__init__(
-            f"{command}: no answer within {timeout_s:g} s, {attempts} attempt(s){unknown}", command
-        )
+        super().__init__(f"{command}: no answer within {timeout_s:g} s, {attempts} attempt(s){unknown}", command)
 
 
 @dataclass(frozen=True)

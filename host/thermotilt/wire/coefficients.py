@@ -49,24 +49,17 @@ def encode_block(table: CoefficientTable) -> bytes:
 def decode_block(data: bytes) -> CoefficientTable:
     data = bytes(data)
     if len(data) != BLOCK_SIZE:
-        raise CoefficientBlockError(
-            f"coefficient block is {len(data)} bytes, expected {BLOCK_SIZE}"
-        )
+        raise CoefficientBlockError(f"coefficient block is {len(data)} bytes, expected {BLOCK_SIZE}")
     if data[0] != MAGIC:
-        raise CoefficientBlockError(
-            f"coefficient block magic is 0x{data[0]:02X}, expected 0x{MAGIC:02X}"
-        )
+        raise CoefficientBlockError(f"coefficient block magic is 0x{data[0]:02X}, expected 0x{MAGIC:02X}")
     if data[1] != FORMAT_VERSION:
         raise CoefficientBlockError(
-            f"coefficient block format version {data[1]} is not supported"
-            f" (expected {FORMAT_VERSION})"
+            f"coefficient block format version {data[1]} is not supported (expected {FORMAT_VERSION})"
         )
     (stored_crc,) = _CRC.unpack_from(data, _CRC_OFFSET)
     computed_crc = crc16_xmodem(data[:_CRC_OFFSET])
     if stored_crc != computed_crc:
-        raise CoefficientBlockError(
-            f"coefficient block CRC is 0x{stored_crc:04X}, computed 0x{computed_crc:04X}"
-        )
+        raise CoefficientBlockError(f"coefficient block CRC is 0x{stored_crc:04X}, computed 0x{computed_crc:04X}")
     values = _COEFFICIENTS.unpack_from(data, 2)
     if not all(math.isfinite(value) for value in values):
         raise CoefficientBlockError("coefficient block holds a non-finite coefficient")
@@ -76,11 +69,7 @@ def decode_block(data: bytes) -> CoefficientTable:
 def setcoe_frames(table: CoefficientTable, seq: SequenceCounter | None = None) -> list[str]:
     """SETCOE command lines (with CR LF) for all six surfaces, in block order."""
     counter = seq if seq is not None else SequenceCounter()
-    return [
-        build_frame("SETCOE", counter.next(), [s, a, *table.surface(s, a)])
-        for s in SETS
-        for a in AXES
-    ]
+    return [build_frame("SETCOE", counter.next(), [s, a, *table.surface(s, a)]) for s in SETS for a in AXES]
 
 
 def table_from_coe_frames(frames: Iterable[Frame]) -> CoefficientTable:

@@ -52,8 +52,7 @@ class Rig:
     def positions(self) -> list[dict[str, Any]]:
         if self.position is None and self.incl_x_deg is None and self.incl_y_deg is None:
             return []
-        return [{"at_s": 0.0, "label": self.position, "incl_x_deg": self.incl_x_deg,
-                 "incl_y_deg": self.incl_y_deg}]
+        return [{"at_s": 0.0, "label": self.position, "incl_x_deg": self.incl_x_deg, "incl_y_deg": self.incl_y_deg}]
 
 
 def _open_port(port: str, baud: int) -> serial.Serial:
@@ -149,14 +148,16 @@ def log_boards(
                 made.mkdir(parents=True, exist_ok=True)
             except OSError as error:
                 raise LogError(f"cannot create folder {made}: {error.strerror or error}") from None
-        imu_stream = BoardStream(IMU_BOARD, _open_output(stack, folder.capture(IMU_BOARD), "wb"),
-                                 clock, flush=True)
+        imu_stream = BoardStream(IMU_BOARD, _open_output(stack, folder.capture(IMU_BOARD), "wb"), clock, flush=True)
         chamber_stream = None
         if chamber is not None:
-            chamber_stream = BoardStream(CHAMBER_BOARD, _open_output(stack, folder.capture(CHAMBER_BOARD), "wb"),
-                                         clock, flush=True)
-        recorder = FrameRecorder(RunLogWriter(_open_output(stack, folder.log, "w", newline=""), with_truth=False),
-                                 watch_program=program is not None)
+            chamber_stream = BoardStream(
+                CHAMBER_BOARD, _open_output(stack, folder.capture(CHAMBER_BOARD), "wb"), clock, flush=True
+            )
+        recorder = FrameRecorder(
+            RunLogWriter(_open_output(stack, folder.log, "w", newline=""), with_truth=False),
+            watch_program=program is not None,
+        )
         recorder.set_ambient(rig.ambient_c)
         recorder.move_table(rig.incl_x_deg, rig.incl_y_deg, first_frame=rig.position is not None)
         try:
@@ -182,9 +183,11 @@ def log_boards(
                     break
                 if not warned and recorder.rows == 0 and clock() > SILENCE_WARNING_S:
                     warned = True
-                    print(f"thermotilt: no IMU frames from {imu_port} yet "
-                          f"({imu_stream.reader.malformed} malformed; is the baud rate {baud}?)",
-                          file=sys.stderr)
+                    print(
+                        f"thermotilt: no IMU frames from {imu_port} yet "
+                        f"({imu_stream.reader.malformed} malformed; is the baud rate {baud}?)",
+                        file=sys.stderr,
+                    )
         except EOFError:
             end_reason = "port closed"
         except KeyboardInterrupt:
@@ -207,8 +210,9 @@ def log_boards(
     except OSError as error:
         raise LogError(f"cannot write {folder.summary_path}: {error.strerror or error}") from None
     if recorder.rows == 0 and end_reason != INTERRUPTED:
-        raise LogError(f"no IMU frames received from {imu_port} ({end_reason}); "
-                       f"{imu_stream.reader.malformed} malformed lines")
+        raise LogError(
+            f"no IMU frames received from {imu_port} ({end_reason}); {imu_stream.reader.malformed} malformed lines"
+        )
     return summary
 
 

@@ -175,9 +175,7 @@ def build_frame(frame_type: str, seq: int, values: Iterable[Any] | Mapping[str, 
         unknown = set(values) - set(spec.field_names)
         missing = [name for name in spec.field_names if name not in values]
         if unknown or missing:
-            raise ValueError(
-                f"{frame_type}: missing fields {missing}, unknown fields {sorted(unknown)}"
-            )
+            raise ValueError(f"{frame_type}: missing fields {missing}, unknown fields {sorted(unknown)}")
         values = [values[name] for name in spec.field_names]
     texts = [format_value(value) for value in values]
     if spec is not None:
@@ -208,18 +206,14 @@ def _split_body(body: str) -> tuple[str, int, tuple[str, ...]]:
         raise MalformedFrame(TRUNCATED, "a '$' inside the line")
     star = body.find("*")
     if star < 0 or len(body) - star != 1 + CHECKSUM_DIGITS:
-        raise MalformedFrame(
-            NO_CHECKSUM, f"no '*' followed by {CHECKSUM_DIGITS} checksum digits"
-        )
+        raise MalformedFrame(NO_CHECKSUM, f"no '*' followed by {CHECKSUM_DIGITS} checksum digits")
     digits = body[star + 1 :]
     if not _CHECKSUM_HEX.fullmatch(digits):
         raise MalformedFrame(BAD_CHECKSUM, f"checksum {digits!r} is not hexadecimal")
     content = body[:star]
     expected = checksum(content)
     if int(digits, 16) != expected:
-        raise MalformedFrame(
-            BAD_CHECKSUM, f"checksum {digits}, computed {expected:0{CHECKSUM_DIGITS}X}"
-        )
+        raise MalformedFrame(BAD_CHECKSUM, f"checksum {digits}, computed {expected:0{CHECKSUM_DIGITS}X}")
     tokens = content.split(",")
     if not _TYPE.fullmatch(tokens[0]):
         raise MalformedFrame(BAD_TYPE, f"type {tokens[0]!r} is not 2 to 7 upper-case letters")
@@ -250,12 +244,9 @@ def _typed_fields(frame_type: str, raw_fields: tuple[str, ...]) -> dict[str, Any
     # More fields than the table lists are allowed: a newer firmware of the
     # same protocol version may append fields.
     if len(raw_fields) < len(spec.fields):
-        raise MalformedFrame(
-            FIELD_COUNT, f"{frame_type} needs {len(spec.fields)} fields, got {len(raw_fields)}"
-        )
+        raise MalformedFrame(FIELD_COUNT, f"{frame_type} needs {len(spec.fields)} fields, got {len(raw_fields)}")
     return {
-        field_spec.name: _convert(field_spec, text)
-        for field_spec, text in zip(spec.fields, raw_fields, strict=False)
+        field_spec.name: _convert(field_spec, text) for field_spec, text in zip(spec.fields, raw_fields, strict=False)
     }
 
 

@@ -98,8 +98,7 @@ SENSOR_STAGES: Mapping[str, str] = {
     "gravity": "(incl x deg, incl y deg) -> acceleration (x, y, z) LSB",
     "ideal": "(acceleration x, y, z) -> ideal acceleration (x, y, z) LSB",
     "drift": "(set, structure degC, ideal x, y, z) -> thermal drift (x, y, z) LSB",
-    "scale": "(reported degC, ideal x, y, z) -> additive error (x, y, z) LSB of a "
-    "temperature-dependent scale factor",
+    "scale": "(reported degC, ideal x, y, z) -> additive error (x, y, z) LSB of a temperature-dependent scale factor",
     "error": "(set, reported degC, rate degC/s, dt s, mounting) -> additive error (x, y, z) "
     "LSB; mounting counts the table's positions from 0, one more at every move",
     "register": "(temperature LSB, unrounded) -> temperature LSB",

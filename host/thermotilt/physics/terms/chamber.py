@@ -25,7 +25,9 @@ class ChamberHardware(Section):
     summary = "the inner face's heat capacity and the thermistor dividers"
     parameters = (
         Parameter(
-            "inner_heat_capacity_j_per_k", HEAT_CAPACITY, 400.0,
+            "inner_heat_capacity_j_per_k",
+            HEAT_CAPACITY,
+            400.0,
             "tuned to Figure 8: a 2 °C step reaches 90 % in ~13 s under the paper's P control "
             "with the 4 A drive (~440 g of aluminium: plate, mount, sensor board)",
             "the Peltier's own ceramic plate (40 × 40 × 0.8 mm alumina, ≈ 4.4 J/K) is the least "
@@ -33,20 +35,32 @@ class ChamberHardware(Section):
             "integrator's substeps (5 % of a time constant) to a few per 10 ms step",
         ),
         Parameter(
-            "supply_mv", Bounds(1800.0, 5500.0, "mV"), 5000.0,
-            "the Arduino's 5 V rail feeding the dividers", "the ATmega328P/2560 supply range",
+            "supply_mv",
+            Bounds(1800.0, 5500.0, "mV"),
+            5000.0,
+            "the Arduino's 5 V rail feeding the dividers",
+            "the ATmega328P/2560 supply range",
         ),
         Parameter(
-            "divider_reference_ohm", RESISTOR, 100000.0, "paper section 3.1",
+            "divider_reference_ohm",
+            RESISTOR,
+            100000.0,
+            "paper section 3.1",
             "below 100 Ω the divider draws tens of mA and heats the NTC; above 10 MΩ the ADC's "
             "sample capacitor cannot charge between conversions",
         ),
         Parameter(
-            "thermistor_r25_ohm", RESISTOR, 100000.0, "paper: CLW1064 100 kΩ",
+            "thermistor_r25_ohm",
+            RESISTOR,
+            100000.0,
+            "paper: CLW1064 100 kΩ",
             "catalogue NTCs run from about 100 Ω to 1 MΩ at 25 °C",
         ),
         Parameter(
-            "thermistor_beta_k", Bounds(1000.0, 10000.0, "K"), 3950.0, "paper, equation 1",
+            "thermistor_beta_k",
+            Bounds(1000.0, 10000.0, "K"),
+            3950.0,
+            "paper, equation 1",
             "catalogue NTCs have β of about 2500–5000 K",
         ),
     )
@@ -58,9 +72,12 @@ class PeltierPumping(ChamberTerm):
     summary = "s·P·d pumped from the outer face into the inner one"
     parameters = (
         Parameter(
-            "full_duty_w", HEATER_POWER, 56.3,
+            "full_duty_w",
+            HEATER_POWER,
+            56.3,
             "datasheet Seebeck 0.048 V/K × the paralleled L298N's 4 A × 293 K; at Imax the "
-            "same model nets the datasheet's Qmax, 56 W", HEATER_POWER_WHY,
+            "same model nets the datasheet's Qmax, 56 W",
+            HEATER_POWER_WHY,
         ),
     )
 
@@ -80,15 +97,24 @@ class JouleHeating(ChamberTerm):
     summary = "J·d^n dissipated in the cell, a share f to the inner face"
     parameters = (
         Parameter(
-            "full_duty_w", HEATER_POWER, 28.1, "(4 A)² × 1.755 Ω (datasheet)", HEATER_POWER_WHY,
+            "full_duty_w",
+            HEATER_POWER,
+            28.1,
+            "(4 A)² × 1.755 Ω (datasheet)",
+            HEATER_POWER_WHY,
         ),
         Parameter(
-            "exponent", Bounds(1.0, 2.0), 2.0,
+            "exponent",
+            Bounds(1.0, 2.0),
+            2.0,
             "2 for a current proportional to duty (a filtered drive); on/off PWM would give 1",
             "1 for unfiltered on/off PWM, 2 for a current proportional to duty",
         ),
         Parameter(
-            "inner_fraction", Bounds(0.0, 1.0), 0.5, "the standard TEC model: half",
+            "inner_fraction",
+            Bounds(0.0, 1.0),
+            0.5,
+            "the standard TEC model: half",
             "a share of the heat",
         ),
     )
@@ -112,7 +138,9 @@ class AmbientLeak(ChamberTerm):
     summary = "G_a from the inner face to ambient"
     parameters = (
         Parameter(
-            "conductance_w_per_k", Bounds(0.0, 10.0, "W/K"), 0.1,
+            "conductance_w_per_k",
+            Bounds(0.0, 10.0, "W/K"),
+            0.1,
             "assumed: 2 cm of polystyrene (0.035 W/mK) over ~0.06 m²",
             "0 is perfect insulation; 10 W/K is a 0.1 m² face in a fan's draught (~100 W/m²K)",
         ),
@@ -131,16 +159,23 @@ class Heatsink(ChamberTerm):
     )
     parameters = (
         Parameter(
-            "heat_capacity_j_per_k", HEAT_CAPACITY, 150.0,
-            "assumed: ~170 g of aluminium", "as the inner face: at least the outer ceramic plate",
+            "heat_capacity_j_per_k",
+            HEAT_CAPACITY,
+            150.0,
+            "assumed: ~170 g of aluminium",
+            "as the inner face: at least the outer ceramic plate",
         ),
         Parameter(
-            "inner_conductance_w_per_k", Bounds(0.0, 10.0, "W/K"), 0.545, "datasheet",
-            "the cell's conduction, 0.545 W/K for the TEC1-12706; 10 W/K is beyond the largest "
-            "single-stage modules",
+            "inner_conductance_w_per_k",
+            Bounds(0.0, 10.0, "W/K"),
+            0.545,
+            "datasheet",
+            "the cell's conduction, 0.545 W/K for the TEC1-12706; 10 W/K is beyond the largest single-stage modules",
         ),
         Parameter(
-            "ambient_conductance_w_per_k", Bounds(0.0, 50.0, "W/K"), 5.0,
+            "ambient_conductance_w_per_k",
+            Bounds(0.0, 50.0, "W/K"),
+            5.0,
             "assumed: a fan-cooled heatsink of 0.2 K/W (forced air: 3–10 W/K); a passive one "
             "(~0.5 K/W) cannot take the ~75 W the cell rejects at full cooling",
             "2 W/K for a passive finned heatsink (0.5 K/W), 10 W/K fan-cooled, 50 W/K a "
@@ -168,7 +203,9 @@ class ThermistorLag(ChamberTerm):
     summary = "first-order lag of both thermistors behind their faces"
     parameters = (
         Parameter(
-            "time_constant_s", Bounds(0.0, 600.0, "s", low_exclusive=True), 2.5,
+            "time_constant_s",
+            Bounds(0.0, 600.0, "s", low_exclusive=True),
+            2.5,
             "paper: response < 5 s; tuned with the inner heat capacity to Figure 8",
             "any positive lag is harmless to the model (a film sensor responds in milliseconds); "
             "a bead in still air takes seconds, 10 minutes would be a probe in a massive well",
@@ -189,11 +226,12 @@ class DriveDeadZone(ChamberTerm):
     )
     parameters = (
         Parameter(
-            "threshold_duty", Bounds(0.0, 0.5), 0.02,
+            "threshold_duty",
+            Bounds(0.0, 0.5),
+            0.02,
             "assumed: the L298N's ~2 µs switching delays are 0.1 % of the 2 ms PWM period "
             "(pin 9, 490 Hz); 2 % leaves room for a slow current rise in the cell's leads",
-            "0 is an ideal bridge; a bridge losing half of every period is no longer fit to "
-            "drive the cell",
+            "0 is an ideal bridge; a bridge losing half of every period is no longer fit to drive the cell",
         ),
     )
 
@@ -213,7 +251,8 @@ class ThermistorOffset(ChamberTerm):
     summary = "each thermistor reads its face this much warmer (a part or divider off nominal)"
     parameters = (
         Parameter(
-            "offset_c", PerAxis(Bounds(-5.0, 5.0, "degC"), keys=("inner", "outer")),
+            "offset_c",
+            PerAxis(Bounds(-5.0, 5.0, "degC"), keys=("inner", "outer")),
             {"inner": 0.0, "outer": 0.0},
             "a candidate: 0 until discovery fits it",
             "the CLW1064's 1 % R25 and 1 % β tolerances and a 1 % divider resistor shift a "

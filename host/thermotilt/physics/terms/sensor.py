@@ -28,9 +28,7 @@ SURFACE_TERM_NAMES = tuple(f"p{t}{a}" for t, a in _SURFACE_TERM_POWERS)
 _LARGEST_ABS_C = max(-OPERATING_C.low, OPERATING_C.high)
 SURFACE_TERM_BOUNDS: tuple[Bounds, ...] = tuple(
     Bounds(-limit, limit)
-    for limit in (
-        INT16_SPAN / (_LARGEST_ABS_C**t * float(-INT16_MIN) ** a) for t, a in _SURFACE_TERM_POWERS
-    )
+    for limit in (INT16_SPAN / (_LARGEST_ABS_C**t * float(-INT16_MIN) ** a) for t, a in _SURFACE_TERM_POWERS)
 )
 
 
@@ -40,17 +38,23 @@ class SensorHardware(Section):
     summary = "the accelerometer's scale and the temperature output's encoding"
     parameters = (
         Parameter(
-            "lsb_per_g", Bounds(1000.0, INT16_MAX, "LSB"), 16393.442622950820,
+            "lsb_per_g",
+            Bounds(1000.0, INT16_MAX, "LSB"),
+            16393.442622950820,
             "1 / 0.061 mg at ±2 g (LSM9DS0 datasheet; paper section 2)",
-            "the LSM9DS0's ±16 g scale gives 1366 LSB/g, ±2 g 16393; an int16 register holds "
-            "no more than 32767",
+            "the LSM9DS0's ±16 g scale gives 1366 LSB/g, ±2 g 16393; an int16 register holds no more than 32767",
         ),
         Parameter(
-            "temperature_lsb_per_c", Bounds(1.0, 256.0, "LSB"), 8.0, "paper section 2",
+            "temperature_lsb_per_c",
+            Bounds(1.0, 256.0, "LSB"),
+            8.0,
+            "paper section 2",
             "the LSM9DS0 gives 8; MEMS temperature outputs use 1 to 256 LSB/°C",
         ),
         Parameter(
-            "temperature_zero_c", OPERATING_C, 21.0,
+            "temperature_zero_c",
+            OPERATING_C,
+            21.0,
             "the firmware decodes raw / 8 + 21 (paper section 2)",
             "the LSM9DS0's operating range: code 0 stands for a temperature the part works at",
         ),
@@ -64,7 +68,9 @@ class DieLag(SensorTerm):
     summary = "τ of the die behind the chamber temperature it is given"
     parameters = (
         Parameter(
-            "time_constant_s", Bounds(0.0, 3600.0, "s", low_exclusive=True), 15.0,
+            "time_constant_s",
+            Bounds(0.0, 3600.0, "s", low_exclusive=True),
+            15.0,
             "assumed: a 4 × 4 × 1 mm LGA on a breakout inside the chamber",
             "as `[thermistor_lag]`; a packaged sensor inside a closed box lags minutes, not hours",
         ),
@@ -78,9 +84,7 @@ class DieLag(SensorTerm):
 class Tilt(SensorTerm):
     name = "tilt"
     stage = "gravity"
-    summary = (
-        "ax = g sin x, ay = g cos x sin y, az = g cos x cos y; disabled: the sensor lies flat"
-    )
+    summary = "ax = g sin x, ay = g cos x sin y, az = g cos x cos y; disabled: the sensor lies flat"
 
     def bind(self, context: SensorContext) -> Callable[..., Any] | None:
         g = context.lsb_per_g
@@ -99,9 +103,7 @@ def coefficient_table_of(value: Any) -> CoefficientTable:
     """The drift term's coefficients parameter ("paper" or a table) as surfaces."""
     if value == "paper":
         return PAPER_DEFAULTS
-    return CoefficientTable(
-        {(set_, axis): Surface(*value[set_][axis]) for set_ in SETS for axis in AXES}
-    )
+    return CoefficientTable({(set_, axis): Surface(*value[set_][axis]) for set_ in SETS for axis in AXES})
 
 
 def _surface(p: tuple[float, ...], temperature_c: float, acceleration: float) -> float:
@@ -123,23 +125,25 @@ class Drift(SensorTerm):
     )
     parameters = (
         Parameter(
-            "coefficients", Surfaces(SURFACE_TERM_NAMES, SURFACE_TERM_BOUNDS), "paper",
+            "coefficients",
+            Surfaces(SURFACE_TERM_NAMES, SURFACE_TERM_BOUNDS),
+            "paper",
             "paper Tables 2 and 3; Z zero",
             "each term alone may add at most the int16 span (65536 LSB) anywhere the sensor "
             "works: −40…85 °C and any int16 reading, i.e. 65536 / (85^i · 32768^j) for p_ij",
         ),
         Parameter(
-            "schmitt_band_c", Bounds(0.0, 10.0, "degC"), 0.5, "as the firmware's TrendDetector",
-            "the firmware uses 0.5; a band wider than the paper's ±6 °C field swings would "
-            "never switch",
+            "schmitt_band_c",
+            Bounds(0.0, 10.0, "degC"),
+            0.5,
+            "as the firmware's TrendDetector",
+            "the firmware uses 0.5; a band wider than the paper's ±6 °C field swings would never switch",
         ),
     )
 
     def bound(self, context: SensorContext) -> Callable[..., Any]:
         table = coefficient_table_of(self.values["coefficients"])
-        surfaces = {
-            set_: tuple(tuple(table.surface(set_, axis)) for axis in AXES) for set_ in SETS
-        }
+        surfaces = {set_: tuple(tuple(table.surface(set_, axis)) for axis in AXES) for set_ in SETS}
 
         def drift(
             drift_set: str, temperature_c: float, ideal_x: float, ideal_y: float, ideal_z: float
@@ -161,7 +165,8 @@ class RateSensitivity(SensorTerm):
     summary = "k·(dT_die/dt) per axis"
     parameters = (
         Parameter(
-            "lsb_per_c_per_s", PerAxis(Bounds(-INT16_SPAN, INT16_SPAN, "LSB per degC/s")),
+            "lsb_per_c_per_s",
+            PerAxis(Bounds(-INT16_SPAN, INT16_SPAN, "LSB per degC/s")),
             {"x": 0.0, "y": 0.0, "z": 1200.0},
             "tuned: ~110 LSB peaks in 2 °C/60 s staircase steps and ~47 LSB RMS over a "
             "−10…45 °C cycle, the order of the Z fits' RMS errors (paper section 4.1, "
@@ -189,7 +194,9 @@ class TemperatureOffset(SensorTerm):
     summary = "reported = die + offset"
     parameters = (
         Parameter(
-            "offset_c", Bounds(-20.0, 20.0, "degC"), -1.0,
+            "offset_c",
+            Bounds(-20.0, 20.0, "degC"),
+            -1.0,
             "assumed: the paper reports a consistent negative offset (section 3.1) without a value",
             "an uncalibrated die sensor; the paper saw about −1 °C",
         ),
@@ -225,9 +232,10 @@ class SensitivityLoss(SensorTerm):
     summary = "a → a (1 − k (a/g)²)"
     parameters = (
         Parameter(
-            "gain_loss_at_1g", Bounds(0.0, 0.33), 0.01,
-            "assumed: paper section 4.1 notes shrinking line spacing at high inclination "
-            "without a number",
+            "gain_loss_at_1g",
+            Bounds(0.0, 0.33),
+            0.01,
+            "assumed: paper section 4.1 notes shrinking line spacing at high inclination without a number",
             "a (1 − k a²) must still grow up to 1 g, which needs k < 1/3",
         ),
     )
@@ -253,9 +261,10 @@ class Noise(SensorTerm):
     summary = "Gaussian, per axis, seeded (numpy.random.Generator, blocks of 4096 pre-drawn)"
     parameters = (
         Parameter(
-            "sigma_lsb", PerAxis(Bounds(0.0, 1000.0, "LSB")), {"x": 17.4, "y": 17.4, "z": 17.4},
-            "150 µg/√Hz (LSM9DS0 datasheet, ±2 g) over the 50 Hz anti-alias bandwidth = "
-            "1.06 mg = 17.4 LSB",
+            "sigma_lsb",
+            PerAxis(Bounds(0.0, 1000.0, "LSB")),
+            {"x": 17.4, "y": 17.4, "z": 17.4},
+            "150 µg/√Hz (LSM9DS0 datasheet, ±2 g) over the 50 Hz anti-alias bandwidth = 1.06 mg = 17.4 LSB",
             "57 times the datasheet's 17.4 LSB; more is a unit slip (mg or µg/√Hz)",
         ),
     )
@@ -276,10 +285,7 @@ class Noise(SensorTerm):
 # An offset larger than ±2 g would hold a level sensor's ±2 g register at
 # one of its ends.
 _OFFSET = PerAxis(Bounds(-INT16_SPAN / 2, INT16_SPAN / 2, "LSB"))
-_OFFSET_WHY = (
-    "±2 g at the ±2 g scale: a larger offset would hold a level sensor's register at one of "
-    "its ends"
-)
+_OFFSET_WHY = "±2 g at the ±2 g scale: a larger offset would hold a level sensor's register at one of its ends"
 
 
 @register
@@ -292,13 +298,16 @@ class MeasuringOffset(SensorTerm):
     )
     parameters = (
         Parameter(
-            "warming_lsb", _OFFSET, {"x": -1823.0, "y": -143.0, "z": 0.0},
-            "paper section 4.1: the shift of Figure 10's lines, X −1823 and Y −143 LSB while "
-            "warming; Z none given",
+            "warming_lsb",
+            _OFFSET,
+            {"x": -1823.0, "y": -143.0, "z": 0.0},
+            "paper section 4.1: the shift of Figure 10's lines, X −1823 and Y −143 LSB while warming; Z none given",
             _OFFSET_WHY,
         ),
         Parameter(
-            "cooling_lsb", _OFFSET, {"x": -1857.0, "y": -110.0, "z": 0.0},
+            "cooling_lsb",
+            _OFFSET,
+            {"x": -1857.0, "y": -110.0, "z": 0.0},
             "paper section 4.1: X −1857 and Y −110 LSB while cooling; Z none given",
             _OFFSET_WHY,
         ),
@@ -334,7 +343,8 @@ class DriftRepeatability(SensorTerm):
     )
     parameters = (
         Parameter(
-            "sigma_lsb_per_c", PerAxis(Bounds(0.0, 100.0, "LSB per degC")),
+            "sigma_lsb_per_c",
+            PerAxis(Bounds(0.0, 100.0, "LSB per degC")),
             {"x": 0.55, "y": 0.8, "z": 0.0},
             "paper Tables 2, 3: the quadratic mean of each axis's two RMS errors (X 6.26, "
             "12.32; Y 17.37, 10.03 LSB) over the RMS of T − 25 °C across the −10…45 °C "
@@ -429,7 +439,8 @@ class BiasInstability(SensorTerm):
     )
     parameters = (
         Parameter(
-            "allan_floor_lsb", PerAxis(Bounds(0.0, 1000.0, "LSB")),
+            "allan_floor_lsb",
+            PerAxis(Bounds(0.0, 1000.0, "LSB")),
             {"x": 0.82, "y": 0.82, "z": 0.82},
             "assumed: 0.05 mg (0.664 × the IEEE 952 bias instability), the order of consumer "
             "MEMS accelerometers' Allan floors; the LSM9DS0 datasheet gives none",
@@ -439,9 +450,7 @@ class BiasInstability(SensorTerm):
 
     def bound(self, context: SensorContext) -> Callable[..., Any]:
         floors = self.values["allan_floor_lsb"]
-        blocks = _FlickerBlocks(
-            np.array([floors["x"], floors["y"], floors["z"]]), context.generator(self.name)
-        )
+        blocks = _FlickerBlocks(np.array([floors["x"], floors["y"], floors["z"]]), context.generator(self.name))
         step = blocks.next
 
         def error(
@@ -470,7 +479,9 @@ class SensorLag(SensorTerm):
     )
     parameters = (
         Parameter(
-            "time_constant_s", Bounds(0.0, 3600.0, "s", low_exclusive=True), 30.0,
+            "time_constant_s",
+            Bounds(0.0, 3600.0, "s", low_exclusive=True),
+            30.0,
             CANDIDATE_SOURCE,
             "as `[die_lag]`; the LSM9DS0 is a system-in-package: its sensing element and "
             "its temperature sensor share a 4 × 4 × 1 mm package, which does not lag itself "
@@ -493,7 +504,10 @@ class Hysteresis(SensorTerm):
     )
     parameters = (
         Parameter(
-            "cooling_offset_lsb", _OFFSET, {"x": 20.0, "y": 20.0, "z": 0.0}, CANDIDATE_SOURCE,
+            "cooling_offset_lsb",
+            _OFFSET,
+            {"x": 20.0, "y": 20.0, "z": 0.0},
+            CANDIDATE_SOURCE,
             _OFFSET_WHY,
         ),
     )
@@ -521,11 +535,13 @@ class ScaleTempco(SensorTerm):
     )
     parameters = (
         Parameter(
-            "ppm_per_c", PerAxis(Bounds(-10000.0, 10000.0, "ppm per degC")),
-            {"x": 100.0, "y": 100.0, "z": 0.0}, CANDIDATE_SOURCE,
+            "ppm_per_c",
+            PerAxis(Bounds(-10000.0, 10000.0, "ppm per degC")),
+            {"x": 100.0, "y": 100.0, "z": 0.0},
+            CANDIDATE_SOURCE,
             "1 %/°C would change the gain by 60 % between 25 °C and the operating range's "
             "85 °C; ST's datasheets say the sensitivity \"changes very little over "
-            "temperature\"",
+            'temperature"',
         ),
     )
 
@@ -533,9 +549,7 @@ class ScaleTempco(SensorTerm):
         ppm = self.values["ppm_per_c"]
         gain_x, gain_y, gain_z = ppm["x"] * 1e-6, ppm["y"] * 1e-6, ppm["z"] * 1e-6
 
-        def scale(
-            reported_c: float, ideal_x: float, ideal_y: float, ideal_z: float
-        ) -> tuple[float, float, float]:
+        def scale(reported_c: float, ideal_x: float, ideal_y: float, ideal_z: float) -> tuple[float, float, float]:
             excursion = reported_c - REFERENCE_C
             return (
                 gain_x * excursion * ideal_x,
@@ -557,10 +571,11 @@ class CrossAxis(SensorTerm):
     )
     parameters = (
         Parameter(
-            "share", PerAxis(Bounds(-0.1, 0.1)), {"x": 0.005, "y": 0.005, "z": 0.0},
+            "share",
+            PerAxis(Bounds(-0.1, 0.1)),
+            {"x": 0.005, "y": 0.005, "z": 0.0},
             CANDIDATE_SOURCE,
-            "sin 5.7° = 0.1: a board that far askew on its mount shows by eye (the default "
-            "0.005 is 0.29°)",
+            "sin 5.7° = 0.1: a board that far askew on its mount shows by eye (the default 0.005 is 0.29°)",
         ),
     )
 
