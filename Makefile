@@ -19,7 +19,7 @@ VENV_READY := $(VENV)/.installed
 SCENARIO ?= fig8
 RUNS ?= runs
 
-.PHONY: all firmware simulate demo test deps system-deps python-deps build native avr bench bench-discovery fuzz fuzz-build lint-cpp clean
+.PHONY: all firmware simulate demo test deps system-deps python-deps build native avr bench bench-discovery fuzz fuzz-build lint lint-cpp lint-python clean
 
 all: demo
 
@@ -100,11 +100,18 @@ fuzz: fuzz-build
 # The project's C/C++ sources against .clang-format (cmake/ holds the vendored
 # Unity fallback, which keeps its own layout); exits non-zero on a violation.
 CPP_SOURCES := $(foreach dir,lib firmware sim test fuzz host/native,'$(dir)/*.c' '$(dir)/*.cpp' '$(dir)/*.h')
-lint-cpp:
+lint-cpp: system-deps
 	@command -v clang-format >/dev/null || { echo "error: clang-format is missing: make system-deps" >&2; exit 1; }
 	git ls-files -z -- $(CPP_SOURCES) | xargs -0 clang-format --dry-run --Werror
 
-test: build fuzz-build python-deps
+# The host package and its tests against ruff's rules and layout (host/pyproject.toml).
+lint-python: python-deps
+	$(VENV)/bin/ruff check host
+	$(VENV)/bin/ruff format --check host
+
+lint: lint-cpp lint-python
+
+test: build fuzz-build python-deps lint
 	@BUILD=$(BUILD) VENV=$(VENV) bash cmake/run-tests.sh $(AVR_MCUS)
 
 clean:
