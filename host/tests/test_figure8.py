@@ -20,7 +20,7 @@ from thermotilt.wire.protocol import FrameReader
 
 CONTROLLERS = ("float", "rounded-error")
 
-# (a) The README's tolerance for the paper's "approximately 13 s"; the
+# (a) docs/twin.md's tolerance for the paper's "approximately 13 s"; the
 # chamber temperature arrives once a second (CHS), so a step time is read to 1 s.
 STEP_TIME_TOLERANCE_S = 3.0
 # (b) float: with a P law the settled error is 255/350 * d_hold degC, and a
@@ -50,7 +50,7 @@ HOLD_TIMING_TOLERANCE_S = 1.5
 
 @pytest.fixture(scope="module")
 def fig8_runs(tmp_path_factory):
-    """Both controllers side by side (two cores), seed 7 as the README."""
+    """Both controllers side by side (two cores), seed 7 as docs/twin.md states."""
     runs, processes = {}, {}
     for controller in CONTROLLERS:
         out = tmp_path_factory.mktemp(controller)

@@ -25,7 +25,7 @@ from thermotilt.surfaces import PAPER_DEFAULTS
 from thermotilt.twin.scenarios import ScenarioOptions, build, campaign_positions
 
 # The twin's scatter is of the order of the paper's RMS errors (Tables 2-3,
-# section 4.3): within a factor of two, as the README's table of the paper's
+# section 4.3): within a factor of two, as docs/twin.md's table of the paper's
 # numbers asserts.
 PAPER_FACTOR = 2.0
 

@@ -29,7 +29,7 @@ from thermotilt.twin import simulate as simulate_module
 from thermotilt.twin.scenarios import ScenarioOptions, build
 from thermotilt.wire.protocol import FrameReader, build_frame
 
-# Stated in the README: the cycle's compensated X and Y stay within this many
+# Stated in docs/twin.md: the cycle's compensated X and Y stay within this many
 # LSB of the tilt and the measuring offset once each hold has settled.
 COMPENSATED_TOLERANCE_LSB = 10.0
 

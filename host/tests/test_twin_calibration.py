@@ -17,7 +17,7 @@ from thermotilt.calibration.compare import compare, read_fit
 pytestmark = pytest.mark.twin
 
 # A twin campaign subset's RMSE is of the order of Tables 2-3's: within a
-# factor of two, as the README's table of the paper's numbers asserts.
+# factor of two, as docs/twin.md's table of the paper's features states.
 PAPER_FACTOR = 2.0
 
 
@@ -77,7 +77,7 @@ def test_a_twin_campaign_recovers_the_models_surfaces(fitted):
 def test_a_twin_campaign_leaves_the_scatter_of_tables_2_and_3(fitted):
     # Nine positions are nine draws of drift_repeatability's slopes: seed 1's
     # nine give 0.76-1.55x; with the filter emulated 26 of 40 seeds' nine keep
-    # all four within the factor (README). A change to how the model draws
+    # all four within the factor (docs/twin.md). A change to how the model draws
     # can fail this with a worse draw rather than a worse model: check the
     # 37 positions' fit (test_scatter.py) before loosening anything.
     comparisons = compare(read_fit(fitted), "paper")
