@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import statsmodels.api as sm
+from statsmodels.regression.linear_model import OLS
 from statsmodels.tsa.stattools import acf
 
 from ..surfaces import AXES, COEFFICIENT_NAMES, SETS, ZERO_SURFACE, CoefficientTable, Surface
@@ -128,7 +128,7 @@ def fit_surface(data: SetData, set_name: str, axis: str) -> SurfaceFit:
             "six coefficients (the fit needs several temperatures at several inclinations)"
         )
     # pinv: one SVD of the design, which statsmodels computes for the qr method too.
-    ols = sm.OLS(residual, columns).fit(method="pinv")
+    ols = OLS(residual, columns).fit(method="pinv")
     # Newey-West within a position cannot take lags beyond its rows; many
     # short positions (37 of them in a full campaign) reach that first.
     shortest = int(np.min(np.unique(data.position, return_counts=True)[1]))
