@@ -19,7 +19,7 @@ VENV_READY := $(VENV)/.installed
 SCENARIO ?= fig8
 RUNS ?= runs
 
-.PHONY: all firmware simulate demo test deps system-deps python-deps build native avr bench bench-discovery fuzz fuzz-build lint lint-cpp lint-python clean
+.PHONY: all firmware simulate demo test test-long deps system-deps python-deps build native avr bench bench-discovery fuzz fuzz-build lint lint-cpp lint-python clean
 
 all: demo
 
@@ -113,6 +113,11 @@ lint: lint-cpp lint-python
 
 test: build fuzz-build python-deps lint
 	@BUILD=$(BUILD) VENV=$(VENV) bash cmake/run-tests.sh $(AVR_MCUS)
+
+# The tests make test leaves out: make demo's whole twin campaign and every
+# discovery candidate in a twin run (about 15 min of CPU).
+test-long: build python-deps
+	$(VENV)/bin/python -m pytest host/tests -m long -n $${PYTEST_WORKERS:-auto} --dist worksteal
 
 clean:
 	rm -rf $(BUILD)

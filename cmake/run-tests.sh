@@ -51,10 +51,13 @@ done
 
 # On every core (pytest-xdist); a worker that finishes early takes tests
 # from a busy one's queue, so the discovery tests' long twin runs spread.
-# PYTEST_WORKERS=0 runs them in this process, one after another.
+# PYTEST_WORKERS=0 runs them in this process, one after another. The tests
+# marked long (whole twin campaigns, every discovery candidate) are
+# make test-long's.
 pytest_workers=${PYTEST_WORKERS:-auto}
-echo "== host: pytest (workers: ${pytest_workers})"
-"$venv/bin/python" -m pytest host/tests -n "$pytest_workers" --dist worksteal --junitxml="$results/pytest.xml" ||
+echo "== host: pytest (workers: ${pytest_workers}; not the long tests)"
+"$venv/bin/python" -m pytest host/tests -m "not long" -n "$pytest_workers" --dist worksteal \
+    --junitxml="$results/pytest.xml" ||
     failed_steps=$((failed_steps + 1))
 
 # Each libFuzzer target for a bounded time; a crash or sanitizer report fails

@@ -69,6 +69,7 @@ def test_start_at_readings_puts_the_faces_where_the_readings_say():
     assert chamber.readings_c() == pytest.approx((30.0, 10.0))
 
 
+@pytest.mark.long
 @pytest.mark.twin
 def test_the_chamber_replay_follows_a_twin_run_open_loop(cycle_runs):
     # The twin's chamber is this model's, closed by the real firmware every

@@ -21,15 +21,20 @@ from thermotilt.physics.document import with_values, write_model
 # Every candidate on the channel it is sized on, on staircase_inputs' three
 # positions (X +30, X -30, Y +30 deg), so that each is excited somewhere
 # (sensitivity_loss needs two inclinations on its axis, cross_axis the other
-# axis tilted).
+# axis tilted). make test keeps the cheapest; the others are `long`.
 CASES = (
     ("sensor_lag", "X"),
-    ("rate_sensitivity", "Y"),
-    ("hysteresis", "X"),
-    ("sensitivity_loss", "X"),
-    ("scale_tempco", "Y"),
-    ("cross_axis", "Y"),
-    ("temperature_offset", "temperature"),
+    *(
+        pytest.param(effect, channel, marks=pytest.mark.long)
+        for effect, channel in (
+            ("rate_sensitivity", "Y"),
+            ("hysteresis", "X"),
+            ("sensitivity_loss", "X"),
+            ("scale_tempco", "Y"),
+            ("cross_axis", "Y"),
+            ("temperature_offset", "temperature"),
+        )
+    ),
 )
 
 WIDE_INTERVAL = stats.norm.isf(0.0005) / stats.norm.isf(0.025)
@@ -85,12 +90,17 @@ def _assert_named_at_snr_4(inputs: Path, tmp_path: Path, effect: str, channel: s
 # chamber firmware closing the loop), each on a channel where the cycle
 # excites it: the outer face hardly sees the exponent of the Joule heat.
 CHAMBER_CASES = (
-    ("thermistor_offset", "inner"),
-    ("thermistor_offset", "outer"),
-    ("drive_dead_zone", "inner"),
-    ("heatsink", "inner"),
-    ("heatsink", "outer"),
     ("joule_heating", "inner"),
+    *(
+        pytest.param(effect, channel, marks=pytest.mark.long)
+        for effect, channel in (
+            ("thermistor_offset", "inner"),
+            ("thermistor_offset", "outer"),
+            ("drive_dead_zone", "inner"),
+            ("heatsink", "inner"),
+            ("heatsink", "outer"),
+        )
+    ),
 )
 
 

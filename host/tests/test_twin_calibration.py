@@ -14,7 +14,7 @@ import pytest
 from thermotilt import cli
 from thermotilt.calibration.compare import compare, read_fit
 
-pytestmark = pytest.mark.twin
+pytestmark = [pytest.mark.twin, pytest.mark.long]
 
 # A twin campaign subset's RMSE is of the order of Tables 2-3's: within a
 # factor of two, as docs/twin.md's table of the paper's features states.
