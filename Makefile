@@ -83,11 +83,12 @@ demo: build python-deps
 bench: build python-deps
 	THERMOTILT_BUILD_DIR=$(abspath $(BUILD)) $(VENV)/bin/python host/tools/bench.py
 
-# How often `thermotilt discover` names an effect hidden in a run, over SEEDS
-# seeds and four SNRs, against docs/discovery.md's targets; prints the figures.
-SEEDS ?= 3
+# Discovery's error rates over hundreds of runs on a Dask cluster (a
+# LocalCluster of this machine's cores, or SCHEDULER=tcp://HOST:8786): runs
+# what docs/benchmarks/discovery-runs.csv lacks, then writes the rates into
+# docs/discovery.md and docs/benchmarks/discovery-rates.png.
 bench-discovery: build python-deps
-	THERMOTILT_BUILD_DIR=$(abspath $(BUILD)) $(VENV)/bin/python host/tools/bench_discovery.py --seeds $(SEEDS)
+	THERMOTILT_BUILD_DIR=$(abspath $(BUILD)) $(VENV)/bin/python host/tools/bench_discovery.py $(if $(SCHEDULER),--scheduler $(SCHEDULER))
 
 fuzz-build: system-deps
 	cmake -S fuzz -B $(FUZZ) -DCMAKE_CXX_COMPILER=clang++

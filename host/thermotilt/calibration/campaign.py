@@ -28,9 +28,8 @@ import signal
 import tempfile
 import time
 import uuid
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
-from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -48,8 +47,6 @@ PARTIAL_DIR = ".partial"
 FORMAT = 1
 SEED_MODULUS = 2**64
 DONE, PENDING, INTERRUPTED, FAILED = "done", "pending", "interrupted", "failed"
-# Long enough for a scheduler across a network, short enough for a typo.
-CONNECT_TIMEOUT_S = 5
 # A running position on a Dask worker asks the scheduler this often whether to stop.
 STOP_POLL_S = 1.0
 
@@ -462,40 +459,6 @@ def twin_build_problem() -> str | None:
     except TwinError as error:
         return str(error)
     return None
-
-
-@contextmanager
-def connect_cluster(address: str) -> Iterator[Client]:
-    """A client of the Dask scheduler at ``address`` with at least one
-    worker, each able to run the twin; CampaignError otherwise."""
-    try:
-        from distributed import Client
-        from distributed.comm import get_address_host_port
-    except ImportError:
-        raise CampaignError(
-            "--scheduler needs Dask's distributed package: "
-            "pip install -r host/requirements.txt (or the thermotilt[dask] extra)"
-        ) from None
-    try:
-        get_address_host_port(address)
-    except ValueError as error:
-        raise CampaignError(f"--scheduler {address}: {error}; give one like tcp://HOST:8786") from None
-    try:
-        client = Client(address, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
-    except (OSError, TimeoutError) as error:
-        raise CampaignError(f"cannot reach the Dask scheduler at {address}: {error}") from None
-    with client:
-        try:
-            client.wait_for_workers(1, timeout=CONNECT_TIMEOUT_S)
-        except TimeoutError:
-            raise CampaignError(
-                f"the Dask scheduler at {address} has no workers after {CONNECT_TIMEOUT_S} s; "
-                f"start `dask worker {address}` on each machine"
-            ) from None
-        for worker, problem in client.run(twin_build_problem, on_error="return").items():
-            if problem is not None:
-                raise CampaignError(f"Dask worker {worker} cannot run the twin: {problem}")
-        yield client
 
 
 @dataclass(frozen=True)

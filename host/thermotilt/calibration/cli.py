@@ -137,6 +137,7 @@ def _campaign(args: argparse.Namespace) -> int:
 
     from tqdm import tqdm
 
+    from ..cluster import ClusterError, connect_cluster
     from ..twin.scenarios import ScenarioOptions
     from .campaign import (
         BoardsCampaign,
@@ -145,8 +146,8 @@ def _campaign(args: argparse.Namespace) -> int:
         Position,
         TwinCampaign,
         TwinSetup,
-        connect_cluster,
         select_positions,
+        twin_build_problem,
     )
 
     boards = args.imu_port is not None or args.chamber_port is not None
@@ -178,7 +179,11 @@ def _campaign(args: argparse.Namespace) -> int:
         try:
             positions = select_positions(args.positions)
             # Connected before campaign.json is written, so a wrong address leaves nothing to --resume.
-            cluster = resources.enter_context(connect_cluster(args.scheduler)) if args.scheduler else None
+            cluster = (
+                resources.enter_context(connect_cluster(args.scheduler, twin_build_problem, "run the twin"))
+                if args.scheduler
+                else None
+            )
             if boards:
                 campaign = BoardsCampaign(
                     out_dir,
@@ -208,7 +213,7 @@ def _campaign(args: argparse.Namespace) -> int:
                     resume=args.resume,
                     force=args.force,
                 )
-        except CampaignError as error:
+        except (CampaignError, ClusterError) as error:
             raise UsageError(str(error)) from None
         done = len(campaign.positions) - len(campaign.todo)
         where = f" on {args.imu_port} and {args.chamber_port}" if boards else ""

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from ..options import UsageError, existing_run, seed, settle_seconds, within
 from ..run import SETTLE_S
+from .noise_families import NOISE_FAMILIES
 
 
 def add_commands(commands: argparse._SubParsersAction) -> None:
@@ -59,9 +60,9 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     )
     hide.add_argument(
         "--noise",
-        choices=("model", "white", "autocorrelated"),
+        choices=tuple(NOISE_FAMILIES),
         default="model",
-        help="the model's noise terms, white noise only, or 5x the model's flicker",
+        help="; ".join(f"{name}: {what}" for name, what in NOISE_FAMILIES.items()),
     )
     hide.add_argument("--model", help="physics model file the effect is added to (default: the packaged one)")
     hide.add_argument("--out", required=True, help="folder for run.csv and truth.json")

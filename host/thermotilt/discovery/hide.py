@@ -28,6 +28,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
+from scipy.signal import lfilter
 
 from .. import native
 from ..physics import Model, Sensor
@@ -37,6 +38,7 @@ from ..run import SETTLE_S
 from ..run.folder import RunFolder
 from ..run.log import RunLogWriter, format_number, read_run_columns
 from .candidates import BY_NAME, CANDIDATES, Candidate
+from .noise_families import NOISE_FAMILIES
 from .replay import (
     CHAMBER_CHANNELS,
     FIRMWARE_OUTPUTS,
@@ -55,9 +57,12 @@ from .replay import (
 )
 from .search import gap_rms
 
-NOISES = ("model", "white", "autocorrelated")
-# "autocorrelated": the model's flicker floor this many times larger.
-AUTOCORRELATED_FLICKER_FACTOR = 5.0
+# "flicker": the model's flicker floor this many times larger.
+FLICKER_FACTOR = 5.0
+# "ar1-RHO": a bias wander per axis, RHO its correlation from one 10 Hz row
+# to the next, its standard deviation the flicker family's Allan floor, so
+# that it is as large as the undeclared part of that family.
+WANDER_ROW_CORRELATION = {"ar1-0.99": 0.99, "ar1-0.999": 0.999}
 DEFAULT_SNR_RANGE = (0.5, 8.0)
 # The chamber reports its readings to 0.01 degC (CHS, firmware/thermal_chamber).
 CHS_DECIMALS = 2
@@ -83,26 +88,43 @@ class Truth:
 
 
 def noisy(model: Model, noise: str) -> Model:
-    """The model with the noise of this kind."""
+    """The model with the noise terms of this family (the AR(1) wander is
+    added to the registers, _generate)."""
     if noise == "model":
         return model
-    if noise == "white":
+    if noise == "white" or noise in WANDER_ROW_CORRELATION:
         return model.with_terms({"bias_instability": False, "drift_repeatability": False})
-    if noise == "autocorrelated":
-        floors = model.terms["bias_instability"]["allan_floor_lsb"]
+    if noise == "flicker":
         return with_values(
             model,
             "bias_instability",
-            {
-                "enabled": True,
-                "allan_floor_lsb": {axis: AUTOCORRELATED_FLICKER_FACTOR * floors[axis] for axis in "xyz"},
-            },
+            {"enabled": True, "allan_floor_lsb": _flicker_floors(model)},
         )
-    raise ValueError(f"unknown noise {noise!r}; choose from {', '.join(NOISES)}")
+    raise ValueError(f"unknown noise {noise!r}; choose from {', '.join(NOISE_FAMILIES)}")
 
 
-def _generate(measured: Measured, model: Model, seed: int) -> dict[str, np.ndarray]:
-    """The sensor stepped at 100 Hz through the run and the firmware's
+def _flicker_floors(model: Model) -> dict[str, float]:
+    floors = model.terms["bias_instability"]["allan_floor_lsb"]
+    return {axis: FLICKER_FACTOR * float(floors[axis]) for axis in "xyz"}
+
+
+def _wander(model: Model, noise: str, count: int, seed: int) -> np.ndarray:
+    """The AR(1) bias wander of an "ar1-" family on each axis (LSB, 3 x
+    samples), stationary from the first sample; zeros for the others. Its
+    own generator, so the run with the effect gets the same wander."""
+    if noise not in WANDER_ROW_CORRELATION:
+        return np.zeros((3, count))
+    phi = WANDER_ROW_CORRELATION[noise] ** (1.0 / DECIMATION)
+    sd = np.array(list(_flicker_floors(model).values()))[:, None]
+    rng = np.random.default_rng([seed, 1])
+    shocks = rng.standard_normal((3, count)) * math.sqrt(1.0 - phi**2)
+    shocks[:, 0] = rng.standard_normal(3)
+    return sd * lfilter([1.0], [1.0, -phi], shocks, axis=-1)
+
+
+def _generate(measured: Measured, model: Model, seed: int, noise: str = "model") -> dict[str, np.ndarray]:
+    """The sensor stepped at 100 Hz through the run (with the bias wander
+    of the noise family, if any, in its registers) and the firmware's
     processing of every sample: per-sample arrays on the grid."""
     grid = SampleGrid.of(measured.time_s, measured.mounting)
     chamber_c = grid.sample(measured.time_s, measured.chamber_c)
@@ -115,6 +137,8 @@ def _generate(measured: Measured, model: Model, seed: int) -> dict[str, np.ndarr
     for index, environment_c in enumerate(chamber_c.tolist()):
         sample = sensor.step(SAMPLE_PERIOD_S, environment_c, incl_x[index], incl_y[index])
         registers[:, index] = (sample.ax, sample.ay, sample.az, sample.temperature_raw)
+    wander = np.rint(_wander(model, noise, count, seed)).astype(np.int32)
+    registers[:3] = np.clip(registers[:3] + wander, -32768, 32767)
     processed = native.imu_process(
         registers[0], registers[1], registers[2], registers[3], grid.reset, decimation=DECIMATION
     )
@@ -301,7 +325,7 @@ def hide_effect(
     faces = replace(inputs, chamber_c=inner_face_c(inputs.time_s, inputs.chamber_c, model, inputs.status))
     base_model = noisy(model, noise)
     say("generating the noise")
-    processed = _generate(faces, base_model, seed)
+    processed = _generate(faces, base_model, seed, noise)
     frames = np.flatnonzero(processed["frame_due"])
     generated = _frames_measured(faces, processed, frames, model)
 
@@ -347,9 +371,9 @@ def hide_effect(
         if channel in CHAMBER_CHANNELS:
             change = ChamberChange.of(inputs, model, candidate.changed(model, {channel: value}))
             generated = _frames_measured(faces, processed, frames, model, change)
-            processed = _generate(replace(faces, chamber_c=faces.chamber_c + change.face_c), truth_model, seed)
+            processed = _generate(replace(faces, chamber_c=faces.chamber_c + change.face_c), truth_model, seed, noise)
         else:
-            processed = _generate(faces, truth_model, seed)
+            processed = _generate(faces, truth_model, seed, noise)
         hidden = {
             "channel": channel,
             "parameter": candidate.parameter,

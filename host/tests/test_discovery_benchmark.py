@@ -1,0 +1,130 @@
+"""The discovery benchmark's machinery on a small slice (the benchmark
+itself is `make bench-discovery`): runs on a Dask cluster reached by its
+scheduler's address, a record that a second start does not add to, rows
+made again alone from their seed, and the rates with Wilson intervals
+written into a document (docs/discovery.md, "Benchmark")."""
+
+from pathlib import Path
+
+import pytest
+from distributed import LocalCluster
+
+from thermotilt.cluster import ClusterError, connect_cluster
+from thermotilt.discovery import rates
+from thermotilt.discovery.benchmark import (
+    COLUMNS,
+    Base,
+    Cell,
+    Task,
+    default_cells,
+    read_record,
+    run_benchmark,
+    run_task,
+)
+from thermotilt.discovery.hide import staircase_inputs
+
+
+def _short_staircase(folder: Path) -> None:
+    # Two positions, 0..20 degC in 10 degC steps: a few thousand rows, enough
+    # for hysteresis (warming and cooling) to be hidden and looked for.
+    staircase_inputs(folder / "run.csv", positions=((30.0, 0.0), (0.0, 30.0)), high_c=20.0, step_c=10.0, hold_s=30.0)
+
+
+SHORT = {"short": Base("short", "a short staircase", _short_staircase)}
+CELLS = [
+    Cell("null", "none", None, "ar1-0.99", "short", 1),
+    Cell("effect", "hysteresis", 4.0, "model", "short", 1, channel="X"),
+]
+
+
+def _no_problem():
+    return None
+
+
+@pytest.mark.slow
+@pytest.mark.twin
+def test_runs_on_a_cluster_by_its_address_and_a_second_start_runs_nothing(tmp_path):
+    record = tmp_path / "runs.csv"
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        with connect_cluster(cluster.scheduler_address, _no_problem, "run discovery") as client:
+            first = run_benchmark(CELLS, record, tmp_path / "bases", client, say=lambda _: None, bases=SHORT)
+            assert (first.done, first.todo, first.failed) == (2, 0, [])
+            rows = read_record(record)
+            second = run_benchmark(CELLS, record, tmp_path / "bases", client, say=lambda _: None, bases=SHORT)
+            assert (second.done, second.todo) == (2, 0)
+            assert read_record(record) == rows
+    assert [row["key"] for row in rows] == [task.key for cell in CELLS for task in cell.tasks()]
+    hidden = rows[1]
+    assert hidden["verdict"] in ("found", "none", "ambiguous", "not_testable")
+    assert hidden["channel"] == "X" and float(hidden["truth"]) != 0.0
+    assert float(hidden["snr_actual"]) == pytest.approx(4.0, rel=1e-3)
+    # One row made again alone, from its seed only, is the same row.
+    again = run_task(Task(CELLS[1], 0), (tmp_path / "bases" / "short" / "run.csv").read_bytes())
+    assert {k: str(v) for k, v in again.items() if k != "seconds"} == {
+        k: v for k, v in hidden.items() if k != "seconds"
+    }
+
+
+def test_a_scheduler_whose_workers_cannot_run_discovery_is_one_line():
+    with LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=False, protocol="tcp", dashboard_address=None
+    ) as cluster:
+        with pytest.raises(ClusterError, match="cannot run discovery: no native library"):
+            with connect_cluster(cluster.scheduler_address, lambda: "no native library", "run discovery"):
+                pass
+
+
+def test_every_run_has_its_own_seed_and_the_design_has_the_sizes_asked_for():
+    cells = default_cells()
+    tasks = [task for cell in cells for task in cell.tasks()]
+    assert len({task.key for task in tasks}) == len({task.seed for task in tasks}) == len(tasks)
+    null = [c for c in cells if c.kind == "null"]
+    assert sum(c.runs for c in null) >= 400 and len({c.noise for c in null}) >= 4
+    assert {c.base for c in null} == {"staircase", "cycle"}
+    effect = [c for c in cells if c.kind == "effect"]
+    assert all(c.runs >= 50 for c in effect) and {c.snr for c in effect} == {0.5, 1.0, 2.0, 4.0}
+    assert all(c.runs >= 50 for c in cells if c.kind == "collinear")
+
+
+def _row(**values):
+    row = dict.fromkeys(COLUMNS, "")
+    row.update(seconds="1.0", base="staircase", noise="model", verdict="none")
+    row.update(values)
+    return row
+
+
+def test_the_rates_carry_wilson_intervals_and_say_which_targets_are_missed(tmp_path):
+    rows = [_row(kind="null", noise="white", key=f"n{i}") for i in range(400)]
+    rows += [
+        _row(kind="null", noise="ar1-0.999", key=f"a{i}", verdict="found" if i < 40 else "none") for i in range(400)
+    ]
+    rows += [
+        _row(
+            kind="effect",
+            effect="hysteresis",
+            channel="X",
+            snr="2.0",
+            key=f"h{i}",
+            verdict="found",
+            named="hysteresis",
+            named_channel="X" if i < 49 else "Y",
+            low="-1",
+            high="1",
+            truth="0.5",
+        )
+        for i in range(50)
+    ]
+    text = rates.report(rows)
+    # 0 of 400: the Wilson upper bound is z^2 / (n + z^2) = 0.95 %.
+    assert "| white | 400 | 0/400 = 0% (0%–1%) | – | 0/400 = 0% (0%–1%) | met |" in text
+    # 40 of 400: 10 %, 7.5-13.3 % (Wilson).
+    assert "| ar1-0.999 | 400 | 40/400 = 10% (7%–13%) | – | 40/400 = 10% (7%–13%) | **missed** |" in text
+    assert "| `hysteresis` | – | – | 49/50 = 98% (90%–100%) | – |" in text
+    document = tmp_path / "discovery.md"
+    document.write_text(f"before\n{rates.BEGIN}\nold\n{rates.END}\nafter\n")
+    rates.write_into(document, text)
+    written = document.read_text()
+    assert written.startswith("before\n") and written.endswith("after\n") and "old" not in written
+    assert "49/50" in written
+    rates.figure(rows, tmp_path / "rates.png")
+    assert (tmp_path / "rates.png").stat().st_size > 10_000

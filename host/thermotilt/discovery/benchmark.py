@@ -1,0 +1,372 @@
+"""Discovery's error rates measured over many runs, each an independent
+task on a Dask cluster: hide an effect (or nothing) in a base run with
+`hide_effect`, run `Search` on it, and record what it said beside the truth,
+one row per run (docs/discovery.md, "Benchmark"; `make bench-discovery`).
+
+The record is resumable: a row is written and flushed as its run finishes,
+and a run whose key is in the record is never run again. Every run's seed
+comes from its cell and index alone, so any row can be made again by
+itself (`Task.seed`).
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import subprocess
+import sys
+import tempfile
+import time
+import zlib
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from .candidates import BY_NAME, CANDIDATES
+from .noise_families import NOISE_FAMILIES
+from .replay import CHAMBER_CHANNELS
+
+if TYPE_CHECKING:
+    from distributed import Client
+
+SNRS = (0.5, 1.0, 2.0, 4.0)
+NULL, EFFECT, COLLINEAR = "null", "effect", "collinear"
+FOUND, NONE, AMBIGUOUS, NOT_TESTABLE = "found", "none", "ambiguous", "not_testable"
+COLUMNS = (
+    "key",
+    "kind",
+    "effect",
+    "channel",
+    "snr",
+    "noise",
+    "base",
+    "index",
+    "seed",
+    "verdict",
+    "named",
+    "named_channel",
+    "value",
+    "low",
+    "high",
+    "truth",
+    "ambiguous",
+    "expected_pair",
+    "snr_actual",
+    "rows",
+    "seconds",
+)
+
+
+@dataclass(frozen=True)
+class Base:
+    """A run the benchmark hides effects in: `make(folder)` writes it (a run
+    folder with run.csv) on the machine that submits the runs."""
+
+    name: str
+    what: str
+    make: Callable[[Path], None]
+
+
+def _staircase(folder: Path) -> None:
+    from .hide import staircase_inputs
+
+    staircase_inputs(folder / "run.csv")
+
+
+def _ramp(folder: Path) -> None:
+    from .hide import staircase_inputs
+
+    # One slow ramp up and down over 20..30 degC, no holds: the drift's slope
+    # hardly changes, so a lag of it and a rate term look alike.
+    staircase_inputs(
+        folder / "run.csv",
+        positions=((30.0, 0.0),),
+        low_c=20.0,
+        high_c=30.0,
+        step_c=10.0,
+        hold_s=0.0,
+        ramp_c_per_s=0.01,
+    )
+
+
+def _twin(scenario: str, *options: str) -> Callable[[Path], None]:
+    def make(folder: Path) -> None:
+        subprocess.run(
+            [sys.executable, "-m", "thermotilt", "simulate", scenario, *options, "--out", str(folder)],
+            check=True,
+            stdout=subprocess.DEVNULL,
+        )
+
+    return make
+
+
+# The scatter terms off in the twin's own runs: hide_effect generates the
+# sensor side again with the family's noise.
+_SCATTER_OFF = ("--disable", "drift_repeatability", "--disable", "bias_instability")
+BASES = {
+    base.name: base
+    for base in (
+        Base(
+            "staircase", "0..40 degC in 5 degC steps held 40 s at X +30, X -30 and Y +30 deg (inputs only)", _staircase
+        ),
+        Base("ramp", "one ramp 20..30..20 degC at 0.01 degC/s at X +30 deg (inputs only)", _ramp),
+        Base(
+            "cycle",
+            "the twin's calibration cycle, -10..45 degC (simulate cycle --rest-seconds 60)",
+            _twin("cycle", "--rest-seconds", "60", *_SCATTER_OFF),
+        ),
+        Base("fig8", "the twin's Figure 8 run, 342 s (simulate fig8)", _twin("fig8", *_SCATTER_OFF)),
+    )
+}
+
+
+@dataclass(frozen=True)
+class Cell:
+    """Runs alike but for their seed. effect: a candidate, or "none";
+    channel: the channel it is sized on, or None for one drawn per run;
+    pair: for a collinear cell, the candidates that run cannot tell apart."""
+
+    kind: str
+    effect: str
+    snr: float | None
+    noise: str
+    base: str
+    runs: int
+    channel: str | None = None
+    pair: tuple[str, ...] = ()
+
+    def tasks(self) -> list[Task]:
+        return [Task(self, index) for index in range(self.runs)]
+
+
+@dataclass(frozen=True)
+class Task:
+    cell: Cell
+    index: int
+
+    @property
+    def key(self) -> str:
+        c = self.cell
+        snr = "" if c.snr is None else f"{c.snr:g}"
+        return f"{c.kind}/{c.effect}/{c.channel or ''}/{snr}/{c.noise}/{c.base}/{self.index}"
+
+    @property
+    def seed(self) -> int:
+        return zlib.crc32(self.key.encode())
+
+
+def default_cells(null_runs: int = 40, effect_runs: int = 50, collinear_runs: int = 50) -> list[Cell]:
+    """The benchmark's design: null runs in every noise family on a sensor
+    run and a chamber run; every candidate at every SNR with the model's
+    noise, on the staircase (sensor) or the twin's cycle (chamber); the two
+    designed collinear pairs."""
+    cells = [
+        Cell(NULL, "none", None, noise, base, null_runs) for base in ("staircase", "cycle") for noise in NOISE_FAMILIES
+    ]
+    for candidate in CANDIDATES:
+        base = "cycle" if set(candidate.channels) <= set(CHAMBER_CHANNELS) else "staircase"
+        cells += [Cell(EFFECT, candidate.name, snr, "model", base, effect_runs) for snr in SNRS]
+    cells += [
+        Cell(COLLINEAR, "sensor_lag", 4.0, "model", "ramp", collinear_runs, pair=("rate_sensitivity", "sensor_lag")),
+        Cell(
+            COLLINEAR,
+            "thermistor_offset",
+            4.0,
+            "model",
+            "fig8",
+            collinear_runs,
+            channel="inner",
+            pair=("temperature_offset", "thermistor_offset"),
+        ),
+    ]
+    return cells
+
+
+_BASE_FOLDERS: dict[str, Path] = {}
+
+
+def _base_folder(data: bytes) -> Path:
+    """The base's run.csv in a folder of this process, written once."""
+    digest = hashlib.sha256(data).hexdigest()[:16]
+    if digest not in _BASE_FOLDERS:
+        folder = Path(tempfile.mkdtemp(prefix=f"thermotilt-base-{digest}-"))
+        (folder / "run.csv").write_bytes(data)
+        _BASE_FOLDERS[digest] = folder
+    return _BASE_FOLDERS[digest]
+
+
+def run_task(task: Task, base_csv: bytes) -> dict[str, Any]:
+    """One run: the effect hidden in the base, discovery on it, the row."""
+    from ..physics import Model
+    from .hide import hide_effect
+    from .replay import load_measured
+    from .search import Search
+
+    cell = task.cell
+    started = time.perf_counter()
+    model = Model.load()
+    with tempfile.TemporaryDirectory(prefix="thermotilt-bench-") as scratch:
+        run = Path(scratch)
+        truth = hide_effect(
+            _base_folder(base_csv),
+            run,
+            cell.effect,
+            task.seed,
+            snr=cell.snr,
+            channel=cell.channel,
+            noise=cell.noise,
+            model=model,
+        )
+        measured = load_measured(run)
+        outcome = Search(measured, model).run()
+    verdict = outcome.verdict
+    if truth.channel is not None:
+        tested = [t for t in outcome.rounds[0] if t.key == (cell.effect, truth.channel)]
+        if tested and not tested[0].testable:
+            verdict = NOT_TESTABLE
+    first = outcome.effects[0] if outcome.effects else None
+    return {
+        "key": task.key,
+        "kind": cell.kind,
+        "effect": cell.effect,
+        "channel": truth.channel or "",
+        "snr": "" if cell.snr is None else cell.snr,
+        "noise": cell.noise,
+        "base": cell.base,
+        "index": task.index,
+        "seed": task.seed,
+        "verdict": verdict,
+        "named": first.candidate if first else "",
+        "named_channel": first.channel if first else "",
+        "value": _number(first.value) if first else "",
+        "low": _number(first.interval[0]) if first else "",
+        "high": _number(first.interval[1]) if first else "",
+        "truth": "" if truth.value is None else _number(truth.value),
+        "ambiguous": ";".join("+".join(group.names) for group in outcome.ambiguous),
+        "expected_pair": "+".join(cell.pair),
+        "snr_actual": "" if truth.snr is None else f"{truth.snr:.3f}",
+        "rows": len(measured.time_s),
+        "seconds": f"{time.perf_counter() - started:.1f}",
+    }
+
+
+def _number(value: float) -> str:
+    return f"{value:.6g}"
+
+
+def read_record(path: Path) -> list[dict[str, str]]:
+    if not path.exists():
+        return []
+    with open(path, newline="", encoding="utf-8") as stream:
+        return list(csv.DictReader(stream))
+
+
+def _append(path: Path, row: dict[str, Any]) -> None:
+    new = not path.exists() or path.stat().st_size == 0
+    with open(path, "a", newline="", encoding="utf-8") as stream:
+        writer = csv.DictWriter(stream, COLUMNS)
+        if new:
+            writer.writeheader()
+        writer.writerow(row)
+
+
+def _sorted_record(path: Path) -> None:
+    """The record in one order whatever order the runs finished in, so that
+    a rerun diffs row by row."""
+    kinds = (NULL, EFFECT, COLLINEAR)
+
+    def order(row: dict[str, str]) -> tuple:
+        snr = float(row["snr"]) if row["snr"] else 0.0
+        return kinds.index(row["kind"]), row["effect"], snr, row["noise"], row["base"], int(row["index"])
+
+    rows = sorted(read_record(path), key=order)
+    with open(path, "w", newline="", encoding="utf-8") as stream:
+        writer = csv.DictWriter(stream, COLUMNS)
+        writer.writeheader()
+        writer.writerows(rows)
+
+
+def make_bases(
+    names: Iterable[str], folder: Path, say: Callable[[str], None], bases: Mapping[str, Base] = BASES
+) -> dict[str, bytes]:
+    """Each base's run.csv, made once into folder/NAME and read from there
+    after."""
+    made = {}
+    for name in names:
+        target = folder / name
+        if not (target / "run.csv").exists():
+            say(f"making the base run {name}: {bases[name].what}")
+            target.mkdir(parents=True, exist_ok=True)
+            bases[name].make(target)
+        made[name] = (target / "run.csv").read_bytes()
+    return made
+
+
+@dataclass
+class Progress:
+    done: int
+    todo: int
+    failed: list[str]
+
+
+def run_benchmark(
+    cells: list[Cell],
+    record: Path,
+    bases_folder: Path,
+    client: Client,
+    say: Callable[[str], None] = print,
+    bar: Callable[[int, int], Any] | None = None,
+    bases: Mapping[str, Base] = BASES,
+) -> Progress:
+    """Every run of the cells not yet in the record, on the client's
+    cluster; each finished row appended at once. A run that raises is
+    reported and left out of the record, to be tried on the next start.
+    bar(done, total) is told after every run."""
+    from distributed import as_completed
+
+    tasks = [task for cell in cells for task in cell.tasks()]
+    done = {row["key"] for row in read_record(record)}
+    # Index by index across the cells, so that a benchmark stopped early
+    # leaves every cell about as many runs.
+    todo = sorted((task for task in tasks if task.key not in done), key=lambda task: task.index)
+    progress = Progress(len(tasks) - len(todo), len(todo), [])
+    if todo:
+        made = make_bases(sorted({task.cell.base for task in todo}), bases_folder, say, bases)
+        shipped = {name: client.scatter(data, broadcast=True) for name, data in made.items()}
+        record.parent.mkdir(parents=True, exist_ok=True)
+        futures = {
+            client.submit(run_task, task, shipped[task.cell.base], key=f"bench-{task.key}", pure=False): task
+            for task in todo
+        }
+        try:
+            for future in as_completed(futures, loop=client.loop):
+                task = futures.pop(future)
+                try:
+                    _append(record, future.result())
+                except Exception as error:  # a run's failure is its row's, not the benchmark's
+                    progress.failed.append(f"{task.key}: {type(error).__name__}: {error}")
+                progress.todo -= 1
+                progress.done += 1
+                if bar is not None:
+                    bar(progress.done, len(tasks))
+        finally:
+            client.cancel(list(futures))
+    if record.exists():
+        _sorted_record(record)
+    return progress
+
+
+def cell_summary(cells: list[Cell]) -> str:
+    counts: dict[str, int] = {}
+    for cell in cells:
+        counts[cell.kind] = counts.get(cell.kind, 0) + cell.runs
+    return ", ".join(f"{count} {kind}" for kind, count in counts.items())
+
+
+def named_right(row: dict[str, str]) -> bool:
+    """The first effect found is the hidden one (on its channel, for a
+    candidate with a value per axis or face)."""
+    if row["verdict"] != FOUND or row["named"] != row["effect"]:
+        return False
+    return not BY_NAME[row["named"]].per_axis or row["named_channel"] == row["channel"]
