@@ -12,7 +12,7 @@ from child_process import THERMOTILT, run
 from scipy import stats
 
 from thermotilt.discovery.candidates import BY_NAME
-from thermotilt.discovery.hide import hide_effect, staircase_inputs
+from thermotilt.discovery.hide import hide_effect, ramp_inputs, staircase_inputs
 from thermotilt.discovery.replay import load_measured
 from thermotilt.discovery.search import Search
 from thermotilt.physics import Model
@@ -143,18 +143,8 @@ def test_null_runs_give_none(inputs: Path, tmp_path: Path, noise: str) -> None:
 @pytest.mark.slow
 @pytest.mark.twin
 def test_sensor_lag_and_rate_sensitivity_on_one_ramp_rate_are_ambiguous(tmp_path: Path) -> None:
-    # No holds: one slow ramp up and down over 20..30 degC, where the drift's
-    # slope hardly changes, so a lag of the structure and a rate term look
-    # the same (a wider range or holds tell them apart: the SNR 4 case).
-    ramps = staircase_inputs(
-        tmp_path / "inputs" / "run.csv",
-        positions=((30.0, 0.0),),
-        low_c=20.0,
-        high_c=30.0,
-        step_c=10.0,
-        hold_s=0.0,
-        ramp_c_per_s=0.01,
-    )
+    # A wider range or holds tell them apart: the SNR 4 case.
+    ramps = ramp_inputs(tmp_path / "inputs" / "run.csv")
     hide_effect(ramps, tmp_path / "hidden", "sensor_lag", seed=7, snr=4.0, channel="X")
     outcome = _discover(tmp_path / "hidden" / "run.csv")
     assert outcome.verdict == "ambiguous"

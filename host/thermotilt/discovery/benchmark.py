@@ -75,19 +75,9 @@ def _staircase(folder: Path) -> None:
 
 
 def _ramp(folder: Path) -> None:
-    from .hide import staircase_inputs
+    from .hide import ramp_inputs
 
-    # One slow ramp up and down over 20..30 degC, no holds: the drift's slope
-    # hardly changes, so a lag of it and a rate term look alike.
-    staircase_inputs(
-        folder / "run.csv",
-        positions=((30.0, 0.0),),
-        low_c=20.0,
-        high_c=30.0,
-        step_c=10.0,
-        hold_s=0.0,
-        ramp_c_per_s=0.01,
-    )
+    ramp_inputs(folder / "run.csv")
 
 
 def _twin(scenario: str, *options: str) -> Callable[[Path], None]:

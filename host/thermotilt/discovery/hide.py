@@ -497,3 +497,12 @@ def staircase_inputs(
             }
             writer.write_row(values)
     return path
+
+
+def ramp_inputs(path: Path) -> Path:
+    """One slow ramp up and down over 20..30 degC at 0.01 degC/s, no holds,
+    at X +30 deg: the drift's slope hardly changes over it, so a lag of the
+    drift (sensor_lag) and a rate term (rate_sensitivity) look alike."""
+    return staircase_inputs(
+        path, positions=((30.0, 0.0),), low_c=20.0, high_c=30.0, step_c=10.0, hold_s=0.0, ramp_c_per_s=0.01
+    )
