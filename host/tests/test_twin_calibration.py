@@ -10,6 +10,7 @@ from importlib import resources
 from pathlib import Path
 
 import pytest
+from conftest import made_once_per_test_run
 
 from thermotilt import cli
 from thermotilt.calibration.compare import compare, read_fit
@@ -28,31 +29,31 @@ def demo_settings():
     return demo.POSITIONS, demo.HOLD_SECONDS
 
 
-@pytest.fixture(scope="module")
-def fitted(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("twin-calibration")
+def _campaign_and_fit(folder):
     positions, hold_s = demo_settings()
-    assert (
-        cli.main(
-            [
-                "campaign",
-                "--twin",
-                "--positions",
-                positions,
-                "--hold-seconds",
-                str(hold_s),
-                "--rest-seconds",
-                "0",
-                "--jobs",
-                "2",
-                "--out",
-                str(folder / "campaign"),
-            ]
-        )
-        == 0
-    )
+    campaign = [
+        "campaign",
+        "--twin",
+        "--positions",
+        positions,
+        "--hold-seconds",
+        str(hold_s),
+        "--rest-seconds",
+        "0",
+        "--jobs",
+        "2",
+        "--out",
+        str(folder / "campaign"),
+    ]
+    assert cli.main(campaign) == 0
     assert cli.main(["fit", str(folder / "campaign"), "--out", str(folder / "fit")]) == 0
-    return folder / "fit"
+
+
+@pytest.fixture(scope="session")
+def fitted(tmp_path_factory):
+    """The demo's campaign, fitted: made once per test run, however many
+    pytest-xdist workers take this module's tests."""
+    return made_once_per_test_run(tmp_path_factory, "twin_calibration", _campaign_and_fit) / "fit"
 
 
 @pytest.mark.slow
