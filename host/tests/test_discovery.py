@@ -7,13 +7,14 @@ import json
 import subprocess
 from pathlib import Path
 
+import numpy as np
 import pytest
 from child_process import THERMOTILT, run
 from scipy import stats
 
 from thermotilt.discovery.candidates import BY_NAME
 from thermotilt.discovery.hide import hide_effect, ramp_inputs, staircase_inputs
-from thermotilt.discovery.replay import load_measured
+from thermotilt.discovery.replay import Replay, load_measured
 from thermotilt.discovery.search import Search
 from thermotilt.physics import Model
 from thermotilt.physics.document import with_values, write_model
@@ -261,6 +262,21 @@ def test_a_channel_without_its_column_is_skipped_and_said(tmp_path: Path, inputs
     result = _cli("discover", str(tmp_path / "run"), "--out", str(tmp_path / "out"))
     assert result.returncode == 0, result.stderr
     assert "channel Z skipped: the log has no az_filt" in result.stdout
+
+
+@pytest.mark.slow
+@pytest.mark.twin
+def test_runs_on_the_same_inputs_share_their_replays_and_none_can_change_them(inputs: Path, tmp_path: Path) -> None:
+    hide_effect(inputs, tmp_path / "a", "none", seed=1, noise="white")
+    hide_effect(inputs, tmp_path / "b", "hysteresis", seed=2, snr=2.0, channel="Y")
+    model = Model.load()
+    first = Replay(load_measured(tmp_path / "a"))(model)
+    second = Replay(load_measured(tmp_path / "b"))(model)
+    assert all(first[channel] is second[channel] for channel in ("temperature", "X", "Y", "Z"))
+    with pytest.raises(ValueError, match="read-only"):
+        first["X"][0] = 0.0
+    moved = Replay(load_measured(tmp_path / "b"))(BY_NAME["hysteresis"].changed(model, {"Y": 10.0}))
+    assert moved["Y"] is not first["Y"] and not np.array_equal(moved["Y"], first["Y"])
 
 
 def test_every_candidate_is_a_registered_term() -> None:

@@ -79,6 +79,10 @@ def _discover(args: argparse.Namespace) -> int:
     try:
         model = Model.load(args.model)
         measured = load_measured(Path(args.measured), settle_s=args.settle_seconds)
+        if args.twin:
+            from .twin_gap import scenario_of
+
+            scenario_run = scenario_of(Path(args.measured))
     except (ModelError, DiscoveryDataError) as error:
         raise UsageError(str(error)) from None
     for channel, why in measured.skipped_channels.items():
@@ -98,7 +102,7 @@ def _discover(args: argparse.Namespace) -> int:
 
             model_path = report.write_model_file(outcome, measured, model.source, out_dir)
             twin = twin_gap(
-                Path(args.measured),
+                scenario_run,
                 measured,
                 {"before": model, "after": Model.load(model_path)},
                 out_dir,

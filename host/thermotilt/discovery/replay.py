@@ -22,8 +22,10 @@ it acts instead of being absorbed by a controller.
 
 from __future__ import annotations
 
+import hashlib
 import json
-from collections.abc import Mapping
+from collections import OrderedDict
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -373,30 +375,88 @@ def _sensor_key(model: Model) -> str:
     return json.dumps(plain(parts), sort_keys=True)
 
 
+def _chamber_key(model: Model) -> str:
+    """What of the model the chamber replay may depend on: every term that
+    is not the sensor's, and the constants but the sensor's."""
+    parts = {
+        "terms": {name: values for name, values in model.terms.items() if name not in SENSOR_TERM_NAMES},
+        "constants": {name: values for name, values in model.constants.items() if name != "sensor"},
+    }
+    return json.dumps(plain(parts), sort_keys=True)
+
+
+def _fingerprint(measured: Measured) -> str:
+    """The replay's inputs of a run, as one digest."""
+    digest = hashlib.blake2b(digest_size=16)
+    for values in (
+        measured.time_s,
+        measured.chamber_c,
+        measured.status,
+        measured.incl_x_deg,
+        measured.incl_y_deg,
+        measured.mounting,
+        *(getattr(measured, name) for name in CHAMBER_INPUTS),
+    ):
+        digest.update(np.ascontiguousarray(values).tobytes())
+    return digest.hexdigest()
+
+
+class _Parts:
+    """Replayed parts (arrays per channel, read only) by the run's inputs
+    and the part of the model they depend on, shared by every Replay in
+    this process, the oldest dropped beyond BUDGET_BYTES: a search replays
+    the same model many times (rounds, probes, every channel of a
+    candidate), and a benchmark's runs on one base replay the same inputs."""
+
+    BUDGET_BYTES = 256 * 2**20
+
+    def __init__(self) -> None:
+        self._parts: OrderedDict[tuple[str, str, str], dict[str, np.ndarray]] = OrderedDict()
+        self._bytes = 0
+
+    def get(self, key: tuple[str, str, str], make: Callable[[], dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
+        if key in self._parts:
+            self._parts.move_to_end(key)
+            return self._parts[key]
+        part = make()
+        for values in part.values():
+            values.flags.writeable = False
+        self._parts[key] = part
+        self._bytes += sum(values.nbytes for values in part.values())
+        while self._bytes > self.BUDGET_BYTES and len(self._parts) > 1:
+            _, dropped = self._parts.popitem(last=False)
+            self._bytes -= sum(values.nbytes for values in dropped.values())
+        return part
+
+
+_PARTS = _Parts()
+
+
 class Replay:
     """The replay of one measured run under any model, each part computed
     again only when the terms it depends on change (a chamber candidate
-    leaves the sensor's replay as it was)."""
-
-    CACHED = 8
+    leaves the sensor's replay as it was), and kept for other runs with the
+    same inputs (_Parts)."""
 
     def __init__(self, measured: Measured) -> None:
         self.measured = measured
         self.grid = SampleGrid.of(measured.time_s, measured.mounting)
-        self._sensor: dict[str, dict[str, np.ndarray]] = {}
+        self._inputs = _fingerprint(measured)
         self._chamber_wanted = any(channel in measured.used for channel in CHAMBER_CHANNELS)
 
     def __call__(self, model: Model) -> dict[str, np.ndarray]:
         """Each channel as the model predicts it at the measured rows, and
         the inner face ("face") where the chamber is replayed."""
-        key = _sensor_key(model)
-        if key not in self._sensor:
-            if len(self._sensor) >= self.CACHED:
-                self._sensor.pop(next(iter(self._sensor)))
-            self._sensor[key] = _sensor_replay(self.measured, model, self.grid)
-        predicted = dict(self._sensor[key])
+        predicted = dict(
+            _PARTS.get(
+                ("sensor", self._inputs, _sensor_key(model)),
+                lambda: _sensor_replay(self.measured, model, self.grid),
+            )
+        )
         if self._chamber_wanted:
-            predicted.update(chamber_replay(self.measured, model))
+            predicted.update(
+                _PARTS.get(("chamber", self._inputs, _chamber_key(model)), lambda: chamber_replay(self.measured, model))
+            )
         return predicted
 
     def chamber_start_response(self, model: Model) -> dict[str, np.ndarray]:

@@ -18,11 +18,15 @@ from .replay import DiscoveryDataError, Measured, load_measured
 from .search import gap_rms
 
 
-def scenario_of(measured_dir: Path):
-    """The scenario and seed MEASURED's summary.json says it was run with."""
+def scenario_of(measured: Path):
+    """The scenario, seed and faults the summary.json of MEASURED (a run
+    folder or its run.csv) says it was run with; asked before the search,
+    so that a run the twin cannot run again is said at once."""
+    from ..run.folder import RunFolder
     from ..run.summary import SUMMARY_FILE, TWIN, RunSummaryError, read_summary
     from ..twin.scenarios import ScenarioError, ScenarioOptions, build
 
+    measured_dir = RunFolder.of(measured).path
     path = measured_dir / SUMMARY_FILE
     if not path.is_file():
         raise DiscoveryDataError(f"{measured_dir}: no {SUMMARY_FILE}, so no scenario to run the twin again")
@@ -50,7 +54,7 @@ def scenario_of(measured_dir: Path):
 
 
 def twin_gap(
-    measured_dir: Path,
+    scenario_run: tuple,
     measured: Measured,
     models: Mapping[str, Model],
     out_dir: Path,
@@ -63,7 +67,7 @@ def twin_gap(
     from ..twin.boards import TwinError
 
     say = progress or (lambda message: None)
-    scenario, seed, faults = scenario_of(measured_dir)
+    scenario, seed, faults = scenario_run
     gaps: dict[str, dict[str, float]] = {channel: {} for channel in measured.channels}
     for when, model in models.items():
         run_dir = out_dir / f"twin-{when}"
