@@ -34,6 +34,7 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from ..ctrl_c import ctrl_c_as_flag
 from ..program import CALIBRATION_MAX_C, CALIBRATION_MIN_C, PAPER_STEP_C
 from ..run.summary import CHAMBER_FAULT, PROGRAM_DONE
 from ..run.summary import INTERRUPTED as RUN_INTERRUPTED
@@ -401,22 +402,25 @@ def _run_in_workers(
     context = multiprocessing.get_context("spawn")
     progress_queue, stop = context.Queue(), context.Event()
     interrupted = False
-    with ProcessPoolExecutor(
-        jobs, mp_context=context, initializer=_start_worker, initargs=(progress_queue, stop)
-    ) as pool:
+    # Ctrl-C stops the loop at its next look, never inside the bookkeeping
+    # of a finished position (its record saved, its line printed).
+    with (
+        ctrl_c_as_flag() as pressed,
+        ProcessPoolExecutor(
+            jobs, mp_context=context, initializer=_start_worker, initargs=(progress_queue, stop)
+        ) as pool,
+    ):
         running: dict[Future[PositionRecord], Position] = {
             pool.submit(_run_in_worker, setup, position, out_dir): position for position in todo
         }
         while running:
-            try:
-                done, _ = wait(running, timeout=0.25, return_when=FIRST_COMPLETED)
-                _drain(progress_queue, progress)
-            except KeyboardInterrupt:
+            if pressed() and not interrupted:
                 interrupted = True
                 stop.set()
                 for future in running:
                     future.cancel()
-                continue
+            done, _ = wait(running, timeout=0.25, return_when=FIRST_COMPLETED)
+            _drain(progress_queue, progress)
             for future in done:
                 position = running.pop(future)
                 if future.cancelled():

@@ -6,14 +6,11 @@ from __future__ import annotations
 
 import argparse
 import os
-import signal
 import sys
-import threading
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from ..ctrl_c import ctrl_c_after_block
 from ..options import (
     UsageError,
     add_model_options,
@@ -239,25 +236,6 @@ def _campaign(args: argparse.Namespace) -> int:
         return _finish_campaign(outcome, out_dir)
 
 
-@contextmanager
-def _ctrl_c_after_block() -> Iterator[None]:
-    """Ctrl-C during the block is raised when it ends. tqdm.write turns a
-    KeyboardInterrupt that lands while it takes its lock into a
-    RuntimeError, a traceback instead of exit 130. A Ctrl-C this process
-    ignores (a background job's) stays ignored."""
-    if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
-        yield
-        return
-    pressed: list[int] = []
-    previous = signal.signal(signal.SIGINT, lambda signum, _frame: pressed.append(signum))
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
-    if pressed:
-        raise KeyboardInterrupt
-
-
 def report_position(record: PositionRecord) -> None:
     """A finished position's line, above the progress bar if one is running."""
     from tqdm import tqdm
@@ -269,7 +247,7 @@ def report_position(record: PositionRecord) -> None:
         line += f" in {record.wall_seconds:.0f} s"
     if record.error:
         line += f" ({record.error})"
-    with _ctrl_c_after_block():
+    with ctrl_c_after_block():
         tqdm.write(line, file=sys.stdout)
         for error in record.reported_errors:
             tqdm.write(f"{record.label}: reported {error}", file=sys.stdout)

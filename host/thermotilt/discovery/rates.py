@@ -103,27 +103,28 @@ def report(rows: list[Row]) -> str:
             f"| {noise} | {len(family)} | {by_base[0]} | {by_base[1]} | {overall} | "
             f"{_met(overall, overall.interval[1] <= MAX_FALSE_DISCOVERY)} |"
         )
-    lines += [
-        "",
-        "**Hidden effects**: the share of runs whose first effect found is the hidden one (on its channel), "
-        "with the model's noise.",
-        "",
-        "| candidate | " + " | ".join(f"SNR {snr:g}" for snr in SNRS) + " | not testable |",
-        "|---|" + "---|" * (len(SNRS) + 1),
-    ]
-    for candidate in CANDIDATES:
-        mine = [r for r in effect if r["effect"] == candidate.name]
-        if not mine:
-            continue
-        cells = [str(rate([r for r in mine if float(r["snr"]) == snr], named_right)) for snr in SNRS]
-        untestable = sum(r["verdict"] == NOT_TESTABLE for r in mine)
-        lines.append(f"| `{candidate.name}` | " + " | ".join(cells) + f" | {untestable} |")
-    at_2 = rate([r for r in effect if float(r["snr"]) >= 2.0], named_right)
-    at_1 = rate([r for r in effect if float(r["snr"]) == 1.0], named_right)
-    lines += [
-        f"| all | at SNR ≥ 2: {at_2} | target ≥ {MIN_RIGHT_AT_2:.0%}: {_met(at_2, at_2.share >= MIN_RIGHT_AT_2)} | "
-        f"at SNR 1: {at_1} | target ≥ {MIN_RIGHT_AT_1:.0%}: {_met(at_1, at_1.share >= MIN_RIGHT_AT_1)} | |",
-    ]
+    if effect:
+        lines += [
+            "",
+            "**Hidden effects**: the share of runs whose first effect found is the hidden one (on its channel), "
+            "with the model's noise.",
+            "",
+            "| candidate | " + " | ".join(f"SNR {snr:g}" for snr in SNRS) + " | not testable |",
+            "|---|" + "---|" * (len(SNRS) + 1),
+        ]
+        for candidate in CANDIDATES:
+            mine = [r for r in effect if r["effect"] == candidate.name]
+            if not mine:
+                continue
+            cells = [str(rate([r for r in mine if float(r["snr"]) == snr], named_right)) for snr in SNRS]
+            untestable = sum(r["verdict"] == NOT_TESTABLE for r in mine)
+            lines.append(f"| `{candidate.name}` | " + " | ".join(cells) + f" | {untestable} |")
+        at_2 = rate([r for r in effect if float(r["snr"]) >= 2.0], named_right)
+        at_1 = rate([r for r in effect if float(r["snr"]) == 1.0], named_right)
+        lines += [
+            f"| all | at SNR ≥ 2: {at_2} | target ≥ {MIN_RIGHT_AT_2:.0%}: {_met(at_2, at_2.share >= MIN_RIGHT_AT_2)} | "
+            f"at SNR 1: {at_1} | target ≥ {MIN_RIGHT_AT_1:.0%}: {_met(at_1, at_1.share >= MIN_RIGHT_AT_1)} | |",
+        ]
     if collinear:
         lines += [
             "",
@@ -204,7 +205,8 @@ def figure(rows: list[Row], path: Path) -> None:
     power.set_xlabel("SNR (effect RMS / noise RMS)")
     power.set_ylabel("named right")
     power.set_ylim(-0.02, 1.02)
-    power.legend(fontsize=7, ncol=2, loc="lower right")
+    if effect:
+        power.legend(fontsize=7, ncol=2, loc="lower right")
     power.set_title("Hidden effects")
     families = [noise for noise in NOISE_FAMILIES if any(r["noise"] == noise for r in null)]
     rates = [rate([r for r in null if r["noise"] == noise], lambda r: r["verdict"] == FOUND) for noise in families]
