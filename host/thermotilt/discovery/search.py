@@ -3,13 +3,13 @@ with inference that survives the residual's autocorrelation.
 
 Each channel's residual (measured minus replay) is averaged over blocks of
 BLOCK_S within each table position, which leaves a few hundred points whose
-correlation is modelled, not ignored: an AR(1) process within a position
-plus, on the acceleration channels, the random drift slope per mounting the
-model itself declares (`drift_repeatability`). Both are estimated or read
-once per channel, every block is whitened with that covariance (GLS), and
+correlation is modelled, not ignored: what the model itself declares (on
+the acceleration channels the random drift slope per mounting and the
+flicker of bias instability) plus flicker and white noise it does not,
+fitted to the run. Every block is whitened with that covariance (GLS), and
 each candidate's effect (its replayed regressor) is tested on the whitened
-blocks with Newey-West (HAC) standard errors, a guard against correlation the
-AR(1) misses. The p-values of all candidates and channels of a round are
+blocks with Newey-West (HAC) standard errors, a guard against correlation
+the fit misses. The p-values of all candidates and channels of a round are
 adjusted for the false-discovery rate (Benjamini-Hochberg); a candidate is
 found only when it is significant after that, shrinks the channel's RMS
 residual by at least MIN_GAP_REDUCTION, has a value its parameter can take
@@ -29,8 +29,9 @@ import statsmodels.api as sm
 from scipy import stats
 from scipy.interpolate import CubicSpline
 from scipy.linalg import solve_triangular
-from scipy.optimize import minimize_scalar
+from scipy.optimize import minimize, minimize_scalar
 from statsmodels.stats.multitest import multipletests
+from threadpoolctl import threadpool_limits
 
 from ..physics import Model
 from ..physics.document import plain
@@ -68,9 +69,16 @@ GAUSS_NEWTON_TOLERANCE = 0.01
 NONLINEAR_GRID_STEP = 0.5
 # Longer runs get longer blocks, so the block covariance stays this small.
 MAX_BLOCKS = 2000
-# The least share of the residual blocks' variance left to the AR(1) part,
-# however much of it the declared flicker could explain.
-NUGGET_SHARE = 0.05
+# The undeclared AR(1)'s correlation from one block to the next stays
+# below this, so that it is not a second offset per position.
+MAX_AR_RHO = 0.99
+# The undeclared noise's levels, as shares of the residual blocks'
+# variance (natural logs): from none to far more than there is.
+LOG_LEVEL_MIN = -14.0
+LOG_LEVEL_MAX = 4.0
+# White noise of at least this share of the residual blocks' variance
+# keeps the fitted covariance well conditioned.
+MIN_WHITE_SHARE = 1e-3
 
 
 @dataclass(frozen=True)
@@ -203,14 +211,91 @@ class DeclaredNoise:
         return cls(slope, flicker)
 
 
+def _flicker_blocks(lag_s: np.ndarray, block_s: float, flicker: tuple[tuple[float, float], ...]) -> np.ndarray:
+    """The block-mean covariance of Gauss-Markov processes (time constant
+    s, variance) over the whole run: flicker does not stop at a table move.
+    A block's mean keeps the share of a process slower than the block,
+    about 2 tau / block of a faster one."""
+    covariance = np.zeros_like(lag_s)
+    for tau, variance in flicker:
+        covariance += variance * min(1.0, 2.0 * tau / block_s) * np.exp(-lag_s / tau)
+    return covariance
+
+
+class UndeclaredFlicker:
+    """Flicker and white noise the model does not declare on an acceleration
+    channel, at levels fitted by restricted maximum likelihood (REML) to the
+    residual blocks on top of the declared covariance.
+
+    The flicker has the model's shape (one Gauss-Markov process per decade
+    of time constant, equal variances, across the whole run), the MEMS bias
+    instability's. It is what moves a position's mean against the others',
+    which a test of an effect that differs between positions must allow for,
+    yet a run of a few positions cannot measure: its decades as slow as a
+    block or slower are seen within a position (faster ones, averaged in a
+    block and smoothed by the filters, pass for white), and the 1/f shape
+    says how far the slower ones move the means. Noise of another shape (a
+    bias wander of one time constant) is read as flicker: a safe error,
+    since it widens intervals.
+
+    REML integrates out a free offset and slope per position, so that no
+    effect constant or linear within a position is taken for noise.
+    Written here because statsmodels' REML (MixedLM) takes only random
+    effects, not a covariance of this form."""
+
+    def __init__(self, design: np.ndarray, declared: np.ndarray, lag_s: np.ndarray, block_s: float) -> None:
+        self.design = design
+        self.declared = declared
+        slow = tuple((tau, 1.0) for tau in FLICKER_TIME_CONSTANTS_S if tau >= block_s)
+        self.unit_flicker = _flicker_blocks(lag_s, block_s, slow)
+
+    def covariance(self, theta: np.ndarray, scale: float) -> np.ndarray:
+        flicker, white = np.exp(theta)
+        undeclared = flicker * self.unit_flicker
+        undeclared[np.diag_indices_from(undeclared)] += white + MIN_WHITE_SHARE
+        return self.declared + scale * undeclared
+
+    def fitted(self, values: np.ndarray) -> np.ndarray:
+        """The lower Cholesky factor of the fitted covariance."""
+        left = values - self.design @ np.linalg.lstsq(self.design, values, rcond=None)[0]
+        scale = max(float(np.mean(left**2)), 1e-12)
+
+        def restricted_deviance(theta: np.ndarray) -> float:
+            try:
+                lower = np.linalg.cholesky(self.covariance(theta, scale))
+            except np.linalg.LinAlgError:
+                return 1e300
+            x_w = solve_triangular(lower, self.design, lower=True)
+            y_w = solve_triangular(lower, values, lower=True)
+            q, r = np.linalg.qr(x_w)
+            residual = y_w - q @ (q.T @ y_w)
+            return float(
+                2.0 * np.sum(np.log(np.diag(lower))) + 2.0 * np.sum(np.log(np.abs(np.diag(r)))) + residual @ residual
+            )
+
+        bounds = [(LOG_LEVEL_MIN, LOG_LEVEL_MAX)] * 2
+        theta = minimize(restricted_deviance, np.log([0.1, 0.5]), method="L-BFGS-B", bounds=bounds).x
+        return np.linalg.cholesky(self.covariance(theta, scale))
+
+
+def _position_ar1(left: np.ndarray, same: np.ndarray, mounting: np.ndarray) -> np.ndarray:
+    """An AR(1) within each position, from the lag-1 correlation of what a
+    free offset and slope per position leave: the temperature and chamber
+    channels' undeclared noise (the readings' rounding, a real rig's)."""
+    total = max(float(np.mean(left**2)), 1e-12)
+    neighbours = mounting[1:] == mounting[:-1]
+    lag1 = float(np.mean((left[1:] * left[:-1])[neighbours])) if neighbours.any() else 0.0
+    rho = float(np.clip(lag1 / total, 0.0, MAX_AR_RHO))
+    index = np.arange(len(left))
+    return total * rho ** np.abs(np.subtract.outer(index, index)) * same + MIN_WHITE_SHARE * total * np.eye(len(left))
+
+
 class Channel:
     """One channel's blocks and its whitening, fixed for a round.
 
-    The whitening has two stages: first the covariance the model declares
-    (DeclaredNoise, over the whole run: flicker does not stop at a table
-    move), then an AR(1) fitted to what that leaves, for correlation the
-    model does not declare (the temperature register's 1/8 degC steps, or a
-    real rig's)."""
+    The whitening is by the covariance the model declares (DeclaredNoise)
+    plus what it does not, fitted to the residual: UndeclaredFlicker on the
+    acceleration channels, an AR(1) within each position on the others."""
 
     def __init__(
         self,
@@ -222,7 +307,7 @@ class Channel:
         start_response: np.ndarray | None = None,
         noise_residual: np.ndarray | None = None,
     ) -> None:
-        """noise_residual: what the AR(1) is fitted to, if not the residual
+        """noise_residual: what the undeclared noise is fitted to, if not the residual
         itself (the residual less an effect found in it: the noise is then
         not taken to hold that effect)."""
         self.name = channel
@@ -263,35 +348,20 @@ class Channel:
         noise: DeclaredNoise,
         noise_blocks: np.ndarray,
     ) -> Callable[[np.ndarray], np.ndarray]:
-        count = len(self.y)
         lag_s = np.abs(np.subtract.outer(block_time, block_time))
         same = np.equal.outer(self._mounting, self._mounting)
         declared = noise.slope_sigma**2 * np.outer(excursion, excursion) * same
-        flicker_variance = flicker_lag1 = 0.0
-        for tau, variance in noise.flicker:
-            # A block's mean keeps the share of a process slower than the
-            # block, about 2 tau / block of a faster one.
-            kept = variance * min(1.0, 2.0 * tau / block_s)
-            declared += kept * np.exp(-lag_s / tau)
-            flicker_variance += kept
-            flicker_lag1 += kept * np.exp(-block_s / tau)
-        # What the declared noise leaves: the residual after a free offset
-        # and slope per mounting (so that no effect constant or linear
-        # within a position is taken for noise), as an AR(1) within each.
+        declared += _flicker_blocks(lag_s, block_s, noise.flicker)
         columns = []
         for m in np.unique(self._mounting):
             inside = (self._mounting == m).astype(float)
             columns += [inside[:, None], (inside * excursion)[:, None]]
         design = np.hstack(columns)
-        left = noise_blocks - design @ np.linalg.lstsq(design, noise_blocks, rcond=None)[0]
-        total = max(float(np.mean(left**2)), 1e-12)
-        excess = max(total - flicker_variance, NUGGET_SHARE * total)
-        neighbours = self._mounting[1:] == self._mounting[:-1]
-        lag1 = float(np.mean((left[1:] * left[:-1])[neighbours])) if neighbours.any() else 0.0
-        rho = float(np.clip((lag1 - flicker_lag1) / excess, 0.0, 0.99))
-        index = np.arange(count)
-        ar = excess * rho ** np.abs(np.subtract.outer(index, index)) * same
-        lower = np.linalg.cholesky(declared + ar + 1e-9 * total * np.eye(count))
+        if self.name in ACCELERATION_CHANNELS:
+            lower = UndeclaredFlicker(design, declared, lag_s, block_s).fitted(noise_blocks)
+        else:
+            left = noise_blocks - design @ np.linalg.lstsq(design, noise_blocks, rcond=None)[0]
+            lower = np.linalg.cholesky(declared + _position_ar1(left, same, self._mounting))
 
         def whiten(values: np.ndarray) -> np.ndarray:
             return solve_triangular(lower, values, lower=True)
@@ -343,6 +413,14 @@ class Search:
         return {channel: self.measured.observed[channel] - predicted[channel] for channel in self.measured.channels}
 
     def run(self) -> Outcome:
+        # The search's algebra is on matrices of a few hundred blocks, where
+        # a BLAS thread per core costs more than it brings, most of all on
+        # a busy machine (a Cholesky of 138 blocks: 0.08 ms on one thread,
+        # 60 ms on two beside another job).
+        with threadpool_limits(limits=1, user_api="blas"):
+            return self._rounds()
+
+    def _rounds(self) -> Outcome:
         model = self.model
         base = self.predict(model)
         outcome = Outcome(verdict="none", model=model)
@@ -516,10 +594,11 @@ class Search:
         temperature_c: np.ndarray,
         start_response: np.ndarray | None,
     ) -> Test:
-        """The found effect fitted again with the noise's AR(1) taken from
+        """The found effect fitted again with the undeclared noise fitted to
         the residual without it (one step of iterated feasible GLS): fitted
-        to a residual that still held the effect, the AR(1) read the effect
-        as correlated noise, which both widens and tilts the first fit."""
+        to a residual that still held the effect, the noise fit read the
+        effect as correlated noise, which both widens and tilts the first
+        fit."""
         candidate = BY_NAME[best.candidate]
         # The regressor of a linear candidate is per unit; the others' is
         # already their effect at the fitted value (_tests).
