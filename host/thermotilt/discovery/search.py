@@ -463,8 +463,7 @@ class Search:
             accepted = [t for t in accepted if not self._contradicted_elsewhere(t, model, base, channels)]
             if not accepted:
                 break
-            best = accepted[0]
-            rivals = self._rivals(best, accepted[1:], channels[best.channel], regressors)
+            best, rivals = self._settled(accepted, channels, regressors)
             if rivals:
                 names = tuple(sorted({best.candidate, *rivals}))
                 outcome.ambiguous.append(Ambiguity(names, best.channel, experiment(frozenset(names))))
@@ -621,32 +620,50 @@ class Search:
             return best
         return replace(refined, adjusted_p=best.adjusted_p)
 
-    def _rivals(
-        self, best: Test, others: list[Test], channel: Channel, regressors: Mapping[str, Mapping[str, np.ndarray]]
-    ) -> list[str]:
-        """Others that explain the same residual: their effects on this run
-        (whitened, beyond the nuisance) are collinear with the best's, or,
-        fitted together with it, neither keeps a significant share of its own."""
+    def _settled(
+        self, accepted: list[Test], channels: Mapping[str, Channel], regressors: Mapping[str, Mapping[str, np.ndarray]]
+    ) -> tuple[Test, list[str]]:
+        """The first accepted test, or the one on its channel that explains
+        what it does and more, with its rivals there. Each other accepted on
+        that channel is fitted together with the best: one that keeps a
+        significant share of its own where the best keeps none takes its
+        place (a ramp's turning points show a lag where a rate sensitivity,
+        which takes more off the residual alone, leaves them); one whose
+        effect is collinear with the best's, or which leaves neither
+        significant, is a rival."""
+        best = accepted[0]
+        channel = channels[best.channel]
+        same = [t for t in accepted if t.channel == best.channel]
 
         def effect(test: Test) -> np.ndarray:
             return channel.blocks(regressors[test.candidate][test.channel][channel.rows])
 
-        g_best = effect(best)
-        w_best = channel.beyond_nuisance(channel.whiten(g_best))
-        rivals = []
-        for other in others:
-            if other.channel != best.channel:
-                continue
-            g_other = effect(other)
-            w_other = channel.beyond_nuisance(channel.whiten(g_other))
-            correlation = abs(float(w_best @ w_other)) / float(np.linalg.norm(w_best) * np.linalg.norm(w_other))
-            if correlation >= COLLINEAR:
-                rivals.append(other.candidate)
-                continue
-            joint = channel.fit(np.column_stack([g_best, g_other]))
-            if joint.pvalues[0] >= ALPHA and joint.pvalues[1] >= ALPHA:
-                rivals.append(other.candidate)
-        return rivals
+        def beyond(g: np.ndarray) -> np.ndarray:
+            return channel.beyond_nuisance(channel.whiten(g))
+
+        tried = set()
+        while True:
+            tried.add(best.candidate)
+            g_best = effect(best)
+            w_best = beyond(g_best)
+            rivals, stronger = [], None
+            for other in same:
+                if other.candidate == best.candidate:
+                    continue
+                g_other = effect(other)
+                w_other = beyond(g_other)
+                correlation = abs(float(w_best @ w_other)) / float(np.linalg.norm(w_best) * np.linalg.norm(w_other))
+                if correlation >= COLLINEAR:
+                    rivals.append(other.candidate)
+                    continue
+                best_p, other_p = channel.fit(np.column_stack([g_best, g_other])).pvalues
+                if best_p >= ALPHA and other_p >= ALPHA:
+                    rivals.append(other.candidate)
+                elif best_p >= ALPHA and stronger is None and other.candidate not in tried:
+                    stronger = other
+            if stronger is None:
+                return best, rivals
+            best = stronger
 
     def _contradicted_elsewhere(
         self, test: Test, model: Model, base: Mapping[str, np.ndarray], channels: Mapping[str, Channel]
