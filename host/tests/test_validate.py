@@ -67,6 +67,27 @@ def test_rms_is_taken_about_the_25c_reading(tmp_path):
     assert x.outside_rows == pytest.approx(2000 * 3 / 39, abs=2)
 
 
+def test_the_tilt_error_is_in_degrees_about_the_25c_tilt(tmp_path, capsys):
+    temperatures = np.linspace(9.0, 48.0, 2000)
+    write_field_log(tmp_path / "run.csv", temperatures)
+    validation = validate(tmp_path)
+    # Y alone: a line about -143 LSB, so its 25 degC tilt is asin(-143 / 16393)
+    # (0.061 mg/LSB, the LSM9DS0 at +-2 g) and each row's that of its reading.
+    g = 1000.0 / 0.061
+    error = np.degrees(np.arcsin((OFFSET_Y - 10.0 * (temperatures - 25.0)) / g) - np.arcsin(OFFSET_Y / g))
+    # The cells hold 0.1 LSB: 0.05 LSB is 0.0002 deg.
+    assert validation.result("W", "Y").tilt_error_p95_before_deg == pytest.approx(
+        np.percentile(np.abs(error), 95), abs=2e-4
+    )
+    assert validation.tilt_error_p95_deg == pytest.approx(0.0, abs=2e-4)
+    assert cli.main(["validate", str(tmp_path), "--out", str(tmp_path / "v")]) == 0
+    document = json.loads((tmp_path / "validation.json").read_text())
+    assert document["tilt_error_p95_deg"] == pytest.approx(0.0, abs=2e-4)
+    y = next(r for r in document["results"] if r["axis"] == "Y")
+    assert y["rms_before_mg"] == pytest.approx(0.061 * y["rms_before_lsb"])
+    assert "tilt error after compensation, X and Y" in capsys.readouterr().out
+
+
 def test_coefficients_given_are_applied_here(tmp_path):
     temperatures = np.linspace(9.0, 48.0, 2000)
     write_field_log(tmp_path / "run.csv", temperatures, compensated=False)
@@ -165,10 +186,10 @@ def test_host_compensation_equals_the_firmwares(tmp_path):
 
 
 def test_the_papers_figures_stand_beside_the_set_its_test_used():
-    results = [AxisResult("W", "X", 200, 7.8, 26.1, 0), AxisResult("C", "X", 3000, 121.8, 2.1, 0)]
+    results = [AxisResult("W", "X", 200, 7.8, 26.1, 0, 0.02, 0.09), AxisResult("C", "X", 3000, 121.8, 2.1, 0)]
     validation = Validation("run.csv", 3200, 0, (16.0, 26.0), "the firmware's output", "coef_source E", None, results)
     table = format_validation(validation, {("C", "X"): (122.0, 4.0)}).splitlines()
     warming = next(line for line in table if line.startswith("warming"))
     cooling = next(line for line in table if line.startswith("cooling"))
-    assert warming.split() == ["warming", "X", "200", "7.8", "26.1"]
-    assert cooling.split() == ["cooling", "X", "3000", "121.8", "2.1", "122", "4"]
+    assert warming.split() == ["warming", "X", "200", "7.8", "26.1", "0.0200", "0.0900"]
+    assert cooling.split() == ["cooling", "X", "3000", "121.8", "2.1", "n/a", "n/a", "122", "4"]

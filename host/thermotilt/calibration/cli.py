@@ -5,6 +5,7 @@ chamber's staircase, in the twin or on real boards), ``fit``, ``compare``,
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 from pathlib import Path
@@ -349,11 +350,13 @@ def _validate(args: argparse.Namespace) -> int:
     for warning in range_warnings(validation):
         print(f"warning: {warning}")
     out_dir = Path(args.out) if args.out else run.path / "validation"
+    document = run.path / "validation.json"
     try:
         report = write_validation_report(out_dir, validation, coefficients, paper)
+        document.write_text(json.dumps(validation.document(), indent=2) + "\n", encoding="utf-8")
     except OSError as error:
-        raise UsageError(f"cannot write {out_dir}: {error.strerror or error}") from None
-    print(f"wrote {report}")
+        raise UsageError(f"cannot write {error.filename or out_dir}: {error.strerror or error}") from None
+    print(f"wrote {report} and {document}")
     return 0
 
 

@@ -39,7 +39,9 @@ from .dataset import FIT_AXES, REFERENCE_BAND_C, REFERENCE_C, CalibrationDataErr
 
 # The paper's calibration covered +-45 deg of tilt; 1 g is 1 / 0.061 mg LSB at +-2 g (LSM9DS0).
 CALIBRATED_INCLINATION_DEG = 45.0
-LSB_PER_G = 1.0 / 0.061e-3
+MG_PER_LSB = 0.061
+LSB_PER_G = 1000.0 / MG_PER_LSB
+TILT_PERCENTILE = 95.0
 PAPER_ACCELERATION_LSB = LSB_PER_G * math.sin(math.radians(CALIBRATED_INCLINATION_DEG))
 SET_NAMES = {"W": "warming", "C": "cooling"}
 _NEEDED = (
@@ -75,6 +77,10 @@ class AxisResult:
     rms_before_lsb: float | None
     rms_after_lsb: float | None
     outside_rows: int  # rows outside the coefficients' temperature or acceleration range
+    # The axis's tilt (tilt_deg) less its tilt at the 25 degC reading: the
+    # TILT_PERCENTILE-th percentile of its size, before and after.
+    tilt_error_p95_before_deg: float | None = None
+    tilt_error_p95_after_deg: float | None = None
 
 
 @dataclass(frozen=True)
@@ -96,6 +102,49 @@ class Validation:
 
     def result(self, set_name: str, axis: str) -> AxisResult | None:
         return next((r for r in self.results if (r.set_name, r.axis) == (set_name, axis)), None)
+
+    @property
+    def tilt_error_p95_deg(self) -> float | None:
+        """The TILT_PERCENTILE-th percentile of the compensated tilt's error
+        about the 25 degC reading, over every row of X and Y in either set."""
+        errors = [
+            self.series[f"{axis} tilt error after"] for axis in FIT_AXES if f"{axis} tilt error after" in self.series
+        ]
+        pooled = np.abs(np.concatenate(errors)) if errors else np.empty(0)
+        pooled = pooled[np.isfinite(pooled)]
+        return float(np.percentile(pooled, TILT_PERCENTILE)) if len(pooled) else None
+
+    def document(self) -> dict[str, object]:
+        """validation.json: the table in LSB, mg and degrees of tilt."""
+
+        def mg(lsb: float | None) -> float | None:
+            return None if lsb is None else lsb * MG_PER_LSB
+
+        return {
+            "run": self.run,
+            "rows": self.rows,
+            "skipped_rows": self.skipped_rows,
+            "temperature_range_c": list(self.temperature_range_c),
+            "after_from": self.after_from,
+            "domain": self.domain_source,
+            "tilt_error_p95_deg": self.tilt_error_p95_deg,
+            "results": [
+                {
+                    "set": SET_NAMES[r.set_name],
+                    "axis": r.axis,
+                    "rows": r.rows,
+                    "rms_before_lsb": r.rms_before_lsb,
+                    "rms_after_lsb": r.rms_after_lsb,
+                    "rms_before_mg": mg(r.rms_before_lsb),
+                    "rms_after_mg": mg(r.rms_after_lsb),
+                    "tilt_error_p95_before_deg": r.tilt_error_p95_before_deg,
+                    "tilt_error_p95_after_deg": r.tilt_error_p95_after_deg,
+                    "outside_rows": r.outside_rows,
+                }
+                for r in self.results
+            ],
+            "firmware_difference_lsb": self.firmware_difference_lsb,
+        }
 
 
 def paper_domain() -> Domain:
@@ -165,6 +214,9 @@ def validate(run: Path, coefficients: Coefficients | None = None) -> Validation:
                 after = before - surface.evaluate(t, before)
             series.setdefault(f"{axis} before", np.full(usable_rows, np.nan))[in_set] = before
             series.setdefault(f"{axis} after", np.full(usable_rows, np.nan))[in_set] = after
+            tilt_before, tilt_after = _tilt_error_deg(t, before), _tilt_error_deg(t, after)
+            if tilt_after is not None:
+                series.setdefault(f"{axis} tilt error after", np.full(usable_rows, np.nan))[in_set] = tilt_after
             results.append(
                 AxisResult(
                     set_name,
@@ -173,6 +225,8 @@ def validate(run: Path, coefficients: Coefficients | None = None) -> Validation:
                     _rms_about_25(t, before),
                     _rms_about_25(t, after),
                     _outside(domain, set_name, axis, t, before),
+                    _percentile_of_size(tilt_before),
+                    _percentile_of_size(tilt_after),
                 )
             )
     difference = None
@@ -197,6 +251,21 @@ def _rms_about_25(temperature: np.ndarray, values: np.ndarray) -> float | None:
     return None if reference is None else float(np.sqrt(np.mean((values - reference) ** 2)))
 
 
+def tilt_deg(acceleration_lsb: np.ndarray) -> np.ndarray:
+    """The tilt about one axis from that axis's reading alone (the paper
+    compensates X and Y, section 5): asin of its share of 1 g."""
+    return np.degrees(np.arcsin(np.clip(acceleration_lsb / LSB_PER_G, -1.0, 1.0)))
+
+
+def _tilt_error_deg(temperature: np.ndarray, values: np.ndarray) -> np.ndarray | None:
+    reference = reading_at_25(temperature, values)
+    return None if reference is None else tilt_deg(values) - tilt_deg(np.array(reference))
+
+
+def _percentile_of_size(errors: np.ndarray | None) -> float | None:
+    return None if errors is None else float(np.percentile(np.abs(errors), TILT_PERCENTILE))
+
+
 def _outside(domain: Domain | None, set_name: str, axis: str, temperature: np.ndarray, acceleration: np.ndarray) -> int:
     key = f"{set_name}{axis}"
     if domain is None or key not in domain.temperature_c:
@@ -213,24 +282,33 @@ def format_validation(validation: Validation, paper: dict[tuple[str, str], tuple
     def lsb(value: float | None) -> str:
         return "n/a" if value is None else f"{value:.1f}"
 
+    def degrees(value: float | None) -> str:
+        return "n/a" if value is None else f"{value:.4f}"
+
     low, high = validation.temperature_range_c
     lines = [
         f"{validation.run}: {validation.rows} rows, IMU temperature {low:.1f}..{high:.1f} degC"
         + (f" ({validation.skipped_rows} rows with empty cells skipped)" if validation.skipped_rows else ""),
         f"after = {validation.after_from}",
-        "RMS about the 25 degC reading, LSB:",
-        f"{'set':<8}{'axis':<6}{'rows':>8}{'before':>10}{'after':>10}"
+        "RMS about the 25 degC reading (LSB) and the 95th percentile of the tilt error about it (deg):",
+        f"{'set':<8}{'axis':<6}{'rows':>8}{'before':>10}{'after':>10}{'deg before':>12}{'deg after':>11}"
         + (f"{'paper before':>14}{'paper after':>13}" if paper else ""),
     ]
     for result in validation.results:
         line = (
             f"{SET_NAMES[result.set_name]:<8}{result.axis:<6}{result.rows:>8}"
             f"{lsb(result.rms_before_lsb):>10}{lsb(result.rms_after_lsb):>10}"
+            f"{degrees(result.tilt_error_p95_before_deg):>12}{degrees(result.tilt_error_p95_after_deg):>11}"
         )
         if paper and (result.set_name, result.axis) in paper:
             before, after = paper[(result.set_name, result.axis)]
             line += f"{before:>14.0f}{after:>13.0f}"
         lines.append(line)
+    if validation.tilt_error_p95_deg is not None:
+        lines.append(
+            f"tilt error after compensation, X and Y: {validation.tilt_error_p95_deg:.4f} deg "
+            f"({TILT_PERCENTILE:g}th percentile)"
+        )
     if validation.firmware_difference_lsb is not None:
         lines.append(
             f"the firmware's own compensated output ({validation.sources}) differs from this "
