@@ -5,6 +5,7 @@ between table positions, which slow noise imitates."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from scipy.linalg import solve_triangular
 from threadpoolctl import threadpool_limits
 
@@ -28,6 +29,7 @@ def _layout(positions: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return position, np.abs(np.subtract.outer(time_s, time_s)), design
 
 
+@pytest.mark.slow
 def test_a_difference_between_positions_is_not_found_in_flicker_the_model_does_not_declare() -> None:
     # Flicker 24x the declared variance (the benchmark's "flicker" family:
     # the floor 5x) moves each position's mean; a test that took the
