@@ -50,7 +50,7 @@ def _no_problem():
 @pytest.mark.twin
 def test_runs_on_a_cluster_by_its_address_and_a_second_start_runs_nothing(tmp_path):
     record = tmp_path / "runs.csv"
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address="127.0.0.1:0") as cluster:
         with connect_cluster(cluster.scheduler_address, _no_problem, "run discovery") as client:
             first = run_benchmark(CELLS, record, tmp_path / "bases", client, say=lambda _: None, bases=SHORT)
             assert (first.done, first.todo, first.failed) == (2, 0, [])
@@ -76,7 +76,7 @@ def test_runs_on_a_cluster_by_its_address_and_a_second_start_runs_nothing(tmp_pa
 
 def test_a_scheduler_whose_workers_cannot_run_discovery_is_one_line():
     with LocalCluster(
-        n_workers=1, threads_per_worker=1, processes=False, protocol="tcp", dashboard_address=None
+        n_workers=1, threads_per_worker=1, processes=False, protocol="tcp", dashboard_address="127.0.0.1:0"
     ) as cluster:
         with pytest.raises(ClusterError, match="cannot run discovery: no native library"):
             with connect_cluster(cluster.scheduler_address, lambda: "no native library", "run discovery"):

@@ -100,7 +100,7 @@ def main() -> int:
                     return 1
             else:
                 cluster = resources.enter_context(
-                    LocalCluster(n_workers=args.workers, threads_per_worker=1, dashboard_address=None)
+                    LocalCluster(n_workers=args.workers, threads_per_worker=1, dashboard_address="127.0.0.1:0")
                 )
                 client = resources.enter_context(Client(cluster))
             bar = resources.enter_context(tqdm(unit="run", file=sys.stderr, disable=None))
