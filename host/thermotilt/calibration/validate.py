@@ -110,9 +110,9 @@ class Validation:
         errors = [
             self.series[f"{axis} tilt error after"] for axis in FIT_AXES if f"{axis} tilt error after" in self.series
         ]
-        pooled = np.abs(np.concatenate(errors)) if errors else np.empty(0)
+        pooled = np.concatenate(errors) if errors else np.empty(0)
         pooled = pooled[np.isfinite(pooled)]
-        return float(np.percentile(pooled, TILT_PERCENTILE)) if len(pooled) else None
+        return _percentile_of_size(pooled) if len(pooled) else None
 
     def document(self) -> dict[str, object]:
         """validation.json: the table in LSB, mg and degrees of tilt."""
@@ -214,7 +214,8 @@ def validate(run: Path, coefficients: Coefficients | None = None) -> Validation:
                 after = before - surface.evaluate(t, before)
             series.setdefault(f"{axis} before", np.full(usable_rows, np.nan))[in_set] = before
             series.setdefault(f"{axis} after", np.full(usable_rows, np.nan))[in_set] = after
-            tilt_before, tilt_after = _tilt_error_deg(t, before), _tilt_error_deg(t, after)
+            rms_before, tilt_before = _about_25(t, before)
+            rms_after, tilt_after = _about_25(t, after)
             if tilt_after is not None:
                 series.setdefault(f"{axis} tilt error after", np.full(usable_rows, np.nan))[in_set] = tilt_after
             results.append(
@@ -222,8 +223,8 @@ def validate(run: Path, coefficients: Coefficients | None = None) -> Validation:
                     set_name,
                     axis,
                     int(in_set.sum()),
-                    _rms_about_25(t, before),
-                    _rms_about_25(t, after),
+                    rms_before,
+                    rms_after,
                     _outside(domain, set_name, axis, t, before),
                     _percentile_of_size(tilt_before),
                     _percentile_of_size(tilt_after),
@@ -246,20 +247,19 @@ def validate(run: Path, coefficients: Coefficients | None = None) -> Validation:
     )
 
 
-def _rms_about_25(temperature: np.ndarray, values: np.ndarray) -> float | None:
+def _about_25(temperature: np.ndarray, values: np.ndarray) -> tuple[float | None, np.ndarray | None]:
+    """The values' RMS about their 25 degC reading, and each row's tilt less
+    that reading's tilt (both None without a reading)."""
     reference = reading_at_25(temperature, values)
-    return None if reference is None else float(np.sqrt(np.mean((values - reference) ** 2)))
+    if reference is None:
+        return None, None
+    return float(np.sqrt(np.mean((values - reference) ** 2))), tilt_deg(values) - tilt_deg(np.array(reference))
 
 
 def tilt_deg(acceleration_lsb: np.ndarray) -> np.ndarray:
     """The tilt about one axis from that axis's reading alone (the paper
     compensates X and Y, section 5): asin of its share of 1 g."""
     return np.degrees(np.arcsin(np.clip(acceleration_lsb / LSB_PER_G, -1.0, 1.0)))
-
-
-def _tilt_error_deg(temperature: np.ndarray, values: np.ndarray) -> np.ndarray | None:
-    reference = reading_at_25(temperature, values)
-    return None if reference is None else tilt_deg(values) - tilt_deg(np.array(reference))
 
 
 def _percentile_of_size(errors: np.ndarray | None) -> float | None:
