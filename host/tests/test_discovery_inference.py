@@ -29,6 +29,14 @@ def _layout(positions: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return position, np.abs(np.subtract.outer(time_s, time_s)), design
 
 
+def _declared_and_drawn(lag_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The model's flicker at unit variance per decade, and the covariance
+    drawn from: that flicker 25x (the benchmark's "flicker" family, its
+    floor 5x) plus white noise."""
+    declared = _flicker_blocks(lag_s, BLOCK_S, tuple((tau, 1.0) for tau in FLICKER_TIME_CONSTANTS_S))
+    return declared, 25.0 * declared + 2.0 * np.eye(len(lag_s))
+
+
 @pytest.mark.slow
 def test_a_difference_between_positions_is_not_found_in_flicker_the_model_does_not_declare() -> None:
     # Flicker 24x the declared variance (the benchmark's "flicker" family:
@@ -36,8 +44,7 @@ def test_a_difference_between_positions_is_not_found_in_flicker_the_model_does_n
     # within-position correlation for all there is named sensitivity_loss
     # on 5 of 12 such staircases.
     position, lag_s, design = _layout(3)
-    declared = _flicker_blocks(lag_s, BLOCK_S, tuple((tau, 1.0) for tau in FLICKER_TIME_CONSTANTS_S))
-    truth = 25.0 * declared + 2.0 * np.eye(len(position))
+    declared, truth = _declared_and_drawn(lag_s)
     draw = np.linalg.cholesky(truth)
     sensitivity = np.select([position == 0, position == 1], [1.0, -1.0], 0.0)
     rng = np.random.default_rng(11)
@@ -59,8 +66,7 @@ def test_the_fitted_covariance_moves_position_means_as_the_drawn_flicker_does() 
     # the variance of one position's mean against the next, here within a
     # factor of 2 of the drawn covariance's, on 12 positions.
     position, lag_s, design = _layout(POSITIONS_SEEN)
-    declared = _flicker_blocks(lag_s, BLOCK_S, tuple((tau, 1.0) for tau in FLICKER_TIME_CONSTANTS_S))
-    truth = 25.0 * declared + 2.0 * np.eye(len(position))
+    declared, truth = _declared_and_drawn(lag_s)
     values = np.linalg.cholesky(truth) @ np.random.default_rng(3).standard_normal(len(position))
     with threadpool_limits(limits=1, user_api="blas"):
         lower = UndeclaredFlicker(design, declared, lag_s, BLOCK_S).fitted(values)
