@@ -124,11 +124,11 @@ def test_the_candidates_stages_run_in_order():
 
 @pytest.mark.parametrize("name", CANDIDATES)
 def test_a_switched_off_candidate_binds_nothing(name):
-    context = SensorContext(16393.0, lambda: 0.0, lambda: 0.5, np.random.default_rng)
+    context = SensorContext(16393.0, lambda: 0.0, lambda: 0.5, np.zeros, np.zeros, np.random.default_rng)
     term = REGISTRY[name](Model.load().terms[name])
-    assert term.bind(context) is None
+    assert term.bind(context) is None and term.bind_series(context) is None
     switched = REGISTRY[name](Model.load().with_terms({name: True}).terms[name])
-    assert callable(switched.bind(context))
+    assert callable(switched.bind(context)) and callable(switched.bind_series(context))
 
 
 # --- model files --------------------------------------------------------------

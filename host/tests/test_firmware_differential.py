@@ -3,7 +3,7 @@ C++ compiled for the host (host/native/firmware_algorithms.h in
 build/native/libthermotilt_host.so), input for input:
 
 - scenarios.program_steps, lib/Program's staircase;
-- the physics model's trend (Sensor._update_trend), lib/Compensation's
+- the physics model's trend (physics.sensor.Trend), lib/Compensation's
   TrendDetector;
 - Surface.evaluate and the drift term's _surface, lib/Compensation's
   surfaceCorrection.
@@ -24,7 +24,7 @@ from hypothesis.extra.numpy import arrays
 
 from thermotilt import native
 from thermotilt.physics import Model
-from thermotilt.physics.sensor import Sensor
+from thermotilt.physics.sensor import Trend
 from thermotilt.physics.terms.sensor import INT16_MAX, INT16_MIN, OPERATING_C, SURFACE_TERM_BOUNDS, _surface
 from thermotilt.program import CALIBRATION_MAX_C, CALIBRATION_MIN_C
 from thermotilt.surfaces import AXES, PAPER_DEFAULTS, SETS, Surface
@@ -145,14 +145,14 @@ def test_program_steps_agree_with_the_firmware_wherever_it_accepts_the_staircase
 
 
 def python_trend(model: Model, temperatures_c: np.ndarray) -> tuple[list[str], list[float]]:
-    """The physics model's set after each of temperatures_c[1:], its sensor
+    """The physics model's set after each of temperatures_c[1:], the trend
     started at temperatures_c[0] (the firmware's first sample seeds its
     extreme the same way), and the extreme each update started from."""
-    sensor = Sensor(model, seed=0, environment_c=float(temperatures_c[0]))
+    trend = Trend(model.terms["drift"]["schmitt_band_c"], float(temperatures_c[0]))
     sets, extremes = [], []
     for temperature in temperatures_c[1:]:
-        extremes.append(sensor._trend_extreme)
-        sets.append(sensor._update_trend(float(temperature)))
+        extremes.append(trend.extreme_c)
+        sets.append(trend.update(float(temperature)))
     return sets, extremes
 
 

@@ -69,7 +69,8 @@ def registered_temperature_c(model: Model, reported_c: np.ndarray) -> np.ndarray
 
 
 class _BlockDraws:
-    """Seeded draws handed out one at a time from pre-drawn numpy blocks."""
+    """Seeded draws handed out one at a time from pre-drawn numpy blocks, or
+    n at a time from the same stream."""
 
     __slots__ = ("_draw", "_values", "_index")
 
@@ -86,6 +87,72 @@ class _BlockDraws:
         self._index += 1
         return value
 
+    def take(self, count: int) -> np.ndarray:
+        # A generator's draws are one stream however they are chunked.
+        held = self._values[self._index : self._index + count]
+        self._index += len(held)
+        if len(held) == count:
+            return np.array(held)
+        return np.concatenate([held, self._draw(count - len(held))])
+
+
+def _stages(model: Model, seed: int, series: bool) -> dict[str, list[Any]]:
+    """Each stage's functions of the model's enabled terms, in order: the
+    scalar ones a Sensor steps, or their series forms."""
+    constants = model.constants["sensor"]
+    # Separate streams, so switching dither on or off leaves the noise as it was.
+    noise_seed, dither_seed = np.random.SeedSequence(seed).spawn(2)
+
+    def generator(name: str) -> np.random.Generator:
+        key = (_TERM_STREAMS, zlib.crc32(name.encode()))
+        return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=key))
+
+    normal = _BlockDraws(np.random.default_rng(noise_seed).standard_normal)
+    uniform = _BlockDraws(np.random.default_rng(dither_seed).random)
+    context = SensorContext(
+        lsb_per_g=constants["lsb_per_g"],
+        normal=normal.next,
+        uniform=uniform.next,
+        normals=normal.take,
+        uniforms=uniform.take,
+        generator=generator,
+    )
+    stages: dict[str, list[Any]] = {stage: [] for stage in SENSOR_STAGES}
+    for term in model.bound_terms(SensorTerm):
+        function = term.bind_series(context) if series else term.bind(context)
+        if function is not None:
+            stages[term.stage].append(function)
+    return stages
+
+
+class Trend:
+    """Which drift set applies: a Schmitt trigger on the die temperature's
+    excursion from its running extreme, as the firmware's TrendDetector, so
+    the model's set matches the firmware's choice whenever both see the
+    same temperature. Starts warming, as the paper's cycles do."""
+
+    __slots__ = ("_band_c", "drift_set", "extreme_c")
+
+    def __init__(self, band_c: float, start_c: float) -> None:
+        self._band_c = band_c
+        self.drift_set = "W"
+        self.extreme_c = start_c
+
+    def update(self, die: float) -> str:
+        if self.drift_set == "W":
+            if die > self.extreme_c:
+                self.extreme_c = die
+            elif self.extreme_c - die > self._band_c:
+                self.drift_set = "C"
+                self.extreme_c = die
+        else:
+            if die < self.extreme_c:
+                self.extreme_c = die
+            elif die - self.extreme_c > self._band_c:
+                self.drift_set = "W"
+                self.extreme_c = die
+        return self.drift_set
+
 
 class Sensor:
     """The LSM9DS0 accelerometer and temperature sensor on the tilt table."""
@@ -93,7 +160,6 @@ class Sensor:
     __slots__ = (
         "_temperature_lsb_per_c",
         "_temperature_zero_c",
-        "_schmitt_band",
         "_die",
         "_reported",
         "_structure",
@@ -105,8 +171,7 @@ class Sensor:
         "_register",
         "_die_c",
         "_structure_c",
-        "_trend_set",
-        "_trend_extreme",
+        "_trend",
         "_angles",
         "_acceleration",
         "_mounting",
@@ -116,28 +181,7 @@ class Sensor:
         constants = model.constants["sensor"]
         self._temperature_lsb_per_c = constants["temperature_lsb_per_c"]
         self._temperature_zero_c = constants["temperature_zero_c"]
-        # The warming/cooling choice runs whether or not the drift is on: the
-        # sample always says which set the firmware would pick.
-        self._schmitt_band = model.terms["drift"]["schmitt_band_c"]
-
-        # Separate streams, so switching dither on or off leaves the noise as it was.
-        noise_seed, dither_seed = np.random.SeedSequence(seed).spawn(2)
-
-        def generator(name: str) -> np.random.Generator:
-            key = (_TERM_STREAMS, zlib.crc32(name.encode()))
-            return np.random.default_rng(np.random.SeedSequence(seed, spawn_key=key))
-
-        context = SensorContext(
-            lsb_per_g=constants["lsb_per_g"],
-            normal=_BlockDraws(np.random.default_rng(noise_seed).standard_normal).next,
-            uniform=_BlockDraws(np.random.default_rng(dither_seed).random).next,
-            generator=generator,
-        )
-        stages: dict[str, list[Any]] = {stage: [] for stage in SENSOR_STAGES}
-        for term in model.bound_terms(SensorTerm):
-            function = term.bind(context)
-            if function is not None:
-                stages[term.stage].append(function)
+        stages = _stages(model, seed, series=False)
         self._die = tuple(stages["die"])
         self._reported = tuple(stages["reported"])
         self._structure = tuple(stages["structure"])
@@ -155,9 +199,9 @@ class Sensor:
         for offset in self._reported:
             structure = offset(structure)
         self._structure_c = structure
-        # Like the firmware's TrendDetector: starts warming, as the paper's cycles do.
-        self._trend_set = "W"
-        self._trend_extreme = self._die_c
+        # The warming/cooling choice runs whether or not the drift is on: the
+        # sample always says which set the firmware would pick.
+        self._trend = Trend(model.terms["drift"]["schmitt_band_c"], self._die_c)
         self._angles: tuple[float, float] | None = None
         self._acceleration = (0.0, 0.0, 0.0)
         # A table move is a new mounting of the sensor; the first position is 0.
@@ -173,7 +217,7 @@ class Sensor:
             die = lag(previous_die, die, dt_s)
         self._die_c = die
         rate = (die - previous_die) / dt_s
-        drift_set = self._update_trend(die)
+        drift_set = self._trend.update(die)
         reported = die
         for offset in self._reported:
             reported = offset(reported)
@@ -240,20 +284,133 @@ class Sensor:
             structure,
         )
 
-    def _update_trend(self, die: float) -> str:
-        # Schmitt trigger on the excursion from the running extreme, as the
-        # firmware's TrendDetector, so the model's set matches the firmware's
-        # choice whenever both see the same temperature.
-        if self._trend_set == "W":
-            if die > self._trend_extreme:
-                self._trend_extreme = die
-            elif self._trend_extreme - die > self._schmitt_band:
-                self._trend_set = "C"
-                self._trend_extreme = die
-        else:
-            if die < self._trend_extreme:
-                self._trend_extreme = die
-            elif die - self._trend_extreme > self._schmitt_band:
-                self._trend_set = "W"
-                self._trend_extreme = die
-        return self._trend_set
+
+class SensorSeries(NamedTuple):
+    """SensorSample's fields over a series of steps, one array each."""
+
+    ax: np.ndarray
+    ay: np.ndarray
+    az: np.ndarray
+    temperature_raw: np.ndarray
+    die_c: np.ndarray
+    reported_c: np.ndarray
+    rate_c_per_s: np.ndarray
+    drift_set: np.ndarray
+    ideal_ax: np.ndarray
+    ideal_ay: np.ndarray
+    ideal_az: np.ndarray
+    drift_x: np.ndarray
+    drift_y: np.ndarray
+    drift_z: np.ndarray
+    mounting: np.ndarray
+    unrounded_ax: np.ndarray
+    unrounded_ay: np.ndarray
+    unrounded_az: np.ndarray
+    drift_temperature_c: np.ndarray
+
+
+def _lagged(lags: tuple[Any, ...], start: float, targets: np.ndarray, dt_s: np.ndarray) -> np.ndarray:
+    """A lag stage's functions stepped through the targets, as Sensor.step chains them."""
+    values = []
+    previous = start
+    for target, step_s in zip(targets.tolist(), dt_s.tolist()):
+        value = target
+        for lag in lags:
+            value = lag(previous, value, step_s)
+        values.append(value)
+        previous = value
+    return np.array(values)
+
+
+def _clip_round_array(values: np.ndarray, low: int, high: int) -> np.ndarray:
+    return np.clip(np.floor(values + 0.5), low, high).astype(np.int64)
+
+
+def sensor_series(
+    model: Model,
+    seed: int,
+    start_c: float,
+    dt_s: np.ndarray,
+    environment_c: np.ndarray,
+    incl_x_deg: np.ndarray,
+    incl_y_deg: np.ndarray,
+) -> SensorSeries:
+    """Sensor(model, seed, start_c) stepped through every (dt_s,
+    environment_c, incl_x_deg, incl_y_deg), as arrays: the same samples as
+    the steps (test_sensor_series), each stage run on whole arrays but the
+    lags and the trend, which go step by step."""
+    dt_s, environment_c = np.asarray(dt_s, dtype=float), np.asarray(environment_c, dtype=float)
+    incl_x_deg, incl_y_deg = np.asarray(incl_x_deg, dtype=float), np.asarray(incl_y_deg, dtype=float)
+    if not np.all(dt_s > 0.0):
+        raise ValueError(f"dt_s must be > 0, got {dt_s[~(dt_s > 0.0)][0]}")
+    count = len(dt_s)
+    constants = model.constants["sensor"]
+    stages = _stages(model, seed, series=True)
+
+    die = _lagged(tuple(stages["die"]), float(start_c), environment_c, dt_s)
+    rate = np.diff(die, prepend=float(start_c)) / dt_s
+    trend = Trend(model.terms["drift"]["schmitt_band_c"], float(start_c))
+    drift_set = np.array([trend.update(value) for value in die.tolist()])
+    reported, structure_start = die, float(start_c)
+    for offset in stages["reported"]:
+        reported = offset(reported)
+        structure_start = offset(structure_start)
+    structure = (
+        _lagged(tuple(stages["structure"]), structure_start, reported, dt_s) if stages["structure"] else reported
+    )
+
+    moved = np.ones(count, dtype=bool)
+    moved[1:] = (incl_x_deg[1:] != incl_x_deg[:-1]) | (incl_y_deg[1:] != incl_y_deg[:-1])
+    mounting = np.cumsum(moved) - 1
+    (gravity,) = stages["gravity"]
+    accelerations = []
+    for first in np.flatnonzero(moved).tolist():
+        acceleration = gravity(float(incl_x_deg[first]), float(incl_y_deg[first]))
+        for modify in stages["ideal"]:
+            acceleration = modify(*acceleration)
+        accelerations.append(acceleration)
+    ideal_x, ideal_y, ideal_z = np.array(accelerations, dtype=float).reshape(-1, 3)[mounting].T
+
+    # Runs of steps that share their set and mounting, in order: the
+    # set-dependent and per-mounting terms take them whole.
+    starts = np.flatnonzero(moved | np.concatenate([[True], drift_set[1:] != drift_set[:-1]]))
+    runs = [
+        (slice(start, end), str(drift_set[start]), int(mounting[start]))
+        for start, end in zip(starts.tolist(), [*starts[1:].tolist(), count])
+    ]
+    drift = np.zeros((3, count))
+    if stages["drift"]:
+        for part, set_here, _ in runs:
+            drift[:, part] = stages["drift"][0](set_here, structure[part], ideal_x[part], ideal_y[part], ideal_z[part])
+    # Summed in Sensor.step's order, so that every sum is the same float.
+    raw = np.stack([ideal_x, ideal_y, ideal_z]) + drift
+    for scale in stages["scale"]:
+        raw += np.stack(np.broadcast_arrays(*scale(reported, ideal_x, ideal_y, ideal_z)))
+    for part, set_here, mounting_here in runs:
+        for error in stages["error"]:
+            error_x, error_y, error_z = error(set_here, reported[part], rate[part], dt_s[part], mounting_here)
+            raw[0, part] += error_x
+            raw[1, part] += error_y
+            raw[2, part] += error_z
+
+    temperature_lsb = (reported - constants["temperature_zero_c"]) * constants["temperature_lsb_per_c"]
+    for register in stages["register"]:
+        temperature_lsb = register(temperature_lsb)
+    ax, ay, az = (_clip_round_array(values, INT16_MIN, INT16_MAX) for values in raw)
+    return SensorSeries(
+        ax,
+        ay,
+        az,
+        _clip_round_array(temperature_lsb, _TEMPERATURE_RAW_MIN, _TEMPERATURE_RAW_MAX),
+        die,
+        reported,
+        rate,
+        drift_set,
+        ideal_x,
+        ideal_y,
+        ideal_z,
+        *drift,
+        mounting,
+        *raw,
+        structure,
+    )

@@ -108,13 +108,16 @@ SENSOR_STAGES: Mapping[str, str] = {
 @dataclass(frozen=True)
 class SensorContext:
     """What a sensor term may need to bind: hardware constants, the seeded
-    streams of draws (each a callable giving the next draw) shared by noise
-    and dither, and a term's own seeded generator by name, so that switching
-    one term leaves every other term's draws as they were."""
+    streams of draws shared by noise and dither (normal() and uniform() give
+    the next draw, normals(n) and uniforms(n) the next n), and a term's own
+    seeded generator by name, so that switching one term leaves every other
+    term's draws as they were."""
 
     lsb_per_g: float
     normal: Callable[[], float]
     uniform: Callable[[], float]
+    normals: Callable[[int], np.ndarray]
+    uniforms: Callable[[int], np.ndarray]
     generator: Callable[[str], np.random.Generator]
 
 
@@ -130,6 +133,14 @@ class SensorTerm(Term):
     def bound(self, context: SensorContext) -> Callable[..., Any]:
         """The stage function of this term while it is enabled."""
         raise NotImplementedError
+
+    def bind_series(self, context: SensorContext) -> Callable[..., Any] | None:
+        """The stage function for a series of steps (sensor_series): called
+        with arrays over steps that share their set and mounting, and for
+        the lags ("die", "structure") step by step. The scalar function
+        serves as it is, numpy broadcasting its arithmetic; a term that
+        draws a number per step overrides this to draw one per element."""
+        return self.bind(context)
 
 
 HARDWARE: dict[str, type[Section]] = {}

@@ -224,6 +224,12 @@ class TemperatureQuantisation(SensorTerm):
         # continuous value.
         return lambda temperature_lsb: temperature_lsb + (uniform() - 0.5)
 
+    def bind_series(self, context: SensorContext) -> Callable[..., Any] | None:
+        if self.enabled:
+            return None
+        uniforms = context.uniforms
+        return lambda temperature_lsb: temperature_lsb + (uniforms(len(temperature_lsb)) - 0.5)
+
 
 @register
 class SensitivityLoss(SensorTerm):
@@ -278,6 +284,21 @@ class Noise(SensorTerm):
             drift_set: str, reported_c: float, rate: float, dt_s: float, mounting: int
         ) -> tuple[float, float, float]:
             return sigma_x * draw(), sigma_y * draw(), sigma_z * draw()
+
+        return error
+
+    def bind_series(self, context: SensorContext) -> Callable[..., Any] | None:
+        if not self.enabled:
+            return None
+        sigmas = self.values["sigma_lsb"]
+        sigma = np.array([sigmas["x"], sigmas["y"], sigmas["z"]])
+        normals = context.normals
+
+        def error(
+            drift_set: str, reported_c: np.ndarray, rate: np.ndarray, dt_s: np.ndarray, mounting: int
+        ) -> np.ndarray:
+            # x, y, z per step, the order the scalar form draws them in.
+            return sigma[:, None] * normals(3 * len(dt_s)).reshape(-1, 3).T
 
         return error
 
@@ -391,7 +412,7 @@ class _FlickerBlocks:
     """The three axes' flicker, one step at a time, made in numpy blocks for
     a step length; a new length continues from the state reached."""
 
-    __slots__ = ("_rng", "_sigma", "_taus", "_state", "_processes", "_sums", "_index", "_dt_s")
+    __slots__ = ("_rng", "_sigma", "_taus", "_state", "_processes", "_block", "_sums", "_index", "_dt_s")
 
     def __init__(self, floors: np.ndarray, rng: np.random.Generator) -> None:
         self._rng = rng
@@ -400,6 +421,7 @@ class _FlickerBlocks:
         # Stationary from the first step: a run starts mid-life, not at a zero bias.
         self._state = rng.standard_normal((3, len(self._taus))) * self._sigma[:, None]
         self._processes: list[np.ndarray] = []
+        self._block = np.empty((3, 0))
         self._sums: list[tuple[float, float, float]] = []
         self._index = 0
         self._dt_s = -1.0
@@ -410,6 +432,22 @@ class _FlickerBlocks:
         value = self._sums[self._index]
         self._index += 1
         return value
+
+    def take(self, dt_s: np.ndarray) -> np.ndarray:
+        """The next len(dt_s) steps at once (3 x steps), as next() would give them."""
+        values = np.empty((3, len(dt_s)))
+        step = 0
+        while step < len(dt_s):
+            length = float(dt_s[step])
+            if length != self._dt_s or self._index == len(self._sums):
+                self._refill(length)
+            window = dt_s[step : step + len(self._sums) - self._index]
+            other = np.flatnonzero(window != length)
+            count = int(other[0]) if len(other) else len(window)
+            values[:, step : step + count] = self._block[:, self._index : self._index + count]
+            self._index += count
+            step += count
+        return values
 
     def _refill(self, dt_s: float) -> None:
         if self._index:
@@ -423,7 +461,8 @@ class _FlickerBlocks:
             values, _ = lfilter([1.0], [1.0, -phi], shocks[k] * gain[:, None], axis=-1, zi=initial)
             processes.append(values)
         self._processes = processes
-        self._sums = list(zip(*np.sum(processes, axis=0).tolist()))
+        self._block = np.sum(processes, axis=0)
+        self._sums = list(zip(*self._block.tolist()))
         self._index = 0
         self._dt_s = dt_s
 
@@ -457,6 +496,19 @@ class BiasInstability(SensorTerm):
             drift_set: str, reported_c: float, rate: float, dt_s: float, mounting: int
         ) -> tuple[float, float, float]:
             return step(dt_s)
+
+        return error
+
+    def bind_series(self, context: SensorContext) -> Callable[..., Any] | None:
+        if not self.enabled:
+            return None
+        floors = self.values["allan_floor_lsb"]
+        blocks = _FlickerBlocks(np.array([floors["x"], floors["y"], floors["z"]]), context.generator(self.name))
+
+        def error(
+            drift_set: str, reported_c: np.ndarray, rate: np.ndarray, dt_s: np.ndarray, mounting: int
+        ) -> np.ndarray:
+            return blocks.take(dt_s)
 
         return error
 
