@@ -31,8 +31,9 @@ import numpy as np
 from scipy.signal import lfilter
 
 from .. import native
-from ..physics import Model, Sensor
+from ..physics import Model
 from ..physics.document import with_values
+from ..physics.sensor import sensor_series
 from ..physics.terms.lag import first_order
 from ..run import SETTLE_S
 from ..run.folder import RunFolder
@@ -129,14 +130,11 @@ def _generate(measured: Measured, model: Model, seed: int, noise: str = "model")
     grid = SampleGrid.of(measured.time_s, measured.mounting)
     chamber_c = grid.sample(measured.time_s, measured.chamber_c)
     row = np.minimum(np.searchsorted(measured.time_s, grid.time_s, side="right") - 1, len(measured.time_s) - 1)
-    incl_x = measured.incl_x_deg[row].tolist()
-    incl_y = measured.incl_y_deg[row].tolist()
-    sensor = Sensor(model, seed, float(chamber_c[0]))
+    incl_x = measured.incl_x_deg[row]
+    incl_y = measured.incl_y_deg[row]
     count = len(grid.time_s)
-    registers = np.empty((4, count), dtype=np.int16)
-    for index, environment_c in enumerate(chamber_c.tolist()):
-        sample = sensor.step(SAMPLE_PERIOD_S, environment_c, incl_x[index], incl_y[index])
-        registers[:, index] = (sample.ax, sample.ay, sample.az, sample.temperature_raw)
+    series = sensor_series(model, seed, float(chamber_c[0]), np.full(count, SAMPLE_PERIOD_S), chamber_c, incl_x, incl_y)
+    registers = np.stack([series.ax, series.ay, series.az, series.temperature_raw]).astype(np.int16)
     wander = np.rint(_wander(model, noise, count, seed)).astype(np.int32)
     registers[:3] = np.clip(registers[:3] + wander, -32768, 32767)
     processed = native.imu_process(
@@ -147,8 +145,8 @@ def _generate(measured: Measured, model: Model, seed: int, noise: str = "model")
         raw_y=registers[1],
         raw_z=registers[2],
         grid_time_s=grid.time_s,
-        incl_x=np.asarray(incl_x),
-        incl_y=np.asarray(incl_y),
+        incl_x=incl_x,
+        incl_y=incl_y,
     )
     return processed
 

@@ -32,9 +32,9 @@ from pathlib import Path
 import numpy as np
 
 from .. import native
-from ..physics import Chamber, Model, Sensor
+from ..physics import Chamber, Model
 from ..physics.document import plain
-from ..physics.sensor import registered_temperature_c
+from ..physics.sensor import registered_temperature_c, sensor_series
 from ..physics.terms import REGISTRY, SensorTerm
 from ..run import SETTLE_S, positions
 from ..run.folder import RunFolder, RunFolderError
@@ -279,21 +279,12 @@ def sensor_values(measured: Measured, model: Model, steps: np.ndarray, seed: int
     neither leads nor lags a ramp by half a step."""
     chamber_c = measured.chamber_c[steps]
     middle_c = np.concatenate([chamber_c[:1], 0.5 * (chamber_c[1:] + chamber_c[:-1])])
-    sensor = Sensor(model, seed, float(chamber_c[0]))
-    values = np.empty((4, len(steps)))
-    previous = measured.time_s[steps[0]] - SAMPLE_PERIOD_S
-    for index, (time_s, environment_c, incl_x, incl_y) in enumerate(
-        zip(
-            measured.time_s[steps].tolist(),
-            middle_c.tolist(),
-            measured.incl_x_deg[steps].tolist(),
-            measured.incl_y_deg[steps].tolist(),
-        )
-    ):
-        sample = sensor.step(time_s - previous, environment_c, incl_x, incl_y)
-        previous = time_s
-        values[:, index] = (sample.reported_c, sample.unrounded_ax, sample.unrounded_ay, sample.unrounded_az)
-    return values
+    time_s = measured.time_s[steps]
+    dt_s = np.diff(time_s, prepend=time_s[0] - SAMPLE_PERIOD_S)
+    series = sensor_series(
+        model, seed, float(chamber_c[0]), dt_s, middle_c, measured.incl_x_deg[steps], measured.incl_y_deg[steps]
+    )
+    return np.stack([series.reported_c, series.unrounded_ax, series.unrounded_ay, series.unrounded_az])
 
 
 def inner_face_c(time_s: np.ndarray, chamber_c: np.ndarray, model: Model, status: np.ndarray) -> np.ndarray:
