@@ -309,17 +309,13 @@ class SensorSeries(NamedTuple):
     drift_temperature_c: np.ndarray
 
 
-def _lagged(lags: tuple[Any, ...], start: float, targets: np.ndarray, dt_s: np.ndarray) -> np.ndarray:
-    """A lag stage's functions stepped through the targets, as Sensor.step chains them."""
-    values = []
-    previous = start
-    for target, step_s in zip(targets.tolist(), dt_s.tolist()):
-        value = target
-        for lag in lags:
-            value = lag(previous, value, step_s)
-        values.append(value)
-        previous = value
-    return np.array(values)
+def _lagged(lags: list[Any], start: float, targets: np.ndarray, dt_s: np.ndarray) -> np.ndarray:
+    """A lag stage's series: each of its terms steps from the same previous
+    value in Sensor.step, which one series form cannot chain, so a stage
+    has at most one (every registered lag stands alone in its stage)."""
+    if len(lags) > 1:
+        raise ValueError(f"sensor_series takes at most one lag per stage, not {len(lags)}")
+    return lags[0](start, targets, dt_s) if lags else targets
 
 
 def _clip_round_array(values: np.ndarray, low: int, high: int) -> np.ndarray:
@@ -347,7 +343,7 @@ def sensor_series(
     constants = model.constants["sensor"]
     stages = _stages(model, seed, series=True)
 
-    die = _lagged(tuple(stages["die"]), float(start_c), environment_c, dt_s)
+    die = _lagged(stages["die"], float(start_c), environment_c, dt_s)
     rate = np.diff(die, prepend=float(start_c)) / dt_s
     trend = Trend(model.terms["drift"]["schmitt_band_c"], float(start_c))
     drift_set = np.array([trend.update(value) for value in die.tolist()])
@@ -355,9 +351,7 @@ def sensor_series(
     for offset in stages["reported"]:
         reported = offset(reported)
         structure_start = offset(structure_start)
-    structure = (
-        _lagged(tuple(stages["structure"]), structure_start, reported, dt_s) if stages["structure"] else reported
-    )
+    structure = _lagged(stages["structure"], structure_start, reported, dt_s)
 
     moved = np.ones(count, dtype=bool)
     moved[1:] = (incl_x_deg[1:] != incl_x_deg[:-1]) | (incl_y_deg[1:] != incl_y_deg[:-1])

@@ -136,10 +136,11 @@ class SensorTerm(Term):
 
     def bind_series(self, context: SensorContext) -> Callable[..., Any] | None:
         """The stage function for a series of steps (sensor_series): called
-        with arrays over steps that share their set and mounting, and for
-        the lags ("die", "structure") step by step. The scalar function
-        serves as it is, numpy broadcasting its arithmetic; a term that
-        draws a number per step overrides this to draw one per element."""
+        with arrays over steps that share their set and mounting. The scalar
+        function serves as it is, numpy broadcasting its arithmetic; a term
+        that draws a number per step overrides this to draw one per element,
+        and a lag ("die", "structure") to take (start, targets, dt_s) and
+        give the value after every step."""
         return self.bind(context)
 
 

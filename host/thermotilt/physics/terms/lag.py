@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
+import numpy as np
+
 
 class LagFraction:
     """How far a first-order lag moves towards its input in one step,
@@ -32,5 +34,22 @@ def first_order(tau_s: float) -> Callable[[float, float, float], float]:
 
     def follow(previous: float, target: float, dt_s: float) -> float:
         return previous + fraction(dt_s) * (target - previous)
+
+    return follow
+
+
+def first_order_series(tau_s: float) -> Callable[[float, np.ndarray, np.ndarray], np.ndarray]:
+    """(start, targets, dt s) -> the values first_order's steps reach from
+    start, each towards its target: the same floats, in one loop."""
+
+    def follow(start: float, targets: np.ndarray, dt_s: np.ndarray) -> np.ndarray:
+        lengths, which = np.unique(dt_s, return_inverse=True)
+        fractions = np.array([-math.expm1(-length / tau_s) for length in lengths.tolist()])[which]
+        values = []
+        value = start
+        for target, fraction in zip(targets.tolist(), fractions.tolist()):
+            value = value + fraction * (target - value)
+            values.append(value)
+        return np.array(values)
 
     return follow

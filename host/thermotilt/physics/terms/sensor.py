@@ -13,7 +13,7 @@ from scipy.signal import lfilter
 from ...surfaces import AXES, PAPER_DEFAULTS, SETS, CoefficientTable, Surface
 from ..parameters import Bounds, Parameter, PerAxis, Surfaces
 from . import Section, SensorContext, SensorTerm, hardware, register
-from .lag import first_order
+from .lag import first_order, first_order_series
 
 INT16_MIN, INT16_MAX = -32768, 32767
 INT16_SPAN = INT16_MAX - INT16_MIN + 1
@@ -78,6 +78,9 @@ class DieLag(SensorTerm):
 
     def bound(self, context: SensorContext) -> Callable[..., Any]:
         return first_order(self.values["time_constant_s"])
+
+    def bind_series(self, context: SensorContext) -> Callable[..., Any] | None:
+        return first_order_series(self.values["time_constant_s"]) if self.enabled else None
 
 
 @register
@@ -543,6 +546,9 @@ class SensorLag(SensorTerm):
 
     def bound(self, context: SensorContext) -> Callable[..., Any]:
         return first_order(self.values["time_constant_s"])
+
+    def bind_series(self, context: SensorContext) -> Callable[..., Any] | None:
+        return first_order_series(self.values["time_constant_s"]) if self.enabled else None
 
 
 @register
