@@ -343,6 +343,17 @@ def test_ambient_leak_pulls_the_inner_face_to_ambient(model):
     assert relax(leaky) == pytest.approx(leaky_expected, abs=1e-3)
 
 
+def test_one_adc_code_spans_what_the_divider_slope_says(model):
+    # V = S R / (R + Rref), R = R25 exp(beta (1/T - 1/T25)): at 25 degC with
+    # R25 = Rref the slope is S beta / (4 T^2), so one code of S/1024 spans
+    # 4 T^2 / (1024 beta) degC.
+    constants = model.constants["chamber"]
+    assert constants["thermistor_r25_ohm"] == constants["divider_reference_ohm"]
+    kelvin = 25.0 + 273.15
+    expected = 4.0 * kelvin**2 / (1024.0 * constants["thermistor_beta_k"])
+    assert Chamber(model, 25.0).celsius_per_adc_code(25.0) == pytest.approx(expected, rel=1e-6)
+
+
 def test_thermistor_lag_is_first_order(model):
     tau = model.terms["thermistor_lag"]["time_constant_s"]
     assert tau < 5.0  # paper section 3.1: thermal response below 5 s

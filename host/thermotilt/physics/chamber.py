@@ -12,6 +12,11 @@ from .terms import ChamberTerm, HeatFlows
 from .terms.lag import LagFraction
 
 _ZERO_CELSIUS_K = 273.15
+# The AVR's ADC gives V_in * 1024 / V_ref, the reference the dividers'
+# supply (datasheet; lib/Thermistor).
+ADC_CODES = 1024
+# The span of a central difference of the divider's voltage, degC.
+_DIFFERENCE_C = 0.01
 _LINKS = (("inner", "outer"), ("inner", "ambient"), ("outer", "ambient"))
 
 
@@ -179,6 +184,13 @@ class Chamber:
         under the reference resistor from the supply."""
         inner_c, outer_c = self.readings_c()
         return self._divider_millivolts(inner_c), self._divider_millivolts(outer_c)
+
+    def celsius_per_adc_code(self, celsius: float) -> float:
+        """How many degC one ADC code spans at a thermistor temperature."""
+        millivolts_per_c = (
+            self._divider_millivolts(celsius - _DIFFERENCE_C) - self._divider_millivolts(celsius + _DIFFERENCE_C)
+        ) / (2.0 * _DIFFERENCE_C)
+        return self._supply_mv / ADC_CODES / millivolts_per_c
 
     def _divider_millivolts(self, celsius: float) -> float:
         kelvin = celsius + _ZERO_CELSIUS_K
