@@ -13,10 +13,16 @@ from child_process import THERMOTILT, run
 from scipy import stats
 
 from thermotilt.discovery.candidates import BY_NAME
-from thermotilt.discovery.hide import hide_effect, ramp_inputs, staircase_inputs
+from thermotilt.discovery.hide import (
+    ADC_CONVERSIONS_PER_READING,
+    ADC_NOISE_CODES,
+    hide_effect,
+    ramp_inputs,
+    staircase_inputs,
+)
 from thermotilt.discovery.replay import Replay, load_measured
 from thermotilt.discovery.search import Search
-from thermotilt.physics import Model
+from thermotilt.physics import Chamber, Model
 from thermotilt.physics.document import with_values, write_model
 
 # Every candidate on the channel it is sized on, on staircase_inputs' three
@@ -267,17 +273,38 @@ def test_a_channel_without_its_column_is_skipped_and_said(tmp_path: Path) -> Non
 
 @pytest.mark.slow
 @pytest.mark.twin
-def test_runs_on_the_same_inputs_share_their_replays_and_none_can_change_them(inputs: Path, tmp_path: Path) -> None:
+def test_replays_of_the_same_inputs_share_their_parts_and_none_can_change_them(inputs: Path, tmp_path: Path) -> None:
     hide_effect(inputs, tmp_path / "a", "none", seed=1, noise="white")
-    hide_effect(inputs, tmp_path / "b", "hysteresis", seed=2, snr=2.0, channel="Y")
+    hide_effect(inputs, tmp_path / "b", "none", seed=2, noise="white")
     model = Model.load()
     first = Replay(load_measured(tmp_path / "a"))(model)
-    second = Replay(load_measured(tmp_path / "b"))(model)
-    assert all(first[channel] is second[channel] for channel in ("temperature", "X", "Y", "Z"))
+    again = Replay(load_measured(tmp_path / "a"))(model)
+    assert all(first[channel] is again[channel] for channel in ("temperature", "X", "Y", "Z"))
     with pytest.raises(ValueError, match="read-only"):
         first["X"][0] = 0.0
-    moved = Replay(load_measured(tmp_path / "b"))(BY_NAME["hysteresis"].changed(model, {"Y": 10.0}))
+    # Another run on the same base has its own ADC noise on the inner
+    # reading, so the face its sensor replay is driven by is its own.
+    other = Replay(load_measured(tmp_path / "b"))(model)
+    assert other["temperature"] is not first["temperature"]
+    assert not np.array_equal(other["temperature"], first["temperature"])
+    moved = Replay(load_measured(tmp_path / "a"))(BY_NAME["hysteresis"].changed(model, {"Y": 10.0}))
     assert moved["Y"] is not first["Y"] and not np.array_equal(moved["Y"], first["Y"])
+
+
+def test_hidden_runs_read_the_chamber_with_their_own_adc_noise(inputs: Path, tmp_path: Path) -> None:
+    runs = []
+    for seed in (1, 2):
+        hide_effect(inputs, tmp_path / str(seed), "none", seed=seed, noise="white")
+        runs.append(load_measured(tmp_path / str(seed)))
+    new = runs[0].status
+    difference = (runs[0].chamber_c - runs[1].chamber_c)[new]
+    chamber = Chamber(Model.load(), 20.0)
+    spans = np.array([chamber.celsius_per_adc_code(c) for c in runs[0].chamber_c[new]])
+    # Two runs' noise and the CHS frame's 0.01 degC rounding of each reading.
+    per_reading = ADC_NOISE_CODES / np.sqrt(ADC_CONVERSIONS_PER_READING) * spans
+    expected = np.sqrt(np.mean(2.0 * per_reading**2 + 2.0 * 0.01**2 / 12.0))
+    # The sample SD's relative standard error is about 1/sqrt(2n): four of them.
+    assert abs(np.std(difference) / expected - 1.0) < 4.0 / np.sqrt(2.0 * len(difference))
 
 
 def test_every_candidate_is_a_registered_term() -> None:

@@ -31,7 +31,7 @@ import numpy as np
 from scipy.signal import lfilter
 
 from .. import native
-from ..physics import Model
+from ..physics import Chamber, Model
 from ..physics.document import with_values
 from ..physics.sensor import sensor_series
 from ..physics.terms.lag import first_order
@@ -67,6 +67,14 @@ WANDER_ROW_CORRELATION = {"ar1-0.99": 0.99, "ar1-0.999": 0.999}
 DEFAULT_SNR_RANGE = (0.5, 8.0)
 # The chamber reports its readings to 0.01 degC (CHS, firmware/thermal_chamber).
 CHS_DECIMALS = 2
+# The thermistors' ADC noise, which the twin's readings lack (simavr converts
+# the divider's voltage exactly): assumed 0.5 code RMS per conversion, a
+# quarter of the ATmega2560's typical absolute accuracy (datasheet, ADC
+# characteristics: 2 codes, its static errors included). A reading averages
+# two conversions (firmware/thermal_chamber), so sqrt(2) less, in degC at
+# the reading's temperature (Chamber.celsius_per_adc_code).
+ADC_NOISE_CODES = 0.5
+ADC_CONVERSIONS_PER_READING = 2
 # The firmware's frame cadence (firmware/imu_reader DEFAULT_DECIMATION).
 DECIMATION = 10
 # The chamber's columns, copied from the input run's nearest row.
@@ -169,21 +177,45 @@ def thermistor_reading(time_s: np.ndarray, face_c: np.ndarray, model: Model) -> 
     return reading
 
 
+def _frame_rows(inputs: Measured, processed: Mapping[str, np.ndarray], frames: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The frames' times, the input row each falls in, and which frames
+    show a new chamber status."""
+    time_s = processed["grid_time_s"][frames]
+    row = np.minimum(np.searchsorted(inputs.time_s, time_s, side="right") - 1, len(inputs.time_s) - 1)
+    status = inputs.status[row] & (np.diff(row, prepend=-1) != 0)
+    status[0] = True
+    return time_s, row, status
+
+
+def adc_noise_c(
+    inputs: Measured, processed: Mapping[str, np.ndarray], frames: np.ndarray, model: Model, seed: int
+) -> np.ndarray:
+    """The thermistors' ADC noise on each new reading (ADC_NOISE_CODES), in
+    degC at the reading, inner and outer (2 x new readings); its own
+    generator, so the run with the effect gets the same noise."""
+    _, row, status = _frame_rows(inputs, processed, frames)
+    chamber = Chamber(model, float(inputs.ambient_c[0]))
+    readings = np.stack([inputs.chamber_c[row][status], inputs.outer_c[row][status]])
+    codes = ADC_NOISE_CODES / math.sqrt(ADC_CONVERSIONS_PER_READING)
+    spans = np.vectorize(chamber.celsius_per_adc_code)(readings)
+    return codes * spans * np.random.default_rng([seed, 2]).standard_normal(readings.shape)
+
+
 def _frames_measured(
     inputs: Measured,
     processed: Mapping[str, np.ndarray],
     frames: np.ndarray,
     model: Model,
+    noise_c: np.ndarray,
     change: ChamberChange | None = None,
 ) -> Measured:
     """The generated frames as a Measured: the same inputs at the frame
-    times, the inner face as its thermistor reads it and each reading held
-    from one chamber status frame to the next, as a logger holds them; with
-    a chamber effect's change on the readings."""
-    time_s = processed["grid_time_s"][frames]
-    row = np.minimum(np.searchsorted(inputs.time_s, time_s, side="right") - 1, len(inputs.time_s) - 1)
-    status = inputs.status[row] & (np.diff(row, prepend=-1) != 0)
-    status[0] = True
+    times, the inner face as its thermistor reads it, each new reading with
+    its ADC noise (noise_c, adc_noise_c) and held from one chamber status
+    frame to the next, as a logger holds them; with a chamber effect's
+    change on the readings."""
+    time_s, row, status = _frame_rows(inputs, processed, frames)
+    new = np.flatnonzero(status)
     held = np.cumsum(status) - 1
     face_c = inputs.chamber_c if change is None else inputs.chamber_c + change.face_c
     reading_c = thermistor_reading(time_s, np.interp(time_s, inputs.time_s, face_c), model)
@@ -191,7 +223,8 @@ def _frames_measured(
     if change is not None:
         reading_c = reading_c + change.inner_offset_c
         outer_c = outer_c + change.outer_c[row]
-    reading_c = reading_c[np.flatnonzero(status)][held]
+    reading_c = (reading_c[new] + noise_c[0])[held]
+    outer_c = (outer_c[new] + noise_c[1])[held]
     values = _channel_values(processed, frames)
     values.update(inner=reading_c, outer=outer_c)
     mounting = inputs.mounting[row]
@@ -325,7 +358,8 @@ def hide_effect(
     say("generating the noise")
     processed = _generate(faces, base_model, seed, noise)
     frames = np.flatnonzero(processed["frame_due"])
-    generated = _frames_measured(faces, processed, frames, model)
+    noise_c = adc_noise_c(faces, processed, frames, model, seed)
+    generated = _frames_measured(faces, processed, frames, model, noise_c)
 
     truth_model = base_model
     hidden: dict[str, object] = {
@@ -368,7 +402,7 @@ def hide_effect(
         say("generating the run with the effect")
         if channel in CHAMBER_CHANNELS:
             change = ChamberChange.of(inputs, model, candidate.changed(model, {channel: value}))
-            generated = _frames_measured(faces, processed, frames, model, change)
+            generated = _frames_measured(faces, processed, frames, model, noise_c, change)
             processed = _generate(replace(faces, chamber_c=faces.chamber_c + change.face_c), truth_model, seed, noise)
         else:
             processed = _generate(faces, truth_model, seed, noise)
