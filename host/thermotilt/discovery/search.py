@@ -257,7 +257,7 @@ class UndeclaredFlicker:
 
     def fitted(self, values: np.ndarray) -> np.ndarray:
         """The lower Cholesky factor of the fitted covariance."""
-        left = values - self.design @ np.linalg.lstsq(self.design, values, rcond=None)[0]
+        left = _left_by(self.design, values)
         scale = max(float(np.mean(left**2)), 1e-12)
 
         def restricted_deviance(theta: np.ndarray) -> float:
@@ -276,6 +276,11 @@ class UndeclaredFlicker:
         bounds = [(LOG_LEVEL_MIN, LOG_LEVEL_MAX)] * 2
         theta = minimize(restricted_deviance, np.log([0.1, 0.5]), method="L-BFGS-B", bounds=bounds).x
         return np.linalg.cholesky(self.covariance(theta, scale))
+
+
+def _left_by(design: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """What a least-squares fit of the design's columns leaves of values."""
+    return values - design @ np.linalg.lstsq(design, values, rcond=None)[0]
 
 
 def _position_ar1(left: np.ndarray, same: np.ndarray, mounting: np.ndarray) -> np.ndarray:
@@ -360,8 +365,7 @@ class Channel:
         if self.name in ACCELERATION_CHANNELS:
             lower = UndeclaredFlicker(design, declared, lag_s, block_s).fitted(noise_blocks)
         else:
-            left = noise_blocks - design @ np.linalg.lstsq(design, noise_blocks, rcond=None)[0]
-            lower = np.linalg.cholesky(declared + _position_ar1(left, same, self._mounting))
+            lower = np.linalg.cholesky(declared + _position_ar1(_left_by(design, noise_blocks), same, self._mounting))
 
         def whiten(values: np.ndarray) -> np.ndarray:
             return solve_triangular(lower, values, lower=True)
@@ -379,7 +383,7 @@ class Channel:
         """What of whitened blocks the nuisance columns do not explain."""
         if not self.nuisance_w.shape[1]:
             return whitened
-        return whitened - self.nuisance_w @ np.linalg.lstsq(self.nuisance_w, whitened, rcond=None)[0]
+        return _left_by(self.nuisance_w, whitened)
 
     def testable(self, regressor: np.ndarray) -> bool:
         g = self.whiten(regressor)
