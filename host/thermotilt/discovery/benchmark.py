@@ -12,6 +12,7 @@ itself (`Task.seed`).
 from __future__ import annotations
 
 import csv
+import functools
 import hashlib
 import subprocess
 import sys
@@ -22,6 +23,8 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
+
+import numpy as np
 
 from .candidates import BY_NAME, CANDIDATES
 from .noise_families import NOISE_FAMILIES
@@ -57,9 +60,23 @@ COLUMNS = (
     "seconds",
     "method",
 )
-# What a run's outcome depends on: a change to any of these makes every row
-# of the record stale (method_digest).
-METHOD_SOURCES = ("discovery", "physics", "run", "native.py", "models")
+# The Python a run's outcome depends on (the report, the rates and the
+# command line do not): a change to any of these makes every row of the
+# record stale (method_digest), as does a change in what the native
+# library computes.
+METHOD_SOURCES = (
+    "discovery/benchmark.py",
+    "discovery/candidates.py",
+    "discovery/hide.py",
+    "discovery/noise_families.py",
+    "discovery/replay.py",
+    "discovery/search.py",
+    "physics",
+    "run",
+    "models",
+    "native.py",
+    "surfaces.py",
+)
 
 
 @dataclass(frozen=True)
@@ -246,9 +263,15 @@ def run_task(task: Task, base_csv: bytes) -> dict[str, Any]:
     }
 
 
+@functools.cache
 def method_digest() -> str:
-    """A digest of the sources a run's outcome depends on (METHOD_SOURCES):
-    rows made by other sources are stale and run again."""
+    """A digest of what a run's outcome depends on: the Python sources
+    (METHOD_SOURCES) as this process first read them, and the native
+    library's outputs on a fixed input, so that a change to the firmware's
+    processing counts and a change that computes the same does not. Rows
+    made by another method are stale and run again."""
+    from .. import native
+
     package = Path(__file__).resolve().parents[1]
     digest = hashlib.blake2b(digest_size=6)
     for source in METHOD_SOURCES:
@@ -258,6 +281,15 @@ def method_digest() -> str:
             if file.suffix in (".py", ".toml") and file.is_file():
                 digest.update(file.relative_to(package).as_posix().encode())
                 digest.update(file.read_bytes())
+    rng = np.random.default_rng(0)
+    samples = 6000
+    ramp_c = 20.0 + 10.0 * np.sin(np.linspace(0.0, 3.0 * np.pi, samples))
+    axes = [np.rint(level + 20.0 * rng.standard_normal(samples)) for level in (8000.0, -3000.0, 14000.0)]
+    reset = np.zeros(samples, dtype=bool)
+    reset[::1500] = True
+    processed = native.imu_process_unrounded(*axes, ramp_c, reset)
+    for name in sorted(processed):
+        digest.update(np.ascontiguousarray(processed[name]).tobytes())
     return digest.hexdigest()
 
 
