@@ -37,7 +37,7 @@ from ..physics.sensor import sensor_series
 from ..physics.terms.lag import first_order
 from ..run import SETTLE_S
 from ..run.folder import RunFolder
-from ..run.log import RunLogWriter, format_number, read_run_columns
+from ..run.log import RunLogWriter, format_numbers, read_run_columns
 from .candidates import BY_NAME, CANDIDATES, Candidate
 from .noise_families import NOISE_FAMILIES
 from .replay import (
@@ -446,39 +446,47 @@ def _write_run(
     # chamber_c and outer_c are the generated readings (the inner one of the
     # face the sensor saw); the other chamber cells are the input's row at or
     # before the frame, as a logger holds the last CHS frame.
+    cells = {
+        column: (
+            [columns.texts[column][row] for row in nearest.tolist()]
+            if column in columns.texts
+            else format_numbers(columns.numbers[column][nearest].tolist(), 3)
+        )
+        for column in _CHAMBER_COLUMNS
+    }
 
-    def cell(column: str, row: int) -> str:
-        if column in columns.texts:
-            return columns.texts[column][row]
-        return format_number(float(columns.numbers[column][row]), 3)
+    def numbers(values: np.ndarray, decimals: int) -> list[str]:
+        return format_numbers(values.astype(float).tolist(), decimals)
 
+    def integers(values: np.ndarray) -> list[str]:
+        return [str(value) for value in values.astype(np.int64).tolist()]
+
+    cells.update(
+        time_s=numbers(time_s, 3),
+        chamber_c=numbers(chamber_c, CHS_DECIMALS),
+        outer_c=numbers(outer_c, CHS_DECIMALS),
+        imu_temp_c=numbers(processed["temp_c"][frames], 3),
+        incl_x_deg=numbers(processed["incl_x"][frames], 3),
+        incl_y_deg=numbers(processed["incl_y"][frames], 3),
+        since_move_s=numbers(since_move, 3),
+        ax_raw=integers(processed["raw_x"][frames]),
+        ay_raw=integers(processed["raw_y"][frames]),
+        az_raw=integers(processed["raw_z"][frames]),
+        ax_filt=numbers(processed["ax_filt"][frames], 1),
+        ay_filt=numbers(processed["ay_filt"][frames], 1),
+        az_filt=numbers(processed["az_filt"][frames], 1),
+        ax_comp=numbers(processed["ax_comp"][frames], 1),
+        ay_comp=numbers(processed["ay_comp"][frames], 1),
+        az_comp=numbers(processed["az_comp"][frames], 1),
+        comp_set=["C" if value else "W" for value in processed["set"][frames].tolist()],
+        coef_source=["D"] * len(frames),
+        imu_seq=[str(index % 65536) for index in range(len(frames))],
+    )
+    names = list(cells)
     with open(path, "w", newline="", encoding="utf-8") as stream:
         writer = RunLogWriter(stream, with_truth=False, flush_each_row=False)
-        for index, sample in enumerate(frames.tolist()):
-            row = int(nearest[index])
-            values = {column: cell(column, row) for column in _CHAMBER_COLUMNS}
-            values.update(
-                time_s=format_number(float(time_s[index]), 3),
-                chamber_c=format_number(float(chamber_c[index]), CHS_DECIMALS),
-                outer_c=format_number(float(outer_c[index]), CHS_DECIMALS),
-                imu_temp_c=format_number(float(processed["temp_c"][sample]), 3),
-                incl_x_deg=format_number(float(processed["incl_x"][sample]), 3),
-                incl_y_deg=format_number(float(processed["incl_y"][sample]), 3),
-                since_move_s=format_number(float(since_move[index]), 3),
-                ax_raw=str(int(processed["raw_x"][sample])),
-                ay_raw=str(int(processed["raw_y"][sample])),
-                az_raw=str(int(processed["raw_z"][sample])),
-                ax_filt=format_number(float(processed["ax_filt"][sample]), 1),
-                ay_filt=format_number(float(processed["ay_filt"][sample]), 1),
-                az_filt=format_number(float(processed["az_filt"][sample]), 1),
-                ax_comp=format_number(float(processed["ax_comp"][sample]), 1),
-                ay_comp=format_number(float(processed["ay_comp"][sample]), 1),
-                az_comp=format_number(float(processed["az_comp"][sample]), 1),
-                comp_set="C" if processed["set"][sample] else "W",
-                coef_source="D",
-                imu_seq=str(index % 65536),
-            )
-            writer.write_row(values)
+        for row in zip(*cells.values()):
+            writer.write_row(dict(zip(names, row)))
 
 
 def staircase_inputs(

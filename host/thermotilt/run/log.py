@@ -13,7 +13,7 @@ from __future__ import annotations
 import csv
 import io
 import math
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import IO, Any
 
@@ -67,14 +67,23 @@ TRUE_COLUMNS: tuple[str, ...] = (
 ALL_COLUMNS: tuple[str, ...] = COLUMNS + TRUE_COLUMNS
 
 
-def format_number(value: float | None, decimals: int) -> str:
+def format_numbers(values: Iterable[float | None], decimals: int) -> list[str]:
     """Fixed decimals, so the same run always writes the same bytes; NaN and
     None (unknown) are empty cells."""
-    if value is None or math.isnan(value):
-        return ""
-    text = f"{value:.{decimals}f}"
-    # "-0.000" and "0.000" are the same number; write it one way.
-    return text[1:] if text.startswith("-") and float(text) == 0 else text
+    pattern = f"{{:.{decimals}f}}".format
+    texts = []
+    for value in values:
+        if value is None or math.isnan(value):
+            texts.append("")
+            continue
+        text = pattern(value)
+        # "-0.000" and "0.000" are the same number; write it one way.
+        texts.append(text[1:] if text[0] == "-" and not text.strip("-0.") else text)
+    return texts
+
+
+def format_number(value: float | None, decimals: int) -> str:
+    return format_numbers((value,), decimals)[0]
 
 
 class RunLogWriter:
