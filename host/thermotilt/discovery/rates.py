@@ -90,8 +90,8 @@ def report(rows: list[Row]) -> str:
         "| noise | runs | staircase | cycle | named anything | target |",
         "|---|---|---|---|---|---|",
     ]
-    for noise in NOISE_FAMILIES:
-        family = [r for r in null if r["noise"] == noise]
+    families = [(noise, [r for r in null if r["noise"] == noise]) for noise in NOISE_FAMILIES]
+    for noise, family in [*families, ("all", null)]:
         if not family:
             continue
         overall = rate(family, lambda r: r["verdict"] == FOUND)
@@ -186,7 +186,11 @@ def figure(rows: list[Row], path: Path) -> None:
 
     effect = [r for r in rows if r["kind"] == EFFECT]
     null = [r for r in rows if r["kind"] == NULL]
+    from matplotlib.ticker import NullFormatter
+
     fig, (power, false) = plt.subplots(1, 2, figsize=(11, 4.2), gridspec_kw={"width_ratios": [3, 2]})
+    colours = plt.get_cmap("tab20")(np.linspace(0.0, 1.0, len(CANDIDATES), endpoint=False))
+    markers = "osD^v<>ph*X"
     for offset, candidate in enumerate(CANDIDATES):
         mine = [r for r in effect if r["effect"] == candidate.name]
         if not mine:
@@ -196,12 +200,20 @@ def figure(rows: list[Row], path: Path) -> None:
         shares = np.array([r.share for r in rates])
         bounds = np.array([r.interval for r in rates]).T
         power.errorbar(
-            x, shares, yerr=np.abs(bounds - shares), marker="o", markersize=3, capsize=2, label=candidate.name
+            x,
+            shares,
+            yerr=np.abs(bounds - shares),
+            color=colours[offset],
+            marker=markers[offset % len(markers)],
+            markersize=4,
+            capsize=2,
+            label=candidate.name,
         )
     power.axhline(MIN_RIGHT_AT_2, color="grey", linestyle=":", linewidth=1)
     power.axhline(MIN_RIGHT_AT_1, color="grey", linestyle=":", linewidth=1)
     power.set_xscale("log")
     power.set_xticks(SNRS, [f"{snr:g}" for snr in SNRS])
+    power.xaxis.set_minor_formatter(NullFormatter())
     power.set_xlabel("SNR (effect RMS / noise RMS)")
     power.set_ylabel("named right")
     power.set_ylim(-0.02, 1.02)
