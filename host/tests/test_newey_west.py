@@ -27,5 +27,6 @@ def test_the_covariance_and_bounds_are_statsmodels(maxlags, lengths):
     ols = sm.OLS(endog, exog).fit(method="qr")
     reference = ols.get_robustcov_results(cov_type="hac-panel", groups=groups, maxlags=maxlags)
     # Lags beyond a group's length: statsmodels leaves that group out of those lags, as here.
-    np.testing.assert_allclose(hac_panel_covariance(ols, groups, maxlags), reference.cov_params(), rtol=1e-9)
-    np.testing.assert_allclose(hac_panel_bounds(ols, groups, maxlags, 0.95), reference.conf_int(0.05), rtol=1e-9)
+    covariance = hac_panel_covariance(ols, groups, maxlags)
+    np.testing.assert_allclose(covariance, reference.cov_params(), rtol=1e-9)
+    np.testing.assert_allclose(hac_panel_bounds(ols, groups, covariance, 0.95), reference.conf_int(0.05), rtol=1e-9)

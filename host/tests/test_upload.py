@@ -15,6 +15,7 @@ import struct
 from pathlib import Path
 from types import SimpleNamespace
 
+import numpy as np
 import pytest
 import serial
 from child_process import thermotilt as run
@@ -60,6 +61,7 @@ def write_fit(out_dir: Path, surfaces=FITTED) -> Path:
             tuple((v, v) for v in surface),
             tuple((v, v) for v in surface),
             10,
+            np.zeros((6, 6)),
             1.0,
             0.9,
             0.9,

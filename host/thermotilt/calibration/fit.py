@@ -23,7 +23,7 @@ from statsmodels.tsa.stattools import acf
 from ..surfaces import AXES, COEFFICIENT_NAMES, SETS, ZERO_SURFACE, CoefficientTable, Surface
 from ..wire.coefficients import encode_block
 from .dataset import FIT_AXES, CalibrationDataError, Campaign, SetData
-from .newey_west import hac_panel_bounds
+from .newey_west import hac_panel_bounds, hac_panel_covariance
 
 # Powers of (T, a) for p00, p10, p01, p20, p11, p02.
 _POWERS = ((0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2))
@@ -55,6 +55,8 @@ class SurfaceFit:
     ols_bounds: tuple[tuple[float, float], ...]  # per term, OLS 95 %
     hac_bounds: tuple[tuple[float, float], ...]  # per term, HAC 95 % within positions
     hac_lags: int
+    # The HAC covariance of the coefficients on design()'s scaled columns.
+    hac_covariance: np.ndarray
     sse: float
     r_squared: float
     adjusted_r_squared: float
@@ -133,6 +135,7 @@ def fit_surface(data: SetData, set_name: str, axis: str) -> SurfaceFit:
     # short positions (37 of them in a full campaign) reach that first.
     shortest = int(np.min(np.unique(data.position, return_counts=True)[1]))
     lags = min(hac_lags(ols.resid), max(1, shortest - 1))
+    covariance = hac_panel_covariance(ols, data.position, lags)
     unscale = _unscale()
 
     def scaled_back(bounds: np.ndarray) -> tuple[tuple[float, float], ...]:
@@ -144,8 +147,9 @@ def fit_surface(data: SetData, set_name: str, axis: str) -> SurfaceFit:
         points=points,
         surface=Surface(*(float(value) for value in ols.params * unscale)),
         ols_bounds=scaled_back(ols.conf_int(1.0 - CONFIDENCE)),
-        hac_bounds=scaled_back(hac_panel_bounds(ols, data.position, lags, CONFIDENCE)),
+        hac_bounds=scaled_back(hac_panel_bounds(ols, data.position, covariance, CONFIDENCE)),
         hac_lags=lags,
+        hac_covariance=covariance,
         sse=float(ols.ssr),
         r_squared=float(ols.rsquared),
         adjusted_r_squared=float(ols.rsquared_adj),

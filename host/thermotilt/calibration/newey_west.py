@@ -63,8 +63,11 @@ def hac_panel_covariance(ols: RegressionResults, groups: np.ndarray, maxlags: in
     return covariance * observations / (observations - parameters)
 
 
-def hac_panel_bounds(ols: RegressionResults, groups: np.ndarray, maxlags: int, confidence: float) -> np.ndarray:
-    """(lower, upper) per parameter: t bounds on groups - 1 degrees of freedom."""
-    errors = np.sqrt(np.diag(hac_panel_covariance(ols, groups, maxlags)))
+def hac_panel_bounds(
+    ols: RegressionResults, groups: np.ndarray, covariance: np.ndarray, confidence: float
+) -> np.ndarray:
+    """(lower, upper) per parameter from its hac_panel_covariance: t bounds
+    on groups - 1 degrees of freedom."""
+    errors = np.sqrt(np.diag(covariance))
     quantile = stats.t.ppf(0.5 + confidence / 2.0, len(group_bounds(groups)) - 1)
     return np.column_stack([ols.params - quantile * errors, ols.params + quantile * errors])
