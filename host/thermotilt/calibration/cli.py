@@ -276,6 +276,7 @@ def _finish_campaign(outcome: CampaignOutcome, out_dir: Path) -> int:
 
 
 def _fit(args: argparse.Namespace) -> int:
+    from .certificate import certify, write_certificate
     from .dataset import CalibrationDataError, load
     from .families import compare_families, format_families, write_families
     from .fit import fit_campaign, format_table, write_outputs
@@ -284,6 +285,7 @@ def _fit(args: argparse.Namespace) -> int:
     try:
         campaign = load(Path(args.campaign), settle_s=args.settle_seconds)
         fits = fit_campaign(campaign, tuple(args.axes))
+        certificate, errors = certify(campaign, fits, Path(args.campaign))
         families = compare_families(campaign, tuple(args.axes)) if args.compare_families else None
     except CalibrationDataError as error:
         raise UsageError(str(error)) from None
@@ -293,6 +295,7 @@ def _fit(args: argparse.Namespace) -> int:
         if families is not None:
             write_families(families, out_dir)
         report = write_fit_report(out_dir, fits, campaign, format_families(families) if families else None)
+        write_certificate(out_dir, certificate, errors)
     except OSError as error:
         raise UsageError(f"cannot write {out_dir}: {error.strerror or error}") from None
     print(
@@ -311,9 +314,15 @@ def _fit(args: argparse.Namespace) -> int:
     )
     if families is not None:
         print(format_families(families))
+    uncertainty = certificate["uncertainty"]
+    print(
+        f"tilt uncertainty over the calibrated domain: U = {certificate['tilt_u95_deg']:.4f} deg "
+        f"(95 %, k = {uncertainty['coverage_factor']:.2f}; {uncertainty['rows']} rows worth "
+        f"{uncertainty['effective_rows']:.0f} independent values)"
+    )
     print(
         f"wrote {out_dir / 'coefficients.json'}, coefficients.bin (EEPROM block), coefficients.h, "
-        f"{report.name} with figures"
+        f"{report.name} with figures, certificate.json and certificate.html"
     )
     return 0
 
