@@ -14,6 +14,7 @@ from __future__ import annotations
 import csv
 import functools
 import hashlib
+import json
 import subprocess
 import sys
 import tempfile
@@ -60,10 +61,10 @@ COLUMNS = (
     "seconds",
     "method",
 )
-# The Python a run's outcome depends on (the report, the rates and the
-# command line do not): a change to any of these makes every row of the
-# record stale (method_digest), as does a change in what the native
-# library computes.
+# The Python a run's outcome depends on (not the report, the rates or the
+# command line; the model file's parser by what it reads, below): a change
+# to any of these makes every row of the record stale (method_digest), as
+# does a change in the default model or in what the native library computes.
 METHOD_SOURCES = (
     "discovery/benchmark.py",
     "discovery/candidates.py",
@@ -71,9 +72,15 @@ METHOD_SOURCES = (
     "discovery/noise_families.py",
     "discovery/replay.py",
     "discovery/search.py",
-    "physics",
-    "run",
-    "models",
+    "physics/sensor.py",
+    "physics/chamber.py",
+    "physics/document.py",
+    "physics/parameters.py",
+    "physics/terms",
+    "run/__init__.py",
+    "run/folder.py",
+    "run/log.py",
+    "run/positions.py",
     "native.py",
     "surfaces.py",
 )
@@ -266,11 +273,13 @@ def run_task(task: Task, base_csv: bytes) -> dict[str, Any]:
 @functools.cache
 def method_digest() -> str:
     """A digest of what a run's outcome depends on: the Python sources
-    (METHOD_SOURCES) as this process first read them, and the native
-    library's outputs on a fixed input, so that a change to the firmware's
-    processing counts and a change that computes the same does not. Rows
-    made by another method are stale and run again."""
+    (METHOD_SOURCES) as this process first read them, the default model as
+    loaded, and the native library's outputs on a fixed input, so that a
+    change to the firmware's processing counts and a change that computes
+    the same does not. Rows made by another method are stale and run again."""
     from .. import native
+    from ..physics import Model
+    from ..physics.document import model_document
 
     package = Path(__file__).resolve().parents[1]
     digest = hashlib.blake2b(digest_size=6)
@@ -281,6 +290,7 @@ def method_digest() -> str:
             if file.suffix in (".py", ".toml") and file.is_file():
                 digest.update(file.relative_to(package).as_posix().encode())
                 digest.update(file.read_bytes())
+    digest.update(json.dumps(model_document(Model.load()), sort_keys=True).encode())
     rng = np.random.default_rng(0)
     samples = 6000
     ramp_c = 20.0 + 10.0 * np.sin(np.linspace(0.0, 3.0 * np.pi, samples))
