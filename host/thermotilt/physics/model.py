@@ -12,6 +12,7 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any, TypeVar
 
+from .batch import BatchSensor, population_entries, read_sensors
 from .faults import Fault, read_faults, shown
 from .parameters import ModelError, Parameter
 from .terms import HARDWARE, REGISTRY, Section, Term
@@ -41,6 +42,8 @@ class Model:
     faults: tuple[Fault, ...] = ()
     # "chamber" and "sensor": properties of the hardware that no switch removes.
     constants: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    # A batch's sensors ([[sensors]]), each differing from the top level.
+    sensors: tuple[BatchSensor, ...] = ()
 
     @classmethod
     def load(cls, path: str | Path | None = None) -> Model:
@@ -64,15 +67,41 @@ class Model:
         """A model from a parsed model file: a table it omits takes its
         registered defaults; a table it has must be complete."""
         for section in document:
-            if section not in DECLARATIONS and section != "faults":
+            if section not in DECLARATIONS and section not in ("faults", "sensors"):
                 raise ModelError(f"{source}: unknown section [{shown(section)}]")
         tables = {name: _read_table(document, name, parameters, source) for name, parameters in DECLARATIONS.items()}
+        terms = MappingProxyType({name: tables[name] for name in TERMS})
         return cls(
             source=source,
-            terms=MappingProxyType({name: tables[name] for name in TERMS}),
+            terms=terms,
             faults=read_faults(document.get("faults", []), source),
             constants=MappingProxyType({name: tables[name] for name in HARDWARE}),
+            sensors=read_sensors(document.get("sensors", []), terms, DECLARATIONS, source),
         )
+
+    def with_population(self, count: int, seed: int) -> Model:
+        """A copy whose batch is count sensors drawn about this model
+        (batch.population_entries), in place of any [[sensors]] it had."""
+        entries = population_entries(self.terms, self.constants["sensor"]["lsb_per_g"], count, seed)
+        return replace(self, sensors=read_sensors(entries, self.terms, DECLARATIONS, f"{self.source} (drawn)"))
+
+    @property
+    def sensor_ids(self) -> tuple[str, ...]:
+        return tuple(sensor.id for sensor in self.sensors)
+
+    def for_sensor(self, sensor_id: str) -> Model:
+        """The model of one sensor of the batch: its terms over the top
+        level's, and no batch."""
+        for sensor in self.sensors:
+            if sensor.id == sensor_id:
+                return replace(
+                    self,
+                    source=f"{self.source} (sensor {sensor_id})",
+                    terms=MappingProxyType({**self.terms, **sensor.terms}),
+                    sensors=(),
+                )
+        known = ", ".join(self.sensor_ids) or "none: the model has no [[sensors]]"
+        raise ModelError(f"{self.source}: no sensor '{sensor_id}' (its sensors: {known})")
 
     def enabled(self, term: str) -> bool:
         self._check_term(term)
