@@ -28,6 +28,7 @@ import signal
 import tempfile
 import time
 import uuid
+import zlib
 from collections.abc import Callable, Iterable
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import asdict, dataclass, field, replace
@@ -44,6 +45,8 @@ if TYPE_CHECKING:
     from distributed import Client
 
 CAMPAIGN_FILE = "campaign.json"
+# A batch campaign's folder: which sensors it holds, each in FOLDER/ID/.
+BATCH_FILE = "batch.json"
 PARTIAL_DIR = ".partial"
 FORMAT = 1
 SEED_MODULUS = 2**64
@@ -74,15 +77,26 @@ class TwinSetup:
     model_path: str | None = None
     enable: tuple[str, ...] = ()
     disable: tuple[str, ...] = ()
+    # One sensor of the model's batch, and a batch of this many drawn about
+    # the model (seeded by seed) instead of its [[sensors]].
+    sensor: str | None = None
+    population: int = 0
 
-    def model(self) -> Any:
+    def batch_model(self) -> Any:
         from ..physics import Model
 
+        model = Model.load(self.model_path)
+        return model.with_population(self.population, self.seed) if self.population else model
+
+    def model(self) -> Any:
         changes = {name: True for name in self.enable} | {name: False for name in self.disable}
-        return Model.load(self.model_path).with_terms(changes)
+        model = self.batch_model()
+        return (model.for_sensor(self.sensor) if self.sensor else model).with_terms(changes)
 
     def position_seed(self, position: Position) -> int:
-        return (self.seed + position.index) % SEED_MODULUS
+        # Each sensor of a batch its own draws, the same for the same ID.
+        offset = zlib.crc32(self.sensor.encode()) if self.sensor else 0
+        return (self.seed + position.index + offset) % SEED_MODULUS
 
 
 @dataclass
@@ -307,6 +321,55 @@ class _Campaign:
         self.file.save()
 
 
+def batch_sensor_ids(setup: TwinSetup) -> tuple[str, ...]:
+    """The sensors a batch campaign runs, one campaign each: those drawn or
+    the model's [[sensors]]; none for one sensor (--sensor, or a model
+    without a batch)."""
+    if setup.sensor:
+        setup.model()
+        return ()
+    return setup.batch_model().sensor_ids
+
+
+def write_batch(out_dir: Path, setup: TwinSetup, sensor_ids: tuple[str, ...]) -> None:
+    """BATCH_FILE: which sensors the folder holds, one campaign folder each."""
+    document = {
+        "format": FORMAT,
+        "sensors": list(sensor_ids),
+        "drawn": setup.population or None,
+        "seed": setup.seed,
+        "model": setup.batch_model().source,
+    }
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        (out_dir / BATCH_FILE).write_text(json.dumps(document, indent=2) + "\n")
+    except OSError as error:
+        raise CampaignError(f"cannot write {out_dir / BATCH_FILE}: {error.strerror or error}") from None
+
+
+def batch_of(folder: Path) -> tuple[str, ...]:
+    """The sensors a batch campaign folder holds (its BATCH_FILE), none for
+    a single sensor's; ValueError, one line, for a BATCH_FILE that is not one."""
+    path = folder / BATCH_FILE
+    if not path.is_file():
+        return ()
+    try:
+        sensors = json.loads(path.read_text(encoding="utf-8"))["sensors"]
+    except (OSError, ValueError, KeyError, TypeError) as error:
+        raise ValueError(f"{path}: not a batch file ({error})") from None
+    if not isinstance(sensors, list) or not all(isinstance(s, str) and s for s in sensors):
+        raise ValueError(f"{path}: sensors must be a list of sensor IDs")
+    return tuple(sensors)
+
+
+def sensor_of(folder: Path) -> str:
+    """The sensor ID a campaign folder's campaign.json names ("" for none)."""
+    try:
+        return str(json.loads((folder / CAMPAIGN_FILE).read_text(encoding="utf-8")).get("sensor") or "")
+    except (OSError, ValueError, AttributeError):
+        return ""
+
+
 class TwinCampaign(_Campaign):
     """A campaign in the twin: the plan checked and campaign.json started
     on construction, the positions not yet done run by ``run``."""
@@ -329,6 +392,7 @@ class TwinCampaign(_Campaign):
             "seed": setup.seed,
             "model": model.source,
             "terms": {name: model.enabled(name) for name in model.terms},
+            **({"sensor": setup.sensor} if setup.sensor else {}),
         }
         self.setup = setup
         self._start(out_dir, positions, header, resume, force)

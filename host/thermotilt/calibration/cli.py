@@ -8,6 +8,7 @@ import argparse
 import json
 import os
 import sys
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -24,7 +25,9 @@ from ..options import (
 )
 
 if TYPE_CHECKING:
-    from .campaign import CampaignOutcome, PositionRecord
+    from distributed import Client
+
+    from .campaign import CampaignOutcome, Position, PositionRecord, TwinSetup
 
 
 def add_commands(commands: argparse._SubParsersAction) -> None:
@@ -48,6 +51,13 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         help="run the twin positions on the Dask cluster of this scheduler, "
         "e.g. tcp://HOST:8786, instead of --jobs local processes",
     )
+    campaign.add_argument(
+        "--sensors",
+        type=within(int, 1, 8),
+        help="twin: draw a batch of this many sensors about the model (IDs TT-01...) and run each; "
+        "a model with [[sensors]] runs its batch without this",
+    )
+    campaign.add_argument("--sensor", metavar="ID", help="twin: run only this sensor of the model's [[sensors]]")
     campaign.add_argument("--imu-port", help="real boards: the IMU reader's serial port")
     campaign.add_argument("--chamber-port", help="real boards: the thermal chamber's serial port")
     campaign.add_argument("--baud", type=int, default=115200, help="real boards' line speed (default 115200)")
@@ -133,19 +143,18 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
 def _campaign(args: argparse.Namespace) -> int:
     from contextlib import ExitStack
 
-    from tqdm import tqdm
-
     from ..cluster import ClusterError, connect_cluster
+    from ..physics import ModelError
     from ..twin.scenarios import ScenarioOptions
     from .campaign import (
         BoardsCampaign,
         BoardsSetup,
         CampaignError,
-        Position,
-        TwinCampaign,
         TwinSetup,
+        batch_sensor_ids,
         select_positions,
         twin_build_problem,
+        write_batch,
     )
 
     boards = args.imu_port is not None or args.chamber_port is not None
@@ -153,6 +162,10 @@ def _campaign(args: argparse.Namespace) -> int:
         raise UsageError("campaign needs --twin, or --imu-port and --chamber-port for real boards")
     if boards and args.scheduler:
         raise UsageError("--scheduler runs twin positions on a Dask cluster; it needs --twin")
+    if boards and (args.sensor or args.sensors):
+        raise UsageError("--sensor and --sensors choose the twin's sensors; real boards are the sensors on the ports")
+    if args.sensor and args.sensors:
+        raise UsageError("--sensors N draws a batch, --sensor ID runs one sensor of the model's batch: give one")
     program = ScenarioOptions(
         hold_s=args.hold_seconds,
         rest_s=args.rest_seconds,
@@ -197,44 +210,71 @@ def _campaign(args: argparse.Namespace) -> int:
                     resume=args.resume,
                     force=args.force,
                 )
-            else:
-                campaign = TwinCampaign(
-                    out_dir,
-                    positions,
-                    TwinSetup(
-                        program,
-                        seed=args.seed,
-                        model_path=args.model,
-                        enable=tuple(args.enable),
-                        disable=tuple(args.disable),
-                    ),
-                    resume=args.resume,
-                    force=args.force,
+                done = len(campaign.positions) - len(campaign.todo)
+                print(
+                    f"campaign of {len(campaign.positions)} positions on {args.imu_port} and "
+                    f"{args.chamber_port} -> {out_dir}"
+                    + (f" ({done} already done)" if done else "")
+                    + f": {len(campaign.todo)} to run",
+                    flush=True,
                 )
-        except (CampaignError, ClusterError) as error:
+                return _finish_campaign(campaign.run(on_position=report_position), out_dir)
+            setup = TwinSetup(
+                program,
+                seed=args.seed,
+                model_path=args.model,
+                enable=tuple(args.enable),
+                disable=tuple(args.disable),
+                sensor=args.sensor,
+                population=args.sensors or 0,
+            )
+            sensor_ids = batch_sensor_ids(setup)
+        except (CampaignError, ClusterError, ModelError) as error:
             raise UsageError(str(error)) from None
-        done = len(campaign.positions) - len(campaign.todo)
-        where = f" on {args.imu_port} and {args.chamber_port}" if boards else ""
-        print(
-            f"campaign of {len(campaign.positions)} positions{where} -> {out_dir}"
-            + (f" ({done} already done)" if done else "")
-            + f": {len(campaign.todo)} to run",
-            end="",
-        )
-        if boards:
-            print(flush=True)
-            return _finish_campaign(campaign.run(on_position=report_position), out_dir)
-        jobs = min(args.jobs, max(1, len(campaign.todo)))
-        if cluster is None:
-            running_on = f"{jobs} at a time"
-        else:
-            threads = sum(cluster.nthreads().values())
-            running_on = f"on the Dask cluster at {args.scheduler} ({threads} worker threads)"
-        print(f", {campaign.position_seconds:.0f} s simulated each at most, {running_on}", flush=True)
-        total = round(len(campaign.todo) * campaign.position_seconds)
-        with tqdm(total=total, unit="sim s", disable=None, file=sys.stderr) as bar:
-            outcome = campaign.run(jobs, progress=bar.update, on_position=report_position, cluster=cluster)
-        return _finish_campaign(outcome, out_dir)
+        if not sensor_ids:
+            return _twin_campaign(out_dir, positions, setup, args, cluster)
+        print(f"a batch of {len(sensor_ids)} sensors ({', '.join(sensor_ids)}), one campaign each -> {out_dir}")
+        try:
+            write_batch(out_dir, setup, sensor_ids)
+        except CampaignError as error:
+            raise UsageError(str(error)) from None
+        for sensor_id in sensor_ids:
+            print(f"== sensor {sensor_id}", flush=True)
+            status = _twin_campaign(out_dir / sensor_id, positions, replace(setup, sensor=sensor_id), args, cluster)
+            if status != 0:
+                return status
+        print(f"every sensor done; fit them with: thermotilt fit {out_dir} --out FIT_DIR (a folder per sensor)")
+        return 0
+
+
+def _twin_campaign(
+    out_dir: Path, positions: list[Position], setup: TwinSetup, args: argparse.Namespace, cluster: Client | None
+) -> int:
+    from tqdm import tqdm
+
+    from .campaign import CampaignError, TwinCampaign
+
+    try:
+        campaign = TwinCampaign(out_dir, positions, setup, resume=args.resume, force=args.force)
+    except CampaignError as error:
+        raise UsageError(str(error)) from None
+    done = len(campaign.positions) - len(campaign.todo)
+    jobs = min(args.jobs, max(1, len(campaign.todo)))
+    if cluster is None:
+        running_on = f"{jobs} at a time"
+    else:
+        threads = sum(cluster.nthreads().values())
+        running_on = f"on the Dask cluster at {args.scheduler} ({threads} worker threads)"
+    print(
+        f"campaign of {len(campaign.positions)} positions -> {out_dir}"
+        + (f" ({done} already done)" if done else "")
+        + f": {len(campaign.todo)} to run, {campaign.position_seconds:.0f} s simulated each at most, {running_on}",
+        flush=True,
+    )
+    total = round(len(campaign.todo) * campaign.position_seconds)
+    with tqdm(total=total, unit="sim s", disable=None, file=sys.stderr) as bar:
+        outcome = campaign.run(jobs, progress=bar.update, on_position=report_position, cluster=cluster)
+    return _finish_campaign(outcome, out_dir)
 
 
 def report_position(record: PositionRecord) -> None:
@@ -276,6 +316,29 @@ def _finish_campaign(outcome: CampaignOutcome, out_dir: Path) -> int:
 
 
 def _fit(args: argparse.Namespace) -> int:
+    from .campaign import batch_of
+
+    campaign_dir, out_dir = Path(args.campaign), Path(args.out)
+    try:
+        sensor_ids = batch_of(campaign_dir)
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+    if not sensor_ids:
+        _fit_one(campaign_dir, out_dir, args)
+        return 0
+    results = []
+    for sensor_id in sensor_ids:
+        print(f"== sensor {sensor_id}")
+        results.append((sensor_id, _fit_one(campaign_dir / sensor_id, out_dir / sensor_id, args)))
+    print(f"{len(sensor_ids)} sensors fitted, one folder each in {out_dir}:")
+    for sensor_id, certificate in results:
+        print(f"  {sensor_id:<8}  U = {certificate['tilt_u95_deg']:.4f} deg  -> {out_dir / sensor_id}")
+    return 0
+
+
+def _fit_one(campaign_dir: Path, out_dir: Path, args: argparse.Namespace) -> dict:
+    """One sensor's campaign fitted into out_dir; its certificate."""
+    from .campaign import sensor_of
     from .certificate import certify, write_certificate
     from .dataset import CalibrationDataError, load
     from .families import compare_families, format_families, write_families
@@ -283,13 +346,12 @@ def _fit(args: argparse.Namespace) -> int:
     from .report import write_fit_report
 
     try:
-        campaign = load(Path(args.campaign), settle_s=args.settle_seconds)
+        campaign = load(campaign_dir, settle_s=args.settle_seconds)
         fits = fit_campaign(campaign, tuple(args.axes))
-        certificate, errors = certify(campaign, fits, Path(args.campaign))
+        certificate, errors = certify(campaign, fits, campaign_dir, sensor_of(campaign_dir))
         families = compare_families(campaign, tuple(args.axes)) if args.compare_families else None
     except CalibrationDataError as error:
         raise UsageError(str(error)) from None
-    out_dir = Path(args.out)
     try:
         write_outputs(fits, campaign, out_dir)
         if families is not None:
@@ -324,7 +386,7 @@ def _fit(args: argparse.Namespace) -> int:
         f"wrote {out_dir / 'coefficients.json'}, coefficients.bin (EEPROM block), coefficients.h, "
         f"{report.name} with figures, certificate.json and certificate.html"
     )
-    return 0
+    return certificate
 
 
 def _compare(args: argparse.Namespace) -> int:

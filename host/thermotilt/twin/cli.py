@@ -66,6 +66,7 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         metavar="FILE",
         help="start the IMU with this 148-byte coefficient block in its EEPROM (coefficients.bin from thermotilt fit)",
     )
+    simulate.add_argument("--sensor", metavar="ID", help="simulate this sensor of the model's [[sensors]] batch")
     simulate.set_defaults(run=_simulate)
 
 
@@ -114,6 +115,8 @@ def _simulate(args: argparse.Namespace) -> int:
 
     try:
         model = Model.load(args.model)
+        if args.sensor:
+            model = model.for_sensor(args.sensor)
         changes = {name: True for name in args.enable} | {name: False for name in args.disable}
         model = model.with_terms(changes).with_faults(parse_fault(text) for text in args.fault)
         scenario = build(
