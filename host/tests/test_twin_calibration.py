@@ -14,6 +14,8 @@ from conftest import made_once_per_test_run
 
 from thermotilt import cli
 from thermotilt.calibration.compare import compare, read_fit
+from thermotilt.physics import Model
+from thermotilt.physics.document import write_model
 
 pytestmark = [pytest.mark.twin, pytest.mark.long]
 
@@ -86,3 +88,56 @@ def test_a_twin_campaign_leaves_the_scatter_of_tables_2_and_3(fitted):
     for comparison in comparisons:
         ratio = comparison.fit_rmse_lsb / comparison.reference_rmse_lsb
         assert 1 / PAPER_FACTOR < ratio < PAPER_FACTOR, (comparison.key, comparison.fit_rmse_lsb)
+
+
+BATCH_POSITIONS = "0,X+30,X-30"
+
+
+def _batch_campaign_and_fit(folder):
+    _, hold_s = demo_settings()
+    campaign = [
+        "campaign",
+        "--twin",
+        "--sensors",
+        "2",
+        "--positions",
+        BATCH_POSITIONS,
+        "--hold-seconds",
+        str(hold_s),
+        "--rest-seconds",
+        "0",
+        "--jobs",
+        "2",
+        "--out",
+        str(folder / "campaign"),
+    ]
+    assert cli.main(campaign) == 0
+    assert cli.main(["fit", str(folder / "campaign"), "--axes", "X", "--out", str(folder / "fit")]) == 0
+
+
+@pytest.fixture(scope="session")
+def batch_fitted(tmp_path_factory):
+    return made_once_per_test_run(tmp_path_factory, "twin_batch", _batch_campaign_and_fit)
+
+
+@pytest.mark.slow
+def test_a_batch_campaign_fits_each_sensor_to_its_own_drift(batch_fitted, tmp_path):
+    sensors = json.loads((batch_fitted / "campaign" / "batch.json").read_text())["sensors"]
+    assert sensors == ["TT-01", "TT-02"]
+    # The batch the campaign drew: the default model's population, seed 1.
+    drawn = Model.load().with_population(len(sensors), seed=1)
+    truths = {}
+    for sensor_id in sensors:
+        truths[sensor_id] = tmp_path / f"{sensor_id}.toml"
+        write_model(drawn.for_sensor(sensor_id), truths[sensor_id])
+    gaps = {}
+    for fitted_id in sensors:
+        fit_dir = batch_fitted / "fit" / fitted_id
+        assert json.loads((fit_dir / "certificate.json").read_text())["sensor_id"] == fitted_id
+        assert json.loads((batch_fitted / "campaign" / fitted_id / "campaign.json").read_text())["sensor"] == fitted_id
+        for truth_id, path in truths.items():
+            gaps[fitted_id, truth_id] = max(c.rms_lsb for c in compare(read_fit(fit_dir), str(path)))
+    print(gaps)
+    for fitted_id in sensors:
+        other = next(s for s in sensors if s != fitted_id)
+        assert gaps[fitted_id, fitted_id] < gaps[fitted_id, other]
