@@ -90,6 +90,19 @@ def test_a_twin_campaign_leaves_the_scatter_of_tables_2_and_3(fitted):
         assert 1 / PAPER_FACTOR < ratio < PAPER_FACTOR, (comparison.key, comparison.fit_rmse_lsb)
 
 
+@pytest.mark.slow
+def test_a_field_run_stays_within_the_certificates_uncertainty_which_is_not_padded(fitted, tmp_path):
+    # The claim a certificate makes: a fresh field run of the sensor, its
+    # tilt compensated with its own fit, has its 95th-percentile tilt error
+    # within U, and U is no more than 3 times that error (not padded).
+    field = tmp_path / "field-warming"
+    assert cli.main(["simulate", "field-warming", "--duration", "3600", "--seed", "7", "--out", str(field)]) == 0
+    assert cli.main(["validate", str(field), "--coefficients", str(fitted)]) == 0
+    p95 = json.loads((field / "validation.json").read_text())["tilt_error_p95_deg"]
+    u95 = json.loads((fitted / "certificate.json").read_text())["tilt_u95_deg"]
+    assert p95 <= u95 <= 3.0 * p95, (p95, u95)
+
+
 BATCH_POSITIONS = "0,X+30,X-30"
 
 
