@@ -218,10 +218,13 @@ def compare_section(fit: Path) -> list[str]:
 
 
 def field_section(fit: Path, runs: dict[str, Path]) -> list[str]:
-    """`thermotilt validate --coefficients FIT` on each field run, beside section 4.3."""
-    rows, runs_read, firmware = [], [], []
+    """`thermotilt validate --coefficients FIT` on each field run, beside
+    section 4.3 and the fit's certificate."""
+    certificate = json.loads((fit / "certificate.json").read_text())
+    rows, runs_read, firmware, tilt = [], [], [], []
     for name, run in runs.items():
         validation = validate(run, load_coefficients(str(fit)))
+        tilt.append(f"{validation.tilt_error_p95_deg:.4f}° on {name}")
         simulated_s = read_summary(run).sim_seconds
         runs_read.append(
             f"{name} {simulated_s:.0f} s simulated, the IMU reading {{:.1f}}…{{:.1f}} °C".format(
@@ -259,6 +262,10 @@ def field_section(fit: Path, runs: dict[str, Path]) -> list[str]:
         "",
         "The IMU ran the same surfaces from its EEPROM after `thermotilt upload`; its own compensated "
         f"output is within {' and '.join(firmware)} of the host's.",
+        "",
+        f"The fit's certificate states U = {certificate['tilt_u95_deg']:.4f}° (95 %) for the compensated "
+        'tilt over the calibrated domain (docs/calibration.md, "The certificate"); the field runs\' 95th '
+        f"percentile of the tilt error: {' and '.join(tilt)}.",
     ]
 
 
