@@ -31,31 +31,24 @@ def demo_settings():
     return demo.POSITIONS, demo.HOLD_SECONDS
 
 
-def _campaign_and_fit(folder):
-    positions, hold_s = demo_settings()
-    campaign = [
-        "campaign",
-        "--twin",
-        "--positions",
-        positions,
-        "--hold-seconds",
-        str(hold_s),
-        "--rest-seconds",
-        "0",
-        "--jobs",
-        "2",
-        "--out",
-        str(folder / "campaign"),
-    ]
+def _campaign_and_fit(folder, positions, *options, fit_options=()):
+    """The demo's twin campaign settings on these positions, then fit."""
+    _, hold_s = demo_settings()
+    campaign = ["campaign", "--twin", "--positions", positions, "--hold-seconds", str(hold_s)]
+    campaign += ["--rest-seconds", "0", "--jobs", "2", *options, "--out", str(folder / "campaign")]
     assert cli.main(campaign) == 0
-    assert cli.main(["fit", str(folder / "campaign"), "--out", str(folder / "fit")]) == 0
+    assert cli.main(["fit", str(folder / "campaign"), *fit_options, "--out", str(folder / "fit")]) == 0
 
 
 @pytest.fixture(scope="session")
 def fitted(tmp_path_factory):
     """The demo's campaign, fitted: made once per test run, however many
     pytest-xdist workers take this module's tests."""
-    return made_once_per_test_run(tmp_path_factory, "twin_calibration", _campaign_and_fit) / "fit"
+    positions, _ = demo_settings()
+    made = made_once_per_test_run(
+        tmp_path_factory, "twin_calibration", lambda folder: _campaign_and_fit(folder, positions)
+    )
+    return made / "fit"
 
 
 @pytest.mark.slow
@@ -107,25 +100,7 @@ BATCH_POSITIONS = "0,X+30,X-30"
 
 
 def _batch_campaign_and_fit(folder):
-    _, hold_s = demo_settings()
-    campaign = [
-        "campaign",
-        "--twin",
-        "--sensors",
-        "2",
-        "--positions",
-        BATCH_POSITIONS,
-        "--hold-seconds",
-        str(hold_s),
-        "--rest-seconds",
-        "0",
-        "--jobs",
-        "2",
-        "--out",
-        str(folder / "campaign"),
-    ]
-    assert cli.main(campaign) == 0
-    assert cli.main(["fit", str(folder / "campaign"), "--axes", "X", "--out", str(folder / "fit")]) == 0
+    _campaign_and_fit(folder, BATCH_POSITIONS, "--sensors", "2", fit_options=("--axes", "X"))
 
 
 @pytest.fixture(scope="session")
@@ -150,7 +125,6 @@ def test_a_batch_campaign_fits_each_sensor_to_its_own_drift(batch_fitted, tmp_pa
         assert json.loads((batch_fitted / "campaign" / fitted_id / "campaign.json").read_text())["sensor"] == fitted_id
         for truth_id, path in truths.items():
             gaps[fitted_id, truth_id] = max(c.rms_lsb for c in compare(read_fit(fit_dir), str(path)))
-    print(gaps)
     for fitted_id in sensors:
         other = next(s for s in sensors if s != fitted_id)
         assert gaps[fitted_id, fitted_id] < gaps[fitted_id, other]
