@@ -82,6 +82,12 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         help="axes to fit (default X Y); the others stay uncorrected",
     )
     fit.add_argument(
+        "--sensor-id",
+        type=sensor_id,
+        help="the sensor the campaign calibrated, for a campaign that did not record it "
+        "(campaign.json from real boards records the IMU's ID; upload refuses a fit for another sensor)",
+    )
+    fit.add_argument(
         "--compare-families",
         action="store_true",
         help="also score poly11, poly22 (the paper's), poly22+rate and poly33 by "
@@ -128,6 +134,16 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         "--no-save", action="store_true", help="upload to RAM only (coef_source U): no SAVECOE, no reset"
     )
     upload.set_defaults(run=_upload)
+
+
+def sensor_id(text: str) -> str:
+    """An argparse type: a sensor ID (lib/Compensation's rule), not empty."""
+    from ..wire.coefficients import sensor_id_problem
+
+    problem = sensor_id_problem(text) if text else "a sensor ID cannot be empty"
+    if problem is not None:
+        raise argparse.ArgumentTypeError(problem)
+    return text
 
 
 def _campaign(args: argparse.Namespace) -> int:
@@ -287,9 +303,16 @@ def _fit(args: argparse.Namespace) -> int:
         families = compare_families(campaign, tuple(args.axes)) if args.compare_families else None
     except CalibrationDataError as error:
         raise UsageError(str(error)) from None
+    fitted_for = campaign.sensor_id or ""
+    if args.sensor_id is not None:
+        if fitted_for and args.sensor_id != fitted_for:
+            raise UsageError(
+                f"--sensor-id {args.sensor_id}: the campaign in {args.campaign} was logged with sensor {fitted_for}"
+            )
+        fitted_for = args.sensor_id
     out_dir = Path(args.out)
     try:
-        write_outputs(fits, campaign, out_dir)
+        write_outputs(fits, campaign, out_dir, fitted_for)
         if families is not None:
             write_families(families, out_dir)
         report = write_fit_report(out_dir, fits, campaign, format_families(families) if families else None)
@@ -311,6 +334,7 @@ def _fit(args: argparse.Namespace) -> int:
     )
     if families is not None:
         print(format_families(families))
+    print(f"fitted for sensor {fitted_for}" if fitted_for else "fitted for no particular sensor (no sensor ID)")
     print(
         f"wrote {out_dir / 'coefficients.json'}, coefficients.bin (EEPROM block), coefficients.h, "
         f"{report.name} with figures"
