@@ -1,6 +1,6 @@
 """The calibration's commands: ``campaign`` (every tilt position through the
 chamber's staircase, in the twin or on real boards), ``fit``, ``compare``,
-``validate`` and ``upload`` (docs/calibration.md)."""
+``validate``, ``upload`` and ``assign-id`` (docs/calibration.md)."""
 
 from __future__ import annotations
 
@@ -134,6 +134,19 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         "--no-save", action="store_true", help="upload to RAM only (coef_source U): no SAVECOE, no reset"
     )
     upload.set_defaults(run=_upload)
+
+    assign = commands.add_parser(
+        "assign-id", help="give the IMU reader the sensor ID its fits are made for (kept in its EEPROM)"
+    )
+    assign.add_argument("sensor_id", metavar="ID", type=sensor_id, help="up to 8 letters, digits, '_' or '-'")
+    assign.add_argument("--port", required=True, help="the IMU reader's serial port (or the twin's --pty port)")
+    assign.add_argument("--baud", type=within(int, 1), default=115200, help="line speed (default 115200)")
+    assign.add_argument(
+        "--replace",
+        action="store_true",
+        help="replace another ID the board already has (coefficients fitted for that ID then stop loading)",
+    )
+    assign.set_defaults(run=_assign_id)
 
 
 def sensor_id(text: str) -> str:
@@ -392,4 +405,15 @@ def _upload(args: argparse.Namespace) -> int:
     except UploadError as error:
         raise UsageError(str(error)) from None
     print(format_result(result))
+    return 0
+
+
+def _assign_id(args: argparse.Namespace) -> int:
+    from .upload import UploadError, assign_id, format_assignment
+
+    try:
+        result = assign_id(args.port, args.sensor_id, baud=args.baud, replace=args.replace)
+    except UploadError as error:
+        raise UsageError(str(error)) from None
+    print(format_assignment(result))
     return 0
