@@ -31,7 +31,6 @@ VECTORS = [
     # hold_start appended: the C++ test keeps the 6-field line (its parser counts no fields).
     "$SETPRG,9,-10.00,45.00,2.00,60,1200,1,T*B58A",
     "$GETCOE,3,C,Y*C2AC",
-    # temp_domain appended: the C++ test keeps the 13-field line, as with SETPRG.
     "$IMU,42,123456,-1650,-388,16012,-1649.75,-388.50,16012.25,-1078.25,-34.50,16011.00,23.50,W,E,I*765D",
     "$COE,7,W,X,5.7150e+02,-2.0230e+01,1.5690e-03,-1.0440e-01,-6.9360e-05,6.3270e-09*FCD1",
 ]
