@@ -532,6 +532,18 @@ def set_cy_p02_nan(document) -> None:
     document["fits"]["CY"]["coefficients"]["p02"]["value"] = float("nan")
 
 
+def set_sensor_id_with_a_space(document) -> None:
+    document["sensor_id"] = "NODE 7"
+
+
+def set_domain_beyond_int16(document) -> None:
+    document["calibrated_domain"]["W"]["temperature_c"] = [-10.0, 400.0]
+
+
+def drop_domain_axis(document) -> None:
+    del document["calibrated_domain"]["C"]["acceleration_lsb"]["Y"]
+
+
 @pytest.mark.parametrize(
     ("make", "message"),
     [
@@ -544,12 +556,32 @@ def set_cy_p02_nan(document) -> None:
             "WX p00 = 1e+39, which the firmware's float32 cannot hold",
         ),
         (lambda tmp: edited_fit(tmp / "nan", set_cy_p02_nan), "CY p02 = nan"),
+        (
+            lambda tmp: edited_fit(tmp / "id", set_sensor_id_with_a_space),
+            "sensor ID 'NODE 7' may hold only letters, digits",
+        ),
+        (
+            lambda tmp: edited_fit(tmp / "domain", set_domain_beyond_int16),
+            "calibrated_domain W temperature_c [-10.0, 400.0] is not a range the board can hold",
+        ),
+        (
+            lambda tmp: edited_fit(tmp / "axis", drop_domain_axis),
+            "calibrated_domain is not the one thermotilt fit writes",
+        ),
     ],
-    ids=["missing", "not-json", "no-fits", "unknown-surface", "beyond-float32", "nan"],
+    ids=["missing", "not-json", "no-fits", "unknown-surface", "beyond-float32", "nan", "id", "domain", "axis"],
 )
 def test_a_bad_fit_dir_is_one_line(tmp_path, capsys, make, message):
     # The fit is read before the port is opened: this port does not exist.
     assert_one_line(capsys, main(["upload", str(make(tmp_path)), "--port", str(tmp_path / "no-port")]), message)
+
+
+@pytest.mark.parametrize(
+    ("sensor_id", "message"),
+    [("NODE 7", "may hold only letters, digits"), ("NODE-0007", "at most 8"), ("", "cannot be empty")],
+)
+def test_assign_id_refuses_what_is_no_sensor_id_before_opening_the_port(cli_in_process, tmp_path, sensor_id, message):
+    assert_one_line_error(cli_in_process("assign-id", sensor_id, "--port", tmp_path / "no-port"), 2, message)
 
 
 @pytest.mark.slow
