@@ -38,14 +38,16 @@ target_link_libraries(integrity_bench PRIVATE thermotilt_libs)
 # Loaded by host/thermotilt/native.py through ctypes: the IMU reader's
 # per-sample processing (lib/ImuProcessing and what it uses) over a series,
 # and the algorithms the host keeps Python copies of (lib/Program's staircase,
-# lib/Compensation's trend and surface) and lib/ChamberControl's drive law
+# lib/Compensation's trend, surface, coefficient block and sensor ID rule)
+# and lib/ChamberControl's drive law
 # over arrays, the same sources as the firmware, built position-independent for the host.
 # No contraction into fused multiply-adds (which aarch64 hosts would emit):
 # the Nano rounds every float operation on its own. --no-undefined: a source
 # missing from this list fails the link, not the host's dlopen.
 add_library(thermotilt_host SHARED host/native/imu_processing.cpp host/native/firmware_algorithms.cpp
   lib/ImuProcessing/src/ImuProcessing.cpp lib/Kalman/src/Kalman.cpp
-  lib/Compensation/src/Compensation.cpp lib/LSM9DS0/src/LSM9DS0.cpp lib/Program/src/Program.cpp
+  lib/Compensation/src/Compensation.cpp lib/Compensation/src/CoefficientBlock.cpp lib/Compensation/src/SensorId.cpp
+  lib/Crc16/src/Crc16.cpp lib/LSM9DS0/src/LSM9DS0.cpp lib/Program/src/Program.cpp
   lib/ChamberControl/src/ChamberControl.cpp)
 target_include_directories(thermotilt_host PRIVATE host/native ${LIBRARY_INCLUDES})
 target_compile_options(thermotilt_host PRIVATE ${PROJECT_WARNINGS} -ffp-contract=off)

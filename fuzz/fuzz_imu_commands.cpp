@@ -5,12 +5,18 @@
 //   s  stuck: no new samples (1) or running (0)
 //   x, y, z  acceleration readings, LSB;  T  temperature reading (12 bits)
 //   e  what the bytes after '|' are, written to EEPROM address 0 before
-//      boot: 0 the raw block, 1 coefficient floats (little-endian; the
-//      paper's defaults after them) encoded as a valid block by the library
+//      boot: 0 the raw EEPROM (the block at 0, the sensor ID's record at
+//      512), 1 coefficient floats (little-endian; the paper's defaults after
+//      them) encoded as a valid block for no sensor by the library
 // Besides the common checks, the state commands set must show in frames:
 // - no IMU frame between an acknowledged STOP and the next START;
 // - coef_source in IMU and ICF frames is U after SETCOE, D after DEFCOE,
-//   E after SAVECOE; ICF's streaming follows START and STOP;
+//   E after SAVECOE, E or D after SETID; ICF's streaming follows START and
+//   STOP; ICF's sensor_id is the ID the EEPROM's record holds (none when
+//   it is blank or damaged);
+// - an IMU frame with coef_source D has temp_domain U unless a SETDOM was
+//   acknowledged since the boot, DEFCOE or SETID: the defaults come from no
+//   fit;
 // - after an acknowledged RESET the board sends nothing until it has reset;
 //   VER's reset_cause is COMMANDED exactly when an acknowledged RESET came
 //   before and no other reset flag than the watchdog's is set (the first
@@ -35,12 +41,18 @@ const uint32_t SAMPLE_PERIOD_MS = 10;
 const int32_t TEMPERATURE_MIN = -2048;
 const int32_t TEMPERATURE_MAX = 2047;
 const uint8_t IMU_COEF_SOURCE = 12;
+const uint8_t IMU_TEMP_DOMAIN = 13;
 const uint8_t ICF_STREAMING = 1;
 const uint8_t ICF_COEF_SOURCE = 2;
+const uint8_t ICF_SENSOR_ID = 4;
+// The sketch's SENSOR_ID_EEPROM_ADDRESS.
+const uint16_t SENSOR_ID_EEPROM_ADDRESS = 512;
 const uint8_t VER_RESET_CAUSE = 3;
 const uint8_t ERR_CODE = 1;
 const uint8_t OTHER_THAN_WATCHDOG = _BV(PORF) | _BV(EXTRF) | _BV(BORF);
 const char UNKNOWN = 0;
+// After SETID: what the EEPROM holds for the new ID, E or D.
+const char RELOADED = 1;
 
 int16_t clampToInt16(int32_t value)
 {
@@ -152,7 +164,9 @@ void writeCoefficientBlock(const uint8_t* floats, size_t length)
                         (uint32_t)floats[4 * i + 3] << 24;
         memcpy(&terms[i], &bits, sizeof bits);
     }
-    encodeCoefficients(coefficients, ArduinoShim::eeprom());
+    CalibratedDomain domain;
+    clearDomain(domain);
+    encodeCoefficients(coefficients, domain, "", ArduinoShim::eeprom());
 }
 
 class Imu : public Board {
@@ -196,6 +210,7 @@ public:
         // The first boot's RAM may hold a marker an earlier input left.
         causeKnown_ = booted_ || otherCause;
         resetAcknowledged_ = false;
+        domainGiven_ = false;
         booted_ = true;
     }
 
@@ -214,12 +229,22 @@ public:
             acknowledged(BoardHarness::text(frame, 1));
         } else if (frame.typeIs(Protocol::Tag::IMU)) {
             require(streaming_ != '0', "an IMU frame after STOP was acknowledged");
-            requireSource(BoardHarness::text(frame, IMU_COEF_SOURCE));
+            const char* source = BoardHarness::text(frame, IMU_COEF_SOURCE);
+            requireSource(source);
+            const char* domain = BoardHarness::text(frame, IMU_TEMP_DOMAIN);
+            require(strcmp(domain, "I") == 0 || strcmp(domain, "O") == 0 || strcmp(domain, "U") == 0,
+                    "temp_domain is neither I, O nor U");
+            require(strcmp(source, "D") != 0 || domainGiven_ || strcmp(domain, "U") == 0,
+                    "an IMU frame on the defaults has a calibrated domain");
         } else if (frame.typeIs(Protocol::Tag::ICF)) {
             const char* streaming = BoardHarness::text(frame, ICF_STREAMING);
             require(streaming_ == UNKNOWN || (streaming[0] == streaming_ && streaming[1] == '\0'),
                     "ICF's streaming differs from the last START or STOP");
             requireSource(BoardHarness::text(frame, ICF_COEF_SOURCE));
+            SensorId stored;
+            decodeSensorIdRecord(ArduinoShim::eeprom() + SENSOR_ID_EEPROM_ADDRESS, stored);
+            require(strcmp(BoardHarness::text(frame, ICF_SENSOR_ID), stored.text) == 0,
+                    "ICF's sensor_id differs from the EEPROM's ID record");
         }
     }
 
@@ -234,8 +259,14 @@ private:
             coefficientSource_ = 'U';
         } else if (strcmp(command, Protocol::Tag::DEFCOE) == 0) {
             coefficientSource_ = 'D';
+            domainGiven_ = false;
+        } else if (strcmp(command, Protocol::Tag::SETDOM) == 0) {
+            domainGiven_ = true;
         } else if (strcmp(command, Protocol::Tag::SAVECOE) == 0) {
             coefficientSource_ = 'E';
+        } else if (strcmp(command, Protocol::Tag::SETID) == 0) {
+            coefficientSource_ = RELOADED;
+            domainGiven_ = false;
         } else if (strcmp(command, Protocol::Tag::RESET) == 0) {
             resetAcknowledged_ = true;
         }
@@ -243,8 +274,9 @@ private:
 
     void requireSource(const char* source) const
     {
-        require(coefficientSource_ == UNKNOWN || (source[0] == coefficientSource_ && source[1] == '\0'),
-                "coef_source differs from what the last SETCOE, DEFCOE or SAVECOE made it");
+        bool reloaded = coefficientSource_ == RELOADED && (source[0] == 'E' || source[0] == 'D');
+        require(coefficientSource_ == UNKNOWN || ((reloaded || source[0] == coefficientSource_) && source[1] == '\0'),
+                "coef_source differs from what the last SETCOE, DEFCOE, SAVECOE or SETID made it");
     }
 
     FakeLsm9ds0 sensor_;
@@ -252,6 +284,7 @@ private:
     char streaming_ = UNKNOWN;
     char coefficientSource_ = UNKNOWN;
     bool booted_ = false;
+    bool domainGiven_ = false;
     bool resetAcknowledged_ = false;
     bool commandedBoot_ = false;
     bool causeKnown_ = false;

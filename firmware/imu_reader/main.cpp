@@ -21,7 +21,7 @@ namespace Frame = Protocol::Frame;
 namespace Error = Protocol::Error;
 namespace Detail = Protocol::ErrorDetail;
 
-const char FIRMWARE_VERSION[] = "0.2.0";
+const char FIRMWARE_VERSION[] = "0.3.0";
 // CTRL_REG1_XM runs the accelerometer at 100 Hz, and sampling follows the
 // sensor's own clock: a sample is read when INT2_XM says it is ready or,
 // where that line is not wired or not trusted (DataReadyLine), when
@@ -52,6 +52,12 @@ const uint8_t I2C_TIMEOUT_MS = 25;
 // interrupt. A level converter that cannot follow needs 100000 here.
 const uint32_t I2C_CLOCK_HZ = 400000;
 const int COEFFICIENTS_EEPROM_ADDRESS = 0;
+// The sensor ID's record (lib/Compensation/SensorId.h), in the second half of
+// the Nano's 1 KB: past the block of any version, so that writing one, or an
+// EEPROM image of coefficients.bin at address 0, leaves the ID as it was.
+const int SENSOR_ID_EEPROM_ADDRESS = 512;
+static_assert(COEFFICIENTS_EEPROM_ADDRESS + COEFFICIENT_BLOCK_SIZE <= SENSOR_ID_EEPROM_ADDRESS,
+              "the block and the ID record do not overlap");
 const uint8_t AXES = IMU_AXES;
 
 // Where the active coefficients came from, as the IMU frame reports it.
@@ -63,6 +69,9 @@ SerialLink link;
 // The filters, trend and decimation of every sample (lib/ImuProcessing).
 ImuProcessing processing;
 Coefficients coefficients;
+// Where the active surfaces were fitted; the board's ID itself stays in
+// EEPROM (readSensorId), read when a command or the start-up needs it.
+CalibratedDomain domain;
 char coefficientSource = FROM_DEFAULTS;
 bool sensorReady = false;
 bool streaming = true;
@@ -135,18 +144,45 @@ bool blockErrorCode(BlockStatus status, Protocol::ErrorCode& code)
 }
 
 // LTO inlines setup(), loop() and what they call into main(), whose one frame
-// then holds all their locals for good. Not inlined, these two keep the
-// 148-byte block on the stack only while they run.
+// then holds all their locals for good. Not inlined, these keep the ID
+// record and the decoded ID on the stack only while they run.
+__attribute__((noinline)) IdRecordStatus readSensorId(SensorId& id)
+{
+    uint8_t record[SENSOR_ID_RECORD_SIZE];
+    EEPROM.get(SENSOR_ID_EEPROM_ADDRESS, record);
+    return decodeSensorIdRecord(record, id);
+}
+
+// The coefficient block is read and written in place, a byte at a time.
+uint8_t readBlockByte(const void*, uint8_t index)
+{
+    return EEPROM.read(COEFFICIENTS_EEPROM_ADDRESS + index);
+}
+
+// update() writes only the bytes that changed. Each write takes 3.3 ms
+// (datasheet), a whole new block ~0.6 s: longer than the watchdog's
+// timeout, which would cut the save short without the feeding.
+void writeBlockByte(void*, uint8_t index, uint8_t value)
+{
+    EEPROM.update(COEFFICIENTS_EEPROM_ADDRESS + index, value);
+    feedWatchdog();
+}
+
+// What the board runs after a reset: the EEPROM's block if it is sound and
+// fitted for this board's ID (or for none), else the defaults.
 __attribute__((noinline)) void loadCoefficients()
 {
-    uint8_t block[COEFFICIENT_BLOCK_SIZE];
-    EEPROM.get(COEFFICIENTS_EEPROM_ADDRESS, block);
-    BlockStatus status = decodeCoefficients(block, coefficients);
+    SensorId boardId;
+    if (readSensorId(boardId) == IdRecordStatus::Damaged) {
+        link.report(Error::EEPROM_ID, Detail::NO_ID);
+    }
+    BlockStatus status = decodeCoefficients(readBlockByte, nullptr, boardId.text, coefficients, domain);
     if (status == BlockStatus::Ok) {
         coefficientSource = FROM_EEPROM;
         return;
     }
     loadDefaultCoefficients(coefficients);
+    clearDomain(domain);
     coefficientSource = FROM_DEFAULTS;
     // A blank EEPROM (never saved) is normal; a damaged block is worth saying.
     Protocol::ErrorCode code;
@@ -155,18 +191,27 @@ __attribute__((noinline)) void loadCoefficients()
     }
 }
 
+// The block is bound to the board's ID: the host checked that the fit was
+// made for it before sending the surfaces (docs/calibration.md).
 __attribute__((noinline)) void saveCoefficients()
 {
-    uint8_t block[COEFFICIENT_BLOCK_SIZE];
-    encodeCoefficients(coefficients, block);
-    // update() writes only the bytes that changed. Each write takes 3.3 ms
-    // (datasheet), a whole new block ~0.5 s: as long as the watchdog's
-    // timeout, which would cut the save short without the feeding.
-    for (uint8_t i = 0; i < COEFFICIENT_BLOCK_SIZE; ++i) {
-        EEPROM.update(COEFFICIENTS_EEPROM_ADDRESS + i, block[i]);
-        feedWatchdog();
-    }
+    SensorId boardId;
+    readSensorId(boardId);
+    encodeCoefficients(coefficients, domain, boardId.text, writeBlockByte, nullptr);
     coefficientSource = FROM_EEPROM;
+}
+
+// The IMU frame's temp_domain: inside or outside the active set's calibrated
+// temperature range, or unknown (no range: defaults, a version 1 block,
+// surfaces sent without SETDOM).
+char temperatureDomainCode(DomainCheck check)
+{
+    switch (check) {
+    case DomainCheck::Inside: return 'I';
+    case DomainCheck::Outside: return 'O';
+    case DomainCheck::Unknown: break;
+    }
+    return 'U';
 }
 
 void sendImuFrame(const int16_t raw[AXES], const ImuOutput& out)
@@ -185,6 +230,7 @@ void sendImuFrame(const int16_t raw[AXES], const ImuOutput& out)
     frame.addFixed(out.temperatureC, 3);
     frame.addChar(out.set == CompSet::Warming ? 'W' : 'C');
     frame.addChar(coefficientSource);
+    frame.addChar(temperatureDomainCode(checkTemperature(domain.set[(uint8_t)out.set], out.temperatureC)));
     link.send();
 }
 
@@ -249,21 +295,52 @@ void idleUntilWork()
     }
 }
 
-bool parseSetAndAxis(const FrameParser& command, uint8_t& set, uint8_t& axis)
+bool parseSet(const FrameParser& command, uint8_t& set)
 {
     const char* setText = command.field(0);
-    const char* axisText = command.field(1);
-    if (!setText || !axisText || setText[1] != '\0' || axisText[1] != '\0') {
+    if (!setText || setText[1] != '\0' || (setText[0] != 'W' && setText[0] != 'C')) {
         return false;
     }
-    if (setText[0] != 'W' && setText[0] != 'C') {
+    set = setText[0] == 'W' ? 0 : 1;
+    return true;
+}
+
+bool parseSetAndAxis(const FrameParser& command, uint8_t& set, uint8_t& axis)
+{
+    const char* axisText = command.field(1);
+    if (!parseSet(command, set) || !axisText || axisText[1] != '\0') {
         return false;
     }
     if (axisText[0] < 'X' || axisText[0] > 'Z') {
         return false;
     }
-    set = setText[0] == 'W' ? 0 : 1;
     axis = (uint8_t)(axisText[0] - 'X');
+    return true;
+}
+
+// A temperature in degC as the domain's 1/100 degC; false beyond an int16.
+bool parseCentiC(const FrameParser& command, uint8_t index, int16_t& centiC)
+{
+    float value = 0.0f;
+    if (!command.fieldFloat(index, value)) {
+        return false;
+    }
+    float rounded = roundf(value * 100.0f);
+    // Written so that NaN fails too.
+    if (!(rounded >= (float)INT16_MIN && rounded <= (float)INT16_MAX)) {
+        return false;
+    }
+    centiC = (int16_t)rounded;
+    return true;
+}
+
+bool parseLsb(const FrameParser& command, uint8_t index, int16_t& lsb)
+{
+    int32_t value = 0;
+    if (!command.fieldInt(index, value) || value < INT16_MIN || value > INT16_MAX) {
+        return false;
+    }
+    lsb = (int16_t)value;
     return true;
 }
 
@@ -278,13 +355,32 @@ void sendCoefficients(uint8_t set, uint8_t axis)
     link.send();
 }
 
+// An unknown temperature range is nan; an axis range with min above max is none.
+void sendDomain(uint8_t set)
+{
+    const SetDomain& setDomain = domain.set[set];
+    FrameWriter& frame = link.start(Frame::DOM);
+    frame.addChar(set == 0 ? 'W' : 'C');
+    bool known = setDomain.temperatureCentiC.known();
+    frame.addFixed(known ? setDomain.temperatureCentiC.min / 100.0f : NAN, 2);
+    frame.addFixed(known ? setDomain.temperatureCentiC.max / 100.0f : NAN, 2);
+    for (uint8_t axis = 0; axis < AXES; ++axis) {
+        frame.addInt(setDomain.accelLsb[axis].min);
+        frame.addInt(setDomain.accelLsb[axis].max);
+    }
+    link.send();
+}
+
 void sendConfiguration()
 {
+    SensorId boardId;
+    readSensorId(boardId);
     FrameWriter& frame = link.start(Frame::ICF);
     frame.addUnsigned(processing.decimation());
     frame.addUnsigned(streaming ? 1 : 0);
     frame.addChar(coefficientSource);
     frame.addFixed(processing.hysteresisC(), 3);
+    frame.addText(boardId.text);
     link.send();
 }
 
@@ -363,7 +459,69 @@ void onSetCoefficients(const FrameParser& command)
         return;
     }
     coefficients.set[set].axis[axis] = surface;
+    // New surfaces: where they were fitted is unknown until SETDOM says.
+    clearDomain(domain.set[set]);
     coefficientSource = UPLOADED;
+    link.acknowledge();
+}
+
+void onGetDomain(const FrameParser& command)
+{
+    uint8_t set = 0;
+    if (!parseSet(command, set)) {
+        link.reject(Error::BAD_ARG, Detail::DOMAIN);
+        return;
+    }
+    sendDomain(set);
+    link.acknowledge();
+}
+
+// The calibrated domain of the set's surfaces, in RAM, saved by SAVECOE: a
+// temperature range min <= max, and per axis a range (min above max: none).
+void onSetDomain(const FrameParser& command)
+{
+    uint8_t set = 0;
+    SetDomain setDomain;
+    bool valid = parseSet(command, set) && parseCentiC(command, 1, setDomain.temperatureCentiC.min) &&
+                 parseCentiC(command, 2, setDomain.temperatureCentiC.max) && setDomain.temperatureCentiC.known();
+    for (uint8_t axis = 0; valid && axis < AXES; ++axis) {
+        valid = parseLsb(command, (uint8_t)(3 + 2 * axis), setDomain.accelLsb[axis].min) &&
+                parseLsb(command, (uint8_t)(4 + 2 * axis), setDomain.accelLsb[axis].max);
+    }
+    if (!valid) {
+        link.reject(Error::BAD_ARG, Detail::DOMAIN);
+        return;
+    }
+    domain.set[set] = setDomain;
+    link.acknowledge();
+}
+
+// Not inlined: the record leaves the stack before loadCoefficients() runs.
+__attribute__((noinline)) void writeSensorId(const char* id)
+{
+    uint8_t record[SENSOR_ID_RECORD_SIZE];
+    encodeSensorIdRecord(id, record);
+    // Up to 3.3 ms a byte (datasheet), fed like SAVECOE's.
+    for (uint8_t i = 0; i < SENSOR_ID_RECORD_SIZE; ++i) {
+        EEPROM.update(SENSOR_ID_EEPROM_ADDRESS + i, record[i]);
+        feedWatchdog();
+    }
+}
+
+// Writes the ID record alone; the coefficient block stays as it is. The
+// board then runs what it would run after a reset with this ID: a block
+// fitted for another ID stops loading (defaults, ERR EEPROM_SENSOR), so no
+// sensor runs another's coefficients; one fitted for this ID or for none
+// loads again. Surfaces uploaded but not saved are dropped with it.
+void onSetSensorId(const FrameParser& command)
+{
+    const char* id = command.field(0);
+    if (!isValidSensorId(id)) {
+        link.reject(Error::BAD_ARG, Detail::SENSOR_ID);
+        return;
+    }
+    writeSensorId(id);
+    loadCoefficients();
     link.acknowledge();
 }
 
@@ -376,6 +534,7 @@ void onSaveCoefficients(const FrameParser&)
 void onDefaultCoefficients(const FrameParser&)
 {
     loadDefaultCoefficients(coefficients);
+    clearDomain(domain);
     coefficientSource = FROM_DEFAULTS;
     link.acknowledge();
 }
@@ -401,6 +560,9 @@ constexpr Protocol::Command COMMANDS[] PROGMEM = {
     Protocol::command(Frame::SETCOE, onSetCoefficients, Detail::COEFFICIENTS),
     Protocol::command(Frame::SAVECOE, onSaveCoefficients),
     Protocol::command(Frame::DEFCOE, onDefaultCoefficients),
+    Protocol::command(Frame::GETDOM, onGetDomain, Detail::DOMAIN),
+    Protocol::command(Frame::SETDOM, onSetDomain, Detail::DOMAIN),
+    Protocol::command(Frame::SETID, onSetSensorId, Detail::SENSOR_ID),
     Protocol::command(Frame::RESET, onReset),
 };
 
@@ -434,7 +596,7 @@ __attribute__((noinline)) void loop()
             return;
         }
     }
-    // After the command, which may have taken a while (SAVECOE ~0.5 s).
+    // After the command, which may have taken a while (SAVECOE ~0.6 s).
     uint32_t now = Clock::nowMs();
     if (!sensorReady) {
         if (now - lastSensorAttemptMs >= SENSOR_RETRY_MS) {

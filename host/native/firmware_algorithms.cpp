@@ -1,6 +1,6 @@
-// libthermotilt_host.so (firmware_algorithms.h): lib/Program's staircase and
-// lib/Compensation's trend detector and surface, lib/ChamberControl's drive
-// law, over arrays for the host.
+// libthermotilt_host.so (firmware_algorithms.h): lib/Program's staircase,
+// lib/Compensation's trend detector, surface, coefficient block and sensor
+// ID rule, lib/ChamberControl's drive law, for the host.
 #include "firmware_algorithms.h"
 
 #include <ChamberControl.h>
@@ -54,6 +54,96 @@ extern "C" int thermotilt_surface_corrections(size_t count, const float* p, cons
     }
     for (size_t i = 0; i < count; ++i) {
         correction[i] = surfaceCorrection(surface, temperatureC[i], accelLsb[i]);
+    }
+    return 0;
+}
+
+namespace {
+
+const uint8_t DOMAIN_VALUES = COMP_SET_COUNT * (1 + COMP_AXIS_COUNT) * 2;
+static_assert(DOMAIN_VALUES == 16, "firmware_algorithms.h gives the domain as 16 int16");
+
+void domainFromValues(const int16_t* values, CalibratedDomain& out)
+{
+    for (uint8_t s = 0; s < COMP_SET_COUNT; ++s) {
+        const int16_t* set = values + 8 * s;
+        out.set[s].temperatureCentiC = Int16Range{set[0], set[1]};
+        for (uint8_t a = 0; a < COMP_AXIS_COUNT; ++a) {
+            out.set[s].accelLsb[a] = Int16Range{set[2 + 2 * a], set[3 + 2 * a]};
+        }
+    }
+}
+
+void domainToValues(const CalibratedDomain& in, int16_t* values)
+{
+    for (uint8_t s = 0; s < COMP_SET_COUNT; ++s) {
+        int16_t* set = values + 8 * s;
+        set[0] = in.set[s].temperatureCentiC.min;
+        set[1] = in.set[s].temperatureCentiC.max;
+        for (uint8_t a = 0; a < COMP_AXIS_COUNT; ++a) {
+            set[2 + 2 * a] = in.set[s].accelLsb[a].min;
+            set[3 + 2 * a] = in.set[s].accelLsb[a].max;
+        }
+    }
+}
+
+float* firstTerm(Coefficients& coefficients)
+{
+    return &coefficients.set[0].axis[0].p[0];
+}
+
+const uint8_t TERMS = COMP_SET_COUNT * COMP_AXIS_COUNT * COMP_COEFFICIENT_COUNT;
+
+}  // namespace
+
+extern "C" int thermotilt_coefficient_block_encode(const float* coefficients, const int16_t* domain,
+                                                   const char* sensorId, uint8_t* block)
+{
+    if (!(coefficients && domain && sensorId && block) || !isValidSensorId(sensorId)) {
+        return THERMOTILT_HOST_BAD_ARGUMENT;
+    }
+    Coefficients table;
+    for (uint8_t i = 0; i < TERMS; ++i) {
+        firstTerm(table)[i] = coefficients[i];
+    }
+    CalibratedDomain calibrated;
+    domainFromValues(domain, calibrated);
+    encodeCoefficients(table, calibrated, sensorId, block);
+    return 0;
+}
+
+extern "C" int thermotilt_coefficient_block_decode(const uint8_t* block, const char* boardSensorId, uint8_t* status,
+                                                   float* coefficients, int16_t* domain)
+{
+    if (!(block && boardSensorId && status && coefficients && domain)) {
+        return THERMOTILT_HOST_BAD_ARGUMENT;
+    }
+    Coefficients table;
+    for (uint8_t i = 0; i < TERMS; ++i) {
+        firstTerm(table)[i] = coefficients[i];
+    }
+    CalibratedDomain calibrated;
+    domainFromValues(domain, calibrated);
+    *status = (uint8_t)decodeCoefficients(block, boardSensorId, table, calibrated);
+    for (uint8_t i = 0; i < TERMS; ++i) {
+        coefficients[i] = firstTerm(table)[i];
+    }
+    domainToValues(calibrated, domain);
+    return 0;
+}
+
+extern "C" int thermotilt_sensor_ids_valid(size_t count, const char* const* texts, uint8_t* valid)
+{
+    if (count > 0 && !(texts && valid)) {
+        return THERMOTILT_HOST_BAD_ARGUMENT;
+    }
+    for (size_t i = 0; i < count; ++i) {
+        if (!texts[i]) {
+            return THERMOTILT_HOST_BAD_ARGUMENT;
+        }
+    }
+    for (size_t i = 0; i < count; ++i) {
+        valid[i] = isValidSensorId(texts[i]) ? 1 : 0;
     }
     return 0;
 }

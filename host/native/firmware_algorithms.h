@@ -36,6 +36,26 @@ int thermotilt_trend_sets(size_t count, const float *temperature_c, float hyster
 int thermotilt_surface_corrections(size_t count, const float *p, const float *temperature_c, const float *accel_lsb,
                                    float *correction);
 
+/* lib/Compensation: encodeCoefficients of 36 coefficients in block order,
+ * a domain of 16 int16 (set W, C x temperature min, max in 1/100 degC, then
+ * acceleration min, max in LSB of X, Y, Z) and the NUL-terminated
+ * sensor_id, into block (188 bytes). THERMOTILT_HOST_BAD_ARGUMENT for an ID
+ * isValidSensorId refuses. */
+int thermotilt_coefficient_block_encode(const float *coefficients, const int16_t *domain, const char *sensor_id,
+                                        uint8_t *block);
+
+/* lib/Compensation: decodeCoefficients of block (188 bytes) on a board
+ * whose ID is board_sensor_id; *status is its BlockStatus (0 Ok, 1 Blank,
+ * 2 BadMagic, 3 BadVersion, 4 BadCrc, 5 BadValues, 6 OtherSensor).
+ * coefficients (36) and domain (16, as above) hold what the call leaves in
+ * them: the block's on Ok, what they held before otherwise. */
+int thermotilt_coefficient_block_decode(const uint8_t *block, const char *board_sensor_id, uint8_t *status,
+                                        float *coefficients, int16_t *domain);
+
+/* lib/Compensation: isValidSensorId of each of count NUL-terminated texts
+ * (texts[i]); valid[i] is 1 or 0. */
+int thermotilt_sensor_ids_valid(size_t count, const char *const *texts, uint8_t *valid);
+
 /* lib/ChamberControl: one ChamberController(proportional_gain,
  * integral_gain), rounded error on or off, updated with setpoint_c[i] and
  * measured_c[i] every dt_s in order; pwm[i] and direction[i] (0 off, 1 heat,

@@ -29,7 +29,7 @@
 extern "C" {
 #endif
 
-#define THERMOTILT_HOST_ABI_VERSION 3
+#define THERMOTILT_HOST_ABI_VERSION 4
 #define THERMOTILT_HOST_BAD_ARGUMENT (-1)
 
 int thermotilt_host_abi_version(void);

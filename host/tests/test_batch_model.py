@@ -36,8 +36,9 @@ def test_a_sensor_table_overrides_the_top_level_for_that_sensor_alone():
 @pytest.mark.parametrize(
     "sensors, message",
     [
-        ([{"id": "TOO-LONG-1"}], "must be 1 to 8 letters, digits"),
-        ([{"drift": {}}], "sensor id None"),
+        ([{"id": "TOO-LONG-1"}], "has 10 characters, at most 8"),
+        ([{"id": "TT A"}], "only letters, digits"),
+        ([{"drift": {}}], "needs an id, got None"),
         ([{"id": "A"}, {"id": "A"}], "[[sensors]] A: listed twice"),
         ([{"id": "A", "heatsink": {"enabled": False}}], "overrides sensor terms only"),
         ([{"id": "A", "drift": {"band": 1}}], "[drift] unknown parameter 'band'"),

@@ -239,8 +239,26 @@ def test_the_fit_command_writes_coefficients_block_and_header(tmp_path):
     assert set(fitted["p10"]) == {"value", "ols_95", "hac_95"}
     block = (out / "coefficients.bin").read_bytes()
     assert len(block) == BLOCK_SIZE
-    table = decode_block(block)
+    stored = decode_block(block)
+    table = stored.table
     assert table.surfaces[("W", "X")].p10 == pytest.approx(fitted["p10"]["value"], rel=1e-6)
+    # No campaign.json: fitted for no particular sensor.
+    assert stored.sensor_id == document["sensor_id"] == "" and "no particular sensor" in result.stdout
+    # The calibrated domain: the fitted rows' ranges, rounded outwards to 0.01 degC and 1 LSB.
+    for set_name in ("W", "C"):
+        low, high = document["fits"][f"{set_name}X"]["temperature_range_c"]
+        domain = stored.domain[set_name]
+        assert low - 0.01 < domain.temperature_c[0] <= low and high <= domain.temperature_c[1] < high + 0.01
+        for axis in ("X", "Y"):
+            a_low, a_high = document["fits"][f"{set_name}{axis}"]["acceleration_range_lsb"]
+            a_domain = domain.acceleration_lsb[axis]
+            assert a_low - 1 < a_domain[0] <= a_low and a_high <= a_domain[1] < a_high + 1
+        assert domain.acceleration_lsb["Z"] is None
+        written = document["calibrated_domain"][set_name]
+        assert tuple(written["temperature_c"]) == domain.temperature_c
+        assert written["acceleration_lsb"] == {
+            axis: list(bounds) if bounds else None for axis, bounds in domain.acceleration_lsb.items()
+        }
     assert table.surfaces[("C", "Z")] == Surface(0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     header = (out / "coefficients.h").read_text()
     assert "FITTED_COEFFICIENTS[2][3][6]" in header and f"{table.surfaces[('W', 'X')].p10:.9g}f" in header
@@ -251,6 +269,51 @@ def test_the_fit_command_writes_coefficients_block_and_header(tmp_path):
     certificate = json.loads((out / "certificate.json").read_text())
     assert certificate["tilt_u95_deg"] > 0 and f"U = {certificate['tilt_u95_deg']:.4f} deg" in result.stdout
     assert "data:image/png;base64," in (out / "certificate.html").read_text()
+
+
+def write_campaign_file(folder, sensor_ids):
+    positions = [
+        {"label": str(index), "status": "done", "sensor_id": sensor_id} for index, sensor_id in enumerate(sensor_ids)
+    ]
+    (folder / "campaign.json").write_text(json.dumps({"format": 1, "positions": positions}))
+
+
+@pytest.mark.slow
+def test_the_fit_is_for_the_sensor_the_campaign_recorded(tmp_path):
+    temperatures, sets = cycle()
+    campaign = tmp_path / "campaign"
+    for angle in ANGLES_DEG[:4]:
+        write_run_log(campaign / f"{angle}.csv", angle, temperatures, sets)
+    write_campaign_file(campaign, ["NODE-07", "NODE-07", None])
+
+    def fit(*options):
+        out = tmp_path / f"fit{len(options)}"
+        result = run([*THERMOTILT, "fit", str(campaign), "--out", str(out), *options], capture_output=True, text=True)
+        return result, out
+
+    result, out = fit()
+    assert result.returncode == 0, result.stderr
+    assert "fitted for sensor NODE-07" in result.stdout
+    assert json.loads((out / "coefficients.json").read_text())["sensor_id"] == "NODE-07"
+    assert decode_block((out / "coefficients.bin").read_bytes()).sensor_id == "NODE-07"
+
+    result, _ = fit("--sensor-id", "NODE-08")
+    assert result.returncode == 1 and len(result.stderr.splitlines()) == 1
+    assert "--sensor-id NODE-08" in result.stderr and "NODE-07" in result.stderr
+
+    result, _ = fit("--sensor-id", "NODE 8")
+    assert result.returncode == 2 and "only letters, digits" in result.stderr.splitlines()[-1]
+
+    write_campaign_file(campaign, ["NODE-07", "NODE-09"])
+    result, _ = fit()
+    assert result.returncode == 1 and len(result.stderr.splitlines()) == 1
+    assert "'NODE-07', 'NODE-09'" in result.stderr
+
+    # A campaign that recorded no ID (the twin's): --sensor-id names the sensor.
+    write_campaign_file(campaign, [None])
+    result, out = fit("--sensor-id", "NODE-08")
+    assert result.returncode == 0, result.stderr
+    assert decode_block((out / "coefficients.bin").read_bytes()).sensor_id == "NODE-08"
 
 
 @pytest.mark.slow

@@ -217,6 +217,8 @@ def test_boards_campaign_asks_for_each_position_and_logs_its_program(idle_twin, 
     assert document["rig"] == "boards" and document["ports"]["imu_reader"] == idle_twin["imu_reader"]
     entry = document["positions"][0]
     assert entry["status"] == "done" and entry["firmware"]["imu_reader"].startswith("imu_reader ")
+    # The twin's IMU has no sensor ID: recorded as none.
+    assert entry["sensor_id"] == ""
     rows = read_run_log(str(out / "X+30" / "run.csv"))
     assert {row["incl_x_deg"] for row in rows} == {"30.00"}
     assert {"W", "C"} <= {row["phase"] for row in rows}
@@ -226,6 +228,18 @@ def test_boards_campaign_asks_for_each_position_and_logs_its_program(idle_twin, 
     summary = json.loads((out / "X+30" / "summary.json").read_text())
     assert summary["end_reason"] == "program done" and summary["rows"] == len(rows)
     assert (out / "X+30" / "serial" / "thermal_chamber.txt").stat().st_size > 0
+    # Another sensor on the IMU port (here: the same board given an ID) is
+    # refused before its position runs; the done position stays.
+    assigned = run([*THERMOTILT, "assign-id", "NODE-07", "--port", idle_twin["imu_reader"]], capture_output=True)
+    assert assigned.returncode == 0, assigned.stderr
+    result = boards_campaign(idle_twin, out, "\n", "--positions", "X+30,0", "--resume")
+    assert result.returncode == 1 and result.stderr.count("\n") == 1
+    assert (
+        f"0: the IMU reader on {idle_twin['imu_reader']} is sensor NODE-07, this campaign's positions so far "
+        "were logged with (no ID)" in result.stderr
+    )
+    document = campaign_file(out)
+    assert [(entry["label"], entry["status"]) for entry in document["positions"]] == [("X+30", "done"), ("0", "failed")]
 
 
 def test_boards_campaign_without_a_board_is_one_line(tmp_path):

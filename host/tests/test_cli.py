@@ -7,7 +7,7 @@ from test_bad_input import assert_one_line_error
 from thermotilt import __version__
 from thermotilt.cli import main
 from thermotilt.surfaces import PAPER_DEFAULTS
-from thermotilt.wire.coefficients import decode_block, encode_block
+from thermotilt.wire.coefficients import SetDomain, decode_block, encode_block
 from thermotilt.wire.protocol import PROTOCOL_VERSION, build_frame
 
 
@@ -22,10 +22,12 @@ def test_frames_counts(tmp_path, capsys):
     capture.write_bytes(
         b"boot noise\r\n"
         + build_frame("ACK", 0, [0, "START"]).encode()
-        + build_frame("IMU", 1, [10, 1, 2, 3, 1.5, 2.5, 3.5, 1.0, 2.0, 3.0, 21.5, "W", "D"]).encode()
+        + build_frame("IMU", 1, [10, 1, 2, 3, 1.5, 2.5, 3.5, 1.0, 2.0, 3.0, 21.5, "W", "D", "U"]).encode()
         + build_frame("ACK", 2, [0, "STOP"]).replace("STOP", "STOQ").encode()
-        + build_frame("IMU", 4, [20, 1, 2, 3, 1.5, 2.5, 3.5, 1.0, 2.0, 3.0, 21.5, "W", "D"]).encode()
-        + build_frame("IMU", 5, [30, 1, 2, 3, 1.5, 2.5, 3.5, 1.0, 2.0, 3.0, 21.5, "W", "D"]).encode().rstrip(b"\r\n")
+        + build_frame("IMU", 4, [20, 1, 2, 3, 1.5, 2.5, 3.5, 1.0, 2.0, 3.0, 21.5, "W", "D", "U"]).encode()
+        + build_frame("IMU", 5, [30, 1, 2, 3, 1.5, 2.5, 3.5, 1.0, 2.0, 3.0, 21.5, "W", "D", "U"])
+        .encode()
+        .rstrip(b"\r\n")
     )
     assert main(["frames", str(capture)]) == 0
     out = capsys.readouterr().out.splitlines()
@@ -75,9 +77,24 @@ def test_coefficients_defaults_and_block(cli_in_process, tmp_path):
     assert result.returncode == 0
     lines = result.stdout.splitlines()
     assert len(lines) == 6 and all(line.startswith("$SETCOE,") for line in lines)
-    assert decode_block(block.read_bytes()) == PAPER_DEFAULTS.to_float32()
+    assert decode_block(block.read_bytes()).table == PAPER_DEFAULTS.to_float32()
     again = cli_in_process("coefficients", "--block", str(block))
     assert again.returncode == 0 and len(again.stdout.splitlines()) == 6
+
+
+def test_coefficients_of_a_fitted_block_set_its_domain_too(cli_in_process, tmp_path):
+    block = tmp_path / "fit.bin"
+    domain = {
+        "W": SetDomain.covering((-10.0, 45.0), {"X": (-16000.0, 16000.0)}),
+        "C": SetDomain.covering((-9.5, 44.5), {"X": (-15000.0, 15000.0)}),
+    }
+    block.write_bytes(encode_block(PAPER_DEFAULTS, "NODE-07", domain))
+    result = cli_in_process("coefficients", "--block", str(block))
+    assert result.returncode == 0
+    lines = result.stdout.splitlines()
+    assert [line.split(",")[0] for line in lines] == ["$SETCOE"] * 6 + ["$SETDOM"] * 2
+    assert lines[6].startswith("$SETDOM,6,W,-10.00,45.00,-16000,16000,32767,-32768,32767,-32768*")
+    assert lines[7].startswith("$SETDOM,7,C,-9.50,44.50,-15000,15000,")
 
 
 def test_coefficients_corrupted_block(cli_in_process, tmp_path):

@@ -6,10 +6,14 @@ import pytest
 from thermotilt.surfaces import AXES, PAPER_DEFAULTS, SETS, Surface, table_from_values
 from thermotilt.wire.coefficients import (
     BLOCK_SIZE,
+    V1_BLOCK_SIZE,
     CoefficientBlockError,
+    SetDomain,
     crc16_xmodem,
     decode_block,
+    domain_from_dom_frame,
     encode_block,
+    sensor_id_problem,
     setcoe_frames,
     table_from_coe_frames,
 )
@@ -65,36 +69,112 @@ def test_surface_evaluate():
     assert Surface(1, 2, 3, 4, 5, 6).evaluate(2, 3) == 114
 
 
+NO_RANGE = struct.pack("<hh", 32767, -32768)
+
+
+def v1_block(table):
+    body = bytes([0x54, 0x01]) + struct.pack("<36f", *table.values())
+    return with_crc(body)
+
+
 def test_block_layout():
     block = encode_block(PAPER_DEFAULTS)
-    assert len(block) == BLOCK_SIZE == 148
-    assert block[0] == 0x54 and block[1] == 1
+    assert len(block) == BLOCK_SIZE == 188
+    assert block[0] == 0x54 and block[1] == 2
     # Cooling (set 1), Y (axis 1), p10 (term 1): 2 + 4 * (18 + 6 + 1) = 102.
     assert struct.unpack_from("<f", block, 102)[0] == pytest.approx(-12.82, rel=1e-7)
     # Warming X p00 is the first float.
     assert struct.unpack_from("<f", block, 2)[0] == 571.5
-    assert block[146:] == struct.pack("<H", bitwise_crc16_xmodem(block[:146]))
+    # No sensor ID, no domain.
+    assert block[146:154] == bytes(8) and block[154:186] == NO_RANGE * 8
+    assert block[186:] == struct.pack("<H", bitwise_crc16_xmodem(block[:186]))
     # The same value is quoted in test/test_compensation for the firmware side.
-    assert bitwise_crc16_xmodem(block[:146]) == 0xD9E0
+    assert bitwise_crc16_xmodem(block[:186]) == 0x5093
+
+
+def test_block_with_an_id_and_a_domain():
+    domain = {
+        "W": SetDomain((-1012, 4498), {"X": (-16500, 16400), "Y": (-16450, 16420), "Z": None}),
+        "C": SetDomain((-1005, 4501), {"X": (-16510, 16390), "Y": (-16440, 16410), "Z": None}),
+    }
+    block = encode_block(PAPER_DEFAULTS, "NODE-07", domain)
+    assert block[146:154] == b"NODE-07\0"
+    assert block[154:170] == struct.pack("<8h", -1012, 4498, -16500, 16400, -16450, 16420, 32767, -32768)
+    assert block[170:186] == struct.pack("<8h", -1005, 4501, -16510, 16390, -16440, 16410, 32767, -32768)
+    # Quoted in test/test_compensation (test_block_id_and_domain_bytes).
+    assert bitwise_crc16_xmodem(block[:186]) == 0x9062
+    decoded = decode_block(block)
+    assert (decoded.sensor_id, decoded.domain, decoded.version) == ("NODE-07", domain, 2)
+    assert decoded.domain["W"].temperature_c == (-10.12, 44.98)
 
 
 def test_zero_block_vector():
     zeros = table_from_values([0.0] * 36)
     block = encode_block(zeros)
-    assert block == with_crc(bytes([0x54, 0x01]) + bytes(144))
+    assert block == with_crc(bytes([0x54, 0x02]) + bytes(144) + bytes(8) + NO_RANGE * 8)
 
 
 def test_round_trip_is_float32():
-    decoded = decode_block(encode_block(PAPER_DEFAULTS))
+    decoded = decode_block(encode_block(PAPER_DEFAULTS)).table
     assert decoded == PAPER_DEFAULTS.to_float32()
     for s in SETS:
         for a in AXES:
             assert decoded.surface(s, a) == pytest.approx(PAPER_DEFAULTS.surface(s, a), rel=1e-6)
 
 
-@pytest.mark.parametrize("position", [0, 1, 2, 77, 145, 146, 147])
+def test_version_1_blocks_decode_without_id_or_domain():
+    block = v1_block(PAPER_DEFAULTS)
+    assert len(block) == V1_BLOCK_SIZE
+    # The firmware's test quotes the same CRC.
+    assert bitwise_crc16_xmodem(block[:146]) == 0xD9E0
+    decoded = decode_block(block)
+    assert decoded.table == PAPER_DEFAULTS.to_float32()
+    assert (decoded.sensor_id, decoded.version) == ("", 1)
+    assert all(decoded.domain[s] == SetDomain() for s in SETS)
+
+
+def test_domain_covering_rounds_outwards():
+    domain = SetDomain.covering((-10.123, 44.981), {"X": (-16500.4, 16400.2), "Y": (-3.0, 4.0)})
+    assert domain.temperature_centi_c == (-1013, 4499)
+    assert domain.acceleration_lsb == {"X": (-16501, 16401), "Y": (-3, 4), "Z": None}
+    clamped = SetDomain.covering((-400.0, 400.0), {"X": (-40000.0, 40000.0)})
+    assert clamped.temperature_centi_c == (-32768, 32767) and clamped.acceleration_lsb["X"] == (-32768, 32767)
+    with pytest.raises(ValueError, match="not a range"):
+        SetDomain.covering((5.0, 4.0), {})
+
+
+def test_dom_frame_round_trip():
+    domain = SetDomain((-1013, 4499), {"X": (-16501, 16401), "Y": None, "Z": None})
+    frame = parse_line(build_frame("DOM", 3, domain.setdom_values("C")))
+    assert frame.raw_fields[:3] == ("C", "-10.13", "44.99")
+    assert domain_from_dom_frame(frame) == domain
+    unknown = parse_line(build_frame("DOM", 4, ["W", "nan", "nan", 32767, -32768, 0, -1, 32767, -32768]))
+    assert domain_from_dom_frame(unknown) == SetDomain()
+    with pytest.raises(ValueError, match="no calibrated temperature range"):
+        SetDomain().setdom_values("W")
+
+
+@pytest.mark.parametrize(
+    "text, problem",
+    [
+        ("", None),
+        ("NODE-07", None),
+        ("a_b-C9", None),
+        ("NODE-0007", "9 characters, at most 8"),
+        ("NODE 7", "only letters, digits"),
+        ("NODE.7", "only letters, digits"),
+    ],
+)
+def test_sensor_id_rules(text, problem):
+    if problem is None:
+        assert sensor_id_problem(text) is None
+    else:
+        assert problem in sensor_id_problem(text)
+
+
+@pytest.mark.parametrize("position", [0, 1, 2, 77, 145, 146, 150, 160, 185, 186, 187])
 def test_any_flipped_byte_is_rejected(position):
-    block = bytearray(encode_block(PAPER_DEFAULTS))
+    block = bytearray(encode_block(PAPER_DEFAULTS, "NODE-07"))
     block[position] ^= 0x01
     with pytest.raises(CoefficientBlockError):
         decode_block(bytes(block))
@@ -102,17 +182,27 @@ def test_any_flipped_byte_is_rejected(position):
 
 def test_error_messages():
     good = encode_block(PAPER_DEFAULTS)
-    with pytest.raises(CoefficientBlockError, match="147 bytes, expected 148"):
+    with pytest.raises(CoefficientBlockError, match=r"187 bytes, expected 188 \(148 in version 1\)"):
         decode_block(good[:-1])
+    with pytest.raises(CoefficientBlockError, match="188 bytes, expected 148 for version 1"):
+        decode_block(b"\x54\x01" + good[2:])
     with pytest.raises(CoefficientBlockError, match="magic is 0xFF"):
-        decode_block(b"\xff" * 148)
-    with pytest.raises(CoefficientBlockError, match="version 2 is not supported"):
-        decode_block(with_crc(b"\x54\x02" + good[2:146]))
+        decode_block(b"\xff" * 188)
+    with pytest.raises(CoefficientBlockError, match="version 3 is not supported"):
+        decode_block(with_crc(b"\x54\x03" + good[2:186]))
     with pytest.raises(CoefficientBlockError, match="CRC"):
-        decode_block(good[:146] + b"\x00\x00")
-    nan_body = b"\x54\x01" + struct.pack("<f", math.nan) + good[6:146]
+        decode_block(good[:186] + b"\x00\x00")
+    nan_body = b"\x54\x02" + struct.pack("<f", math.nan) + good[6:186]
     with pytest.raises(CoefficientBlockError, match="non-finite"):
         decode_block(with_crc(nan_body))
+    spaced = good[:146] + b"NODE 7\0\0" + good[154:186]
+    with pytest.raises(CoefficientBlockError, match="sensor ID field"):
+        decode_block(with_crc(spaced))
+    after_padding = good[:146] + b"AB\0C\0\0\0\0" + good[154:186]
+    with pytest.raises(CoefficientBlockError, match="sensor ID field"):
+        decode_block(with_crc(after_padding))
+    with pytest.raises(ValueError, match="only letters"):
+        encode_block(PAPER_DEFAULTS, "NODE 7")
 
 
 def test_table_rejects_bad_content():

@@ -188,7 +188,7 @@ def test_a_late_answer_to_an_earlier_attempt_is_not_taken_for_the_retry():
 
 
 def test_frames_after_a_refusal_are_passed_on():
-    imu_frame = build_frame("IMU", 3, [1000, 1, 2, 3, 1.0, 2.0, 3.0, 1.0, 2.0, 3.0, 25.0, "W", "D"])
+    imu_frame = build_frame("IMU", 3, [1000, 1, 2, 3, 1.0, 2.0, 3.0, 1.0, 2.0, 3.0, 25.0, "W", "D", "U"])
     port = ScriptedPort(
         [lambda command: (build_frame("ERR", 2, [command.seq, "BAD_ARG", "SET_AXIS"]) + imu_frame).encode()]
     )

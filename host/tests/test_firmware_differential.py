@@ -6,7 +6,10 @@ build/native/libthermotilt_host.so), input for input:
 - the physics model's trend (physics.sensor.Trend), lib/Compensation's
   TrendDetector;
 - Surface.evaluate and the drift term's _surface, lib/Compensation's
-  surfaceCorrection.
+  surfaceCorrection;
+- wire.coefficients' EEPROM block (encode_block, decode_block) and sensor
+  ID rule (sensor_id_problem), lib/Compensation's encodeCoefficients,
+  decodeCoefficients and isValidSensorId.
 
 The firmware computes in float32 (the AVR's float and double; the host
 library's SSE float, without fused multiply-adds). Both sides start from the
@@ -27,8 +30,17 @@ from thermotilt.physics import Model
 from thermotilt.physics.sensor import Trend
 from thermotilt.physics.terms.sensor import INT16_MAX, INT16_MIN, OPERATING_C, SURFACE_TERM_BOUNDS, _surface
 from thermotilt.program import CALIBRATION_MAX_C, CALIBRATION_MIN_C
-from thermotilt.surfaces import AXES, PAPER_DEFAULTS, SETS, Surface
+from thermotilt.surfaces import AXES, PAPER_DEFAULTS, SETS, Surface, table_from_values
 from thermotilt.twin.scenarios import program_steps
+from thermotilt.wire.coefficients import (
+    BLOCK_SIZE,
+    CoefficientBlockError,
+    SetDomain,
+    crc16_xmodem,
+    decode_block,
+    encode_block,
+    sensor_id_problem,
+)
 
 pytestmark = pytest.mark.twin
 
@@ -317,3 +329,170 @@ def test_chamber_drive_is_the_firmwares_p_law():
         native.DRIVE_OFF,
         native.DRIVE_OFF,
     ]
+
+
+# --- Coefficient block and sensor ID ----------------------------------------
+# BlockStatus of lib/Compensation, in its order.
+OK, BLANK, BAD_MAGIC, BAD_VERSION, BAD_CRC, BAD_VALUES, OTHER_SENSOR = range(7)
+ID_CHARACTERS = "ABCXYZabcxyz0189_-"
+
+
+def firmware_block(values: np.ndarray, domain: list[int], sensor_id: str) -> bytes:
+    coefficients = np.ascontiguousarray(values, np.float32)
+    bounds = np.ascontiguousarray(domain, np.int16)
+    block = np.zeros(BLOCK_SIZE, np.uint8)
+    _call(
+        "thermotilt_coefficient_block_encode",
+        coefficients.ctypes.data,
+        bounds.ctypes.data,
+        sensor_id.encode("ascii"),
+        block.ctypes.data,
+    )
+    return block.tobytes()
+
+
+def firmware_decode(block: bytes, board_id: str) -> tuple[int, np.ndarray, list[int]]:
+    """BlockStatus, and the coefficients and domain decodeCoefficients left
+    in a table of NaN and a domain of zeros."""
+    data = np.frombuffer(block.ljust(BLOCK_SIZE, b"\xff"), np.uint8).copy()
+    status = np.zeros(1, np.uint8)
+    coefficients = np.full(36, np.nan, np.float32)
+    domain = np.zeros(16, np.int16)
+    _call(
+        "thermotilt_coefficient_block_decode",
+        data.ctypes.data,
+        board_id.encode("ascii"),
+        status.ctypes.data,
+        coefficients.ctypes.data,
+        domain.ctypes.data,
+    )
+    return int(status[0]), coefficients, domain.tolist()
+
+
+def firmware_ids_valid(texts: list[bytes]) -> list[bool]:
+    import ctypes
+
+    array = (ctypes.c_char_p * len(texts))(*texts)
+    valid = np.zeros(len(texts), np.uint8)
+    _call("thermotilt_sensor_ids_valid", len(texts), ctypes.cast(array, ctypes.c_void_p), valid.ctypes.data)
+    return [bool(value) for value in valid]
+
+
+sensor_ids = st.text(ID_CHARACTERS, max_size=8)
+int16s = st.integers(INT16_MIN, INT16_MAX)
+# Coefficients whose output fits an IMU frame, so that the firmware loads them.
+small_coefficients = arrays(np.float32, 36, elements=st.floats(-(2.0**-20), 2.0**-20, width=32))
+
+
+# A range as the host writes one: ordered bounds, or none as (32767, -32768).
+ranges = st.lists(int16s, min_size=2, max_size=2).map(sorted) | st.just([INT16_MAX, INT16_MIN])
+
+
+@st.composite
+def blocks(draw) -> tuple[np.ndarray, list[int], str]:
+    values = draw(small_coefficients | arrays(np.float32, 36, elements=st.floats(width=32)))
+    domain = [bound for _ in range(8) for bound in draw(ranges)]
+    return values, domain, draw(sensor_ids)
+
+
+def firmware_domain(domain: dict[str, SetDomain]) -> list[int]:
+    return [bound for set_name in SETS for bound in domain[set_name].values()]
+
+
+def python_domain(domain: list[int]) -> dict[str, SetDomain]:
+    return {set_name: SetDomain.from_values(domain[8 * index : 8 * index + 8]) for index, set_name in enumerate(SETS)}
+
+
+@PROPERTY
+@given(blocks())
+def test_block_encodes_to_the_firmwares_bytes(block):
+    values, domain, sensor_id = block
+    assume(np.all(np.isfinite(values)))
+    python = encode_block(table_from_values(values.tolist()), sensor_id, python_domain(domain))
+    assert python == firmware_block(values, domain, sensor_id)
+
+
+def assert_decodes_alike(block: bytes, board_id: str) -> None:
+    """Where the firmware loads the block (or would, on its own sensor), the
+    host reads the same surfaces, domain and ID; where it refuses the block
+    as damaged, so does the host, but for surfaces that are finite and
+    whose output only the firmware bounds (OUTPUT_TOO_LARGE, which SETCOE
+    reports to an upload)."""
+    status, coefficients, domain = firmware_decode(block, board_id)
+    try:
+        decoded = decode_block(block)
+    except CoefficientBlockError:
+        assert status in (BLANK, BAD_MAGIC, BAD_VERSION, BAD_CRC, BAD_VALUES), status
+        return
+    if status == BAD_VALUES:
+        assert all(np.isfinite(decoded.table.values()))
+        return
+    assert status in (OK, OTHER_SENSOR), status
+    assert (status == OTHER_SENSOR) == (decoded.sensor_id not in ("", board_id))
+    if status == OK:
+        assert np.array_equal(np.array(decoded.table.values(), np.float32), coefficients)
+        assert decoded.domain == python_domain(domain)
+
+
+@PROPERTY
+@given(blocks(), sensor_ids, st.data())
+def test_block_decodes_as_the_firmware_decodes_it(block, board_id, data):
+    values, domain, sensor_id = block
+    encoded = bytearray(firmware_block(values, domain, sensor_id))
+    if data.draw(st.booleans()):
+        position = data.draw(st.integers(0, BLOCK_SIZE - 1))
+        encoded[position] = data.draw(st.integers(0, 255))
+    if data.draw(st.booleans()):
+        # The ID field rewritten, the CRC made to hold: an ID the block cannot carry, or another one.
+        field = data.draw(
+            st.binary(min_size=8, max_size=8) | sensor_ids.map(lambda text: text.encode().ljust(8, b"\0"))
+        )
+        encoded[146:154] = field
+        encoded[186:188] = crc16_xmodem(bytes(encoded[:186])).to_bytes(2, "little")
+    assert_decodes_alike(bytes(encoded), board_id)
+
+
+@PROPERTY
+@given(small_coefficients, sensor_ids)
+def test_version_1_blocks_decode_as_the_firmware_decodes_them(values, board_id):
+    """Version 1: magic, version 1, the floats, the CRC; the firmware reads
+    them with the erased EEPROM behind."""
+    body = bytes((0x54, 1)) + values.astype("<f4").tobytes()
+    block = body + crc16_xmodem(body).to_bytes(2, "little")
+    assert_decodes_alike(block, board_id)
+    assert firmware_decode(block, board_id)[0] == OK
+    assert decode_block(block).sensor_id == "" and decode_block(block).domain["W"].temperature_centi_c is None
+
+
+def test_an_erased_block_is_blank_to_the_firmware_and_refused_by_the_host():
+    assert firmware_decode(b"\xff" * BLOCK_SIZE, "")[0] == BLANK
+    with pytest.raises(CoefficientBlockError, match="magic is 0xFF"):
+        decode_block(b"\xff" * BLOCK_SIZE)
+
+
+@PROPERTY
+@given(st.text(st.characters(min_codepoint=1, max_codepoint=127), max_size=10) | sensor_ids)
+def test_sensor_id_rule_is_the_firmwares(text):
+    assert (sensor_id_problem(text) is None) == firmware_ids_valid([text.encode("ascii")])[0]
+
+
+def test_sensor_id_rule_edges():
+    texts = ["", "N", "NODE-007", "NODE-0007", "a b", "a.b", "a,b", "a*b", "\u00e9"]
+    firmware = firmware_ids_valid([text.encode("utf-8") for text in texts])
+    assert firmware == [sensor_id_problem(text) is None for text in texts]
+    assert firmware == [True, True, True, False, False, False, False, False, False]
+
+
+@pytest.mark.parametrize("board_id, status", [("NODE-07", OK), ("NODE-08", OTHER_SENSOR), ("", OTHER_SENSOR)])
+def test_a_fitted_block_loads_only_on_its_sensor_on_both_sides(board_id, status):
+    table = PAPER_DEFAULTS.to_float32()
+    domain = {
+        "W": SetDomain.covering((-10.12, 44.98), {"X": (-16500.0, 16400.0), "Y": (-16450.0, 16420.0)}),
+        "C": SetDomain.covering((-10.05, 45.01), {"X": (-16510.0, 16390.0), "Y": (-16440.0, 16410.0)}),
+    }
+    block = encode_block(table, "NODE-07", domain)
+    assert block == firmware_block(np.array(table.values(), np.float32), firmware_domain(domain), "NODE-07")
+    assert firmware_decode(block, board_id)[0] == status
+    assert_decodes_alike(block, board_id)
+    decoded = decode_block(block)
+    assert (decoded.table, decoded.sensor_id, decoded.domain) == (table, "NODE-07", domain)

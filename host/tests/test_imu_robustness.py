@@ -34,7 +34,7 @@ SENSOR = (-1700, -400, 16000, 32)
 TEMPERATURE_RESOLUTION_C = 1 / 8
 # The block: magic, version, 36 float32 from byte 2, CRC in the last two bytes.
 FLOATS_OFFSET = 2
-CRC_OFFSET = 146
+CRC_OFFSET = 186
 
 
 def start_imu(elf: Path | None = None, sensor=SENSOR) -> Board:
@@ -116,10 +116,12 @@ DAMAGED_BLOCKS = {
     "erased magic": (b"\xff" + PAPER_BLOCK[1:], "EEPROM_MAGIC"),
     "one flipped bit": (PAPER_BLOCK[:77] + bytes([PAPER_BLOCK[77] ^ 0x04]) + PAPER_BLOCK[78:], "EEPROM_CRC"),
     # Power lost while saving onto a blank EEPROM: the first 100 bytes written.
-    "half written": (PAPER_BLOCK[:100] + b"\xff" * 48, "EEPROM_CRC"),
-    "version 2": (resealed(PAPER_BLOCK[:1] + b"\x02" + PAPER_BLOCK[2:]), "EEPROM_VERSION"),
+    "half written": (PAPER_BLOCK[:100] + b"\xff" * (len(PAPER_BLOCK) - 100), "EEPROM_CRC"),
+    "version 3": (resealed(PAPER_BLOCK[:1] + b"\x03" + PAPER_BLOCK[2:]), "EEPROM_VERSION"),
     "NaN with a good CRC": (resealed(with_float(PAPER_BLOCK, 15, math.nan)), "EEPROM_VALUES"),
     "output beyond a frame": (encode_block(table_from_values(ABSURD_VALUES)), "EEPROM_VALUES"),
+    # A sound block fitted for a sensor ID, on a board that has none.
+    "another sensor's": (encode_block(PAPER_DEFAULTS, "NODE-07"), "EEPROM_SENSOR"),
 }
 
 
@@ -152,9 +154,9 @@ def test_a_sound_block_is_used(tmp_path):
 
 # ---- SETCOE and the IMU frame ---------------------------------------------
 
-# The firmware's limit on |raw - f|: 1e7 (ten characters at one decimal in the
+# The firmware's limit on |raw - f|: 1e6 (nine characters at one decimal in the
 # longest IMU line) less 0.1 % (lib/Compensation/src/Compensation.h).
-OUTPUT_LIMIT_LSB = 9.99e6
+OUTPUT_LIMIT_LSB = 9.99e5
 INT16_MIN = -32768
 
 
@@ -185,7 +187,7 @@ def test_setcoe_refuses_surfaces_whose_output_cannot_be_framed():
 
 
 def test_the_longest_accepted_output_still_fits_an_imu_frame():
-    # raw = -32768 and p00 = limit - 32768 - 1000: raw - f = -9989000 LSB, the
+    # raw = -32768 and p00 = limit - 32768 - 1000: raw - f = -998000 LSB, the
     # longest value with one decimal that the firmware accepts; the
     # temperature at its most negative (raw -2048 -> -235 degC) is longest too.
     p00 = OUTPUT_LIMIT_LSB + INT16_MIN - 1000

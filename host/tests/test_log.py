@@ -23,7 +23,7 @@ from thermotilt.wire.protocol import SequenceCounter, build_frame
 
 def imu_frame(seq, t_ms, ax=-1650):
     return build_frame(
-        "IMU", seq, [t_ms, ax, 12, 16390, ax + 0.5, 12.25, 16389.9, ax - 3.5, 10.0, 16389.9, 24.125, "W", "D"]
+        "IMU", seq, [t_ms, ax, 12, 16390, ax + 0.5, 12.25, 16389.9, ax - 3.5, 10.0, 16389.9, 24.125, "W", "D", "U"]
     )
 
 

@@ -31,7 +31,7 @@ VECTORS = [
     # hold_start appended: the C++ test keeps the 6-field line (its parser counts no fields).
     "$SETPRG,9,-10.00,45.00,2.00,60,1200,1,T*B58A",
     "$GETCOE,3,C,Y*C2AC",
-    "$IMU,42,123456,-1650,-388,16012,-1649.75,-388.50,16012.25,-1078.25,-34.50,16011.00,23.50,W,E*BC38",
+    "$IMU,42,123456,-1650,-388,16012,-1649.75,-388.50,16012.25,-1078.25,-34.50,16011.00,23.50,W,E,I*765D",
     "$COE,7,W,X,5.7150e+02,-2.0230e+01,1.5690e-03,-1.0440e-01,-6.9360e-05,6.3270e-09*FCD1",
 ]
 LONGEST = "$LONG,0," + "A" * 107 + "*E008"  # 120 characters
@@ -76,7 +76,9 @@ def test_frame_table_has_the_fields_and_directions_of_docs_protocol():
         "temp_c",
         "comp_set",
         "coef_source",
+        "temp_domain",
     )
+    assert FRAMES["ICF"].field_names == ("decimation", "streaming", "coef_source", "hysteresis_c", "sensor_id")
     assert FRAMES["CHS"].field_names == (
         "t_ms",
         "phase",
@@ -107,9 +109,26 @@ def test_frame_table_has_the_fields_and_directions_of_docs_protocol():
     assert FRAMES["GRD"].field_names[-1] == "heartbeat_s"
     assert FRAMES["SETHB"].field_names == ("timeout_s",)
     assert FRAMES["SETCOE"].field_names == FRAMES["COE"].field_names
+    assert (
+        FRAMES["SETDOM"].field_names
+        == FRAMES["DOM"].field_names
+        == (
+            "set",
+            "t_min_c",
+            "t_max_c",
+            "ax_min",
+            "ax_max",
+            "ay_min",
+            "ay_max",
+            "az_min",
+            "az_max",
+        )
+    )
+    assert FRAMES["GETDOM"].field_names == ("set",)
+    assert FRAMES["SETID"].field_names == ("sensor_id",)
     assert FRAMES["ERR"].field_names == ("cmd_seq", "code", "detail")
     board = {tag for tag, spec in FRAMES.items() if spec.direction == "board"}
-    assert board == {"IMU", "CHS", "VER", "ICF", "PRG", "GRD", "COE", "ACK", "ERR"}
+    assert board == {"IMU", "CHS", "VER", "ICF", "PRG", "GRD", "COE", "DOM", "ACK", "ERR"}
     host = {tag for tag, spec in FRAMES.items() if spec.direction == "host"}
     assert host == {
         "START",
@@ -123,6 +142,9 @@ def test_frame_table_has_the_fields_and_directions_of_docs_protocol():
         "SETCOE",
         "SAVECOE",
         "DEFCOE",
+        "GETDOM",
+        "SETDOM",
+        "SETID",
         "SETGRD",
         "SETHB",
         "CLEAR",
@@ -161,7 +183,7 @@ def test_frame_roles_are_the_ones_the_docs_describe():
     assert sum(len(tags) for tags in roles.values()) == len(FRAMES)
     titles = docs_frame_titles(text)
     assert {tag for tag, title in titles.items() if "answer to" in title} == roles[protocol.ANSWER]
-    assert docs_query_data(text) == roles[protocol.ANSWER] == {"VER", "ICF", "PRG", "GRD", "COE"}
+    assert docs_query_data(text) == roles[protocol.ANSWER] == {"VER", "ICF", "PRG", "GRD", "COE", "DOM"}
     assert roles[protocol.STREAM] == {"IMU", "CHS"}
     assert roles[protocol.OUTCOME] == {"ACK", "ERR"}
     assert all(FRAMES[tag].direction == protocol.HOST for tag in roles[protocol.COMMAND])
@@ -268,6 +290,7 @@ def test_imu_round_trip():
         23.5,
         "W",
         "E",
+        "O",
     ]
     line = build_frame("IMU", 42, values)
     assert line.endswith("\r\n")
@@ -276,7 +299,7 @@ def test_imu_round_trip():
     assert frame.type == "IMU" and frame.seq == 42
     assert frame["t_ms"] == 123456 and frame["ax_raw"] == -1650
     assert frame["az_filt"] == 16012.25
-    assert frame["comp_set"] == "W" and frame["coef_source"] == "E"
+    assert frame["comp_set"] == "W" and frame["coef_source"] == "E" and frame["temp_domain"] == "O"
     assert list(frame.fields.values()) == values
 
 
@@ -319,7 +342,7 @@ def test_build_from_mapping_and_errors():
 
 
 def test_non_finite_values():
-    frame = parse_line(build_frame("ICF", 1, [10, 1, "E", math.nan]))
+    frame = parse_line(build_frame("ICF", 1, [10, 1, "E", math.nan, "NODE-07"]))
     assert math.isnan(frame["hysteresis_c"])
 
 
@@ -422,7 +445,7 @@ def test_directions_tracked_separately():
         ("SETDEC", 0, [10]),
         ("ACK", 100, [0, "SETDEC"]),
         ("STATUS", 1, []),
-        ("ICF", 101, [10, 1, "E", 0.5]),
+        ("ICF", 101, [10, 1, "E", 0.5, ""]),
         ("ACK", 102, [1, "STATUS"]),
     )
     reader, frames = read_all(data)

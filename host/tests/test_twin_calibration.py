@@ -122,7 +122,9 @@ def test_a_batch_campaign_fits_each_sensor_to_its_own_drift(batch_fitted, tmp_pa
     for fitted_id in sensors:
         fit_dir = batch_fitted / "fit" / fitted_id
         assert json.loads((fit_dir / "certificate.json").read_text())["sensor_id"] == fitted_id
-        assert json.loads((batch_fitted / "campaign" / fitted_id / "campaign.json").read_text())["sensor"] == fitted_id
+        campaign = json.loads((batch_fitted / "campaign" / fitted_id / "campaign.json").read_text())
+        assert {position["sensor_id"] for position in campaign["positions"]} == {fitted_id}
+        assert json.loads((fit_dir / "coefficients.json").read_text())["sensor_id"] == fitted_id
         for truth_id, path in truths.items():
             gaps[fitted_id, truth_id] = max(c.rms_lsb for c in compare(read_fit(fit_dir), str(path)))
     for fitted_id in sensors:

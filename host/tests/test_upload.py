@@ -6,12 +6,13 @@ firmware cannot stage by itself. Also `simulate --eeprom` and the bad input
 of both.
 
 Expected values come from docs/protocol.md (answers, ERR codes, COE's five
-significant digits, the 148-byte block) and from the fit written here.
+significant digits, the 188-byte block) and from the fit written here.
 """
 
 import json
 import os
 import struct
+from dataclasses import replace
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -24,7 +25,14 @@ from test_bad_input import assert_one_line_error
 from twin_helpers import pty_twin
 
 from thermotilt.calibration.fit import SurfaceFit, write_outputs
-from thermotilt.calibration.upload import UploadError, printed_equal, read_table, upload_table
+from thermotilt.calibration.upload import (
+    UploadError,
+    assign_sensor_id,
+    printed_equal,
+    read_fit_to_upload,
+    read_table,
+    upload_table,
+)
 from thermotilt.cli import main
 from thermotilt.physics import Model
 from thermotilt.run.log import read_run_log
@@ -50,8 +58,9 @@ FITTED = {
 BLANK = b"\xff" * BLOCK_SIZE
 
 
-def write_fit(out_dir: Path, surfaces=FITTED) -> Path:
-    """A FIT_DIR as `thermotilt fit` writes it (fit.write_outputs)."""
+def write_fit(out_dir: Path, surfaces=FITTED, sensor_id: str = "") -> Path:
+    """A FIT_DIR as `thermotilt fit` writes it (fit.write_outputs), its rows
+    over -10..45 degC and +-16000 LSB."""
     fits = [
         SurfaceFit(
             s,
@@ -71,13 +80,20 @@ def write_fit(out_dir: Path, surfaces=FITTED) -> Path:
         )
         for (s, a), surface in surfaces.items()
     ]
-    write_outputs(fits, SimpleNamespace(positions=["0", "X+30", "X-30"], skipped_rows=0, stabilizing_rows=0), out_dir)
+    campaign = SimpleNamespace(positions=["0", "X+30", "X-30"], skipped_rows=0, stabilizing_rows=0)
+    write_outputs(fits, campaign, out_dir, sensor_id)
     return out_dir
 
 
 @pytest.fixture(scope="module")
 def fit_dir(tmp_path_factory):
     return write_fit(tmp_path_factory.mktemp("fit"))
+
+
+@pytest.fixture(scope="module")
+def fit_07(tmp_path_factory):
+    """The same fit, made for sensor NODE-07."""
+    return write_fit(tmp_path_factory.mktemp("fit-07"), sensor_id="NODE-07")
 
 
 def imu_board() -> Board:
@@ -164,7 +180,107 @@ def test_simulate_eeprom_starts_the_imu_with_the_fitted_block(fit_dir, tmp_path)
     assert not [e for e in of_type(frames, "ERR") if e["code"].startswith("EEPROM")]
 
 
+ID_RECORD = slice(512, 523)
+
+
+@pytest.mark.slow
+@pytest.mark.twin
+def test_upload_refuses_a_fit_for_another_sensor_through_the_twins_ports(fit_07, fit_dir, tmp_path):
+    out = tmp_path / "twin"
+    with idle_twin(out) as ports:
+        imu = ports["imu_reader"]
+        unassigned = run("upload", fit_07, "--port", imu)
+        assert_one_line_error(unassigned, 1, f"{fit_07} was fitted for sensor NODE-07, {imu} has no sensor ID")
+        assert f"`thermotilt assign-id NODE-07 --port {imu}`" in unassigned.stderr
+        assigned = run("assign-id", "NODE-08", "--port", imu)
+        assert assigned.returncode == 0, assigned.stderr
+        assert f"{imu} is now sensor NODE-08" in assigned.stdout
+        other = run("upload", fit_07, "--port", imu)
+        assert_one_line_error(
+            other, 1, f"{fit_07} was fitted for sensor NODE-07, {imu} is sensor NODE-08; nothing written"
+        )
+        nameless = run("upload", fit_dir, "--port", imu)
+        assert_one_line_error(nameless, 1, f"{fit_dir} was fitted for no particular sensor, {imu} is sensor NODE-08")
+        assert "--sensor-id NODE-08" in nameless.stderr
+        kept = run("assign-id", "NODE-07", "--port", imu)
+        assert_one_line_error(kept, 1, f"{imu} is already sensor NODE-08; add --replace")
+        with serial.Serial(imu, 115200, timeout=0) as port:
+            (config,) = of_type(CommandClient(port, timeout_s=2.0).command("STATUS").data, "ICF")
+    assert (config["sensor_id"], config["coef_source"]) == ("NODE-08", "D")
+    # The EEPROM the twin kept: the ID record, and no coefficient block.
+    eeprom = (out / "imu_reader_eeprom.bin").read_bytes()
+    assert eeprom[:BLOCK_SIZE] == BLANK and eeprom[ID_RECORD].startswith(b"INODE-08\0")
+    assert [row["coef_source"] for row in read_run_log(str(out / "run.csv"))][-1] == "D"
+
+
+@pytest.mark.slow
+@pytest.mark.twin
+def test_upload_of_a_fit_for_the_boards_sensor_through_the_twins_ports(fit_07, tmp_path):
+    out = tmp_path / "twin"
+    with idle_twin(out) as ports:
+        imu = ports["imu_reader"]
+        assigned = run("assign-id", "NODE-07", "--port", imu)
+        assert assigned.returncode == 0, assigned.stderr
+        assert "is now sensor NODE-07; it has no saved coefficients (coef_source D)" in assigned.stdout
+        saved = run("upload", fit_07, "--port", imu)
+        assert saved.returncode == 0, saved.stderr
+        assert f"on {imu} (sensor NODE-07)" in saved.stdout
+        assert "calibrated domain W: T -10..45 degC, X -16000..16000 LSB" in saved.stdout
+        assert "after the reset (COMMANDED) the board runs them: coef_source E" in saved.stdout
+        again = run("assign-id", "NODE-07", "--port", imu)
+        assert "already sensor NODE-07; nothing written (coef_source E)" in again.stdout
+        # Another ID: the block is kept but no longer loads; the ID it was fitted for loads it again.
+        replaced = run("assign-id", "NODE-09", "--port", imu, "--replace")
+        assert replaced.returncode == 0, replaced.stderr
+        assert "now sensor NODE-09 (was NODE-07); its saved coefficients were fitted for another sensor" in (
+            replaced.stdout
+        )
+        restored = run("assign-id", "NODE-07", "--port", imu, "--replace")
+        assert "its saved coefficients load for this ID (coef_source E)" in restored.stdout
+    stored = decode_block((out / "imu_reader_eeprom.bin").read_bytes()[:BLOCK_SIZE])
+    fit = read_fit_to_upload(fit_07)
+    assert (stored.sensor_id, stored.domain) == ("NODE-07", fit.domain)
+    sources = [row["coef_source"] for row in read_run_log(str(out / "run.csv"))]
+    assert [s for i, s in enumerate(sources) if i == 0 or s != sources[i - 1]] == ["D", "U", "E", "D", "E"]
+
+
 # ---- on a twin Board: exact, and the failures ----------------------------
+
+
+@pytest.mark.twin
+@pytest.mark.parametrize(
+    "board_id, fitted_for, message",
+    [
+        ("NODE-08", "NODE-07", "the fit was fitted for sensor NODE-07, the board is sensor NODE-08; nothing written"),
+        ("", "NODE-07", "the board has no sensor ID: if it carries sensor NODE-07, assign it with"),
+        ("NODE-08", "", "was fitted for no particular sensor, the board is sensor NODE-08"),
+    ],
+)
+def test_a_fit_for_another_sensor_is_refused_before_anything_is_written(fit_dir, board_id, fitted_for, message):
+    fit = read_fit_to_upload(fit_dir)
+    with imu_board() as board:
+        if board_id:
+            assign_sensor_id(board, board_id)
+        eeprom = board.read_eeprom()
+        line = TamperedLine(board)
+        with pytest.raises(UploadError) as error:
+            upload_table(line, replace(fit, sensor_id=fitted_for))
+        assert board.read_eeprom() == eeprom
+    text = str(error.value)
+    assert message in text and "\n" not in text
+    assert line.commands == ["VERSION", "STATUS"]
+
+
+@pytest.mark.twin
+def test_a_fit_for_the_boards_sensor_is_saved_with_its_id_and_domain(fit_07):
+    fit = read_fit_to_upload(fit_07)
+    assert fit.sensor_id == "NODE-07" and fit.domain["C"].temperature_c == (-10.0, 45.0)
+    with imu_board() as board:
+        assign_sensor_id(board, "NODE-07")
+        result = upload_table(board, fit)
+        stored = decode_block(board.read_eeprom(0, BLOCK_SIZE))
+    assert (result.sensor_id, result.coef_source) == ("NODE-07", "E")
+    assert (stored.sensor_id, stored.domain) == ("NODE-07", fit.domain)
 
 
 def ulps_apart(a: float, b: float) -> int:
@@ -181,7 +297,7 @@ def test_the_saved_block_holds_the_uploaded_float32_to_one_unit_in_the_last_plac
         stored = decode_block(board.read_eeprom(0, BLOCK_SIZE))
     # SETCOE's nine digits carry each float32 exactly, but avr-libc's strtod
     # is not correctly rounded: some values land one ulp away.
-    distances = [ulps_apart(sent, kept) for sent, kept in zip(table.values(), stored.values(), strict=True)]
+    distances = [ulps_apart(sent, kept) for sent, kept in zip(table.values(), stored.table.values(), strict=True)]
     assert max(distances) == 1 and sum(d > 0 for d in distances) < len(distances) / 2
     assert (result.saved, result.reset_cause, result.coef_source) == (True, "COMMANDED", "E")
     assert result.imu_frames_checked > 0
@@ -418,6 +534,18 @@ def set_cy_p02_nan(document) -> None:
     document["fits"]["CY"]["coefficients"]["p02"]["value"] = float("nan")
 
 
+def set_sensor_id_with_a_space(document) -> None:
+    document["sensor_id"] = "NODE 7"
+
+
+def set_domain_beyond_int16(document) -> None:
+    document["calibrated_domain"]["W"]["temperature_c"] = [-10.0, 400.0]
+
+
+def drop_domain_axis(document) -> None:
+    del document["calibrated_domain"]["C"]["acceleration_lsb"]["Y"]
+
+
 @pytest.mark.parametrize(
     ("make", "message"),
     [
@@ -430,12 +558,32 @@ def set_cy_p02_nan(document) -> None:
             "WX p00 = 1e+39, which the firmware's float32 cannot hold",
         ),
         (lambda tmp: edited_fit(tmp / "nan", set_cy_p02_nan), "CY p02 = nan"),
+        (
+            lambda tmp: edited_fit(tmp / "id", set_sensor_id_with_a_space),
+            "sensor ID 'NODE 7' may hold only letters, digits",
+        ),
+        (
+            lambda tmp: edited_fit(tmp / "domain", set_domain_beyond_int16),
+            "calibrated_domain W temperature_c [-10.0, 400.0] is not a range the board can hold",
+        ),
+        (
+            lambda tmp: edited_fit(tmp / "axis", drop_domain_axis),
+            "calibrated_domain is not the one thermotilt fit writes",
+        ),
     ],
-    ids=["missing", "not-json", "no-fits", "unknown-surface", "beyond-float32", "nan"],
+    ids=["missing", "not-json", "no-fits", "unknown-surface", "beyond-float32", "nan", "id", "domain", "axis"],
 )
 def test_a_bad_fit_dir_is_one_line(tmp_path, capsys, make, message):
     # The fit is read before the port is opened: this port does not exist.
     assert_one_line(capsys, main(["upload", str(make(tmp_path)), "--port", str(tmp_path / "no-port")]), message)
+
+
+@pytest.mark.parametrize(
+    ("sensor_id", "message"),
+    [("NODE 7", "may hold only letters, digits"), ("NODE-0007", "at most 8"), ("", "cannot be empty")],
+)
+def test_assign_id_refuses_what_is_no_sensor_id_before_opening_the_port(cli_in_process, tmp_path, sensor_id, message):
+    assert_one_line_error(cli_in_process("assign-id", sensor_id, "--port", tmp_path / "no-port"), 2, message)
 
 
 @pytest.mark.slow
@@ -454,7 +602,7 @@ def test_a_missing_port_and_a_silent_board_are_one_line(cli_in_process, fit_dir,
     ("content", "message"),
     [
         (None, "cannot read"),
-        (b"\x54\x01" * 5, "10 bytes; --eeprom takes the 148-byte coefficient block"),
+        (b"\x54\x01" * 5, "10 bytes; --eeprom takes the 188-byte coefficient block"),
         (b"\xff" * 200, "200 bytes; --eeprom takes"),
         (b"\xff" * 1025, "more than 1024 bytes"),
     ],

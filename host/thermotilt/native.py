@@ -37,7 +37,8 @@ temperature to 0.001 degC; these are the float32 values before that rounding.
 
 The library also holds single firmware algorithms the host keeps Python
 copies of (``host/native/firmware_algorithms.h``: lib/Program's staircase,
-lib/Compensation's trend detector and surface); ``library()`` declares them,
+lib/Compensation's trend detector, surface, coefficient block and sensor ID
+rule); ``library()`` declares them,
 and ``host/tests/test_firmware_differential.py`` checks each copy against them.
 ``chamber_drive`` is lib/ChamberControl's drive law, for whatever closes a
 loop around the chamber's model without the firmware in simavr.
@@ -69,7 +70,7 @@ COEFFICIENT_COUNT = 36
 DECIMATION_RANGE = range(1, 256)  # SETDEC's
 OUTPUTS = ("ax_filt", "ay_filt", "az_filt", "temp_c", "set", "ax_comp", "ay_comp", "az_comp", "frame_due")
 
-_ABI_VERSION = 3  # THERMOTILT_HOST_ABI_VERSION
+_ABI_VERSION = 4  # THERMOTILT_HOST_ABI_VERSION
 _OK = 0
 
 
@@ -110,6 +111,12 @@ def _load_library(path: Path) -> ctypes.CDLL:
         "thermotilt_program_steps": (ctypes.c_int, [size, pointer, pointer, pointer, pointer, pointer]),
         "thermotilt_trend_sets": (ctypes.c_int, [size, pointer, single, pointer]),
         "thermotilt_surface_corrections": (ctypes.c_int, [size, pointer, pointer, pointer, pointer]),
+        "thermotilt_coefficient_block_encode": (ctypes.c_int, [pointer, pointer, ctypes.c_char_p, pointer]),
+        "thermotilt_coefficient_block_decode": (
+            ctypes.c_int,
+            [pointer, ctypes.c_char_p, pointer, pointer, pointer],
+        ),
+        "thermotilt_sensor_ids_valid": (ctypes.c_int, [size, pointer, pointer]),
         "thermotilt_chamber_drive": (
             ctypes.c_int,
             [size, pointer, pointer, single, single, single, ctypes.c_uint8, pointer, pointer],

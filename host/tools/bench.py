@@ -388,7 +388,7 @@ def static_ram(name: str) -> int:
 
 # One command at a time, as a host waits for each answer: sent back to back,
 # they overrun the board's 64-byte receive buffer while it answers the first.
-# SAVECOE's EEPROM writes take the longest, about 0.5 s.
+# SAVECOE's EEPROM writes take the longest, about 0.6 s on the chip.
 COMMAND_GAP_S = 0.6
 IMU_COMMANDS = [
     ("GETCOE", ["W", "X"]),
@@ -396,6 +396,7 @@ IMU_COMMANDS = [
     ("SETCOE", ["W", "X", 571.5, -20.23, 1.569e-3, -0.1044, -6.936e-5, 6.327e-9]),
     ("RESEED", []),
     ("SAVECOE", []),
+    ("SETID", ["NODE-07"]),
     ("RESET", []),
 ]
 CHAMBER_COMMANDS = [("SETPRG", [20, 30, 2, 60, 1200, 1, "A"]), ("START", []), ("STATUS", [])]
@@ -410,8 +411,9 @@ def send_commands(board: Board, commands: list[tuple[str, list]]) -> None:
 def stack_use() -> list[tuple[str, int, int]]:
     """Each board's stack high-water mark (painted SRAM, sim/board.c) after
     10 s of streaming and controlling, with the commands a host sends; the
-    IMU's end with an upload's SAVECOE and RESET, so that it also boots from
-    a stored block (decoding and checking it is its deepest path)."""
+    IMU's end with an upload's SAVECOE, SETID (which decodes and checks the
+    stored block inside a command, its deepest path) and RESET, so that it
+    also boots from a stored block."""
     imu = Board.imu_reader()
     imu.attach_lsm9ds0()
     imu.set_lsm9ds0(*STEADY_SENSOR)

@@ -43,7 +43,7 @@ static void test_table(void)
 {
     // The field lists of docs/protocol.md's frame signatures, counted by hand
     // (after TYPE and SEQ).
-    TEST_ASSERT_EQUAL_UINT8(13, Protocol::FieldCount::IMU);
+    TEST_ASSERT_EQUAL_UINT8(14, Protocol::FieldCount::IMU);
     TEST_ASSERT_EQUAL_UINT8(9, Protocol::FieldCount::CHS);
     TEST_ASSERT_EQUAL_UINT8(8, Protocol::FieldCount::SETCOE);
     TEST_ASSERT_EQUAL_UINT8(7, Protocol::FieldCount::SETPRG);
@@ -94,12 +94,13 @@ static void test_imu(void)
     writer.addFixed(23.5f, 2);
     writer.addChar('W');
     writer.addChar('E');
+    writer.addChar('I');
     const char *line = writer.finish();
     TEST_ASSERT_NOT_NULL(line);
     TEST_ASSERT_EQUAL_STRING("$IMU,42,123456,-1650,-388,16012,-1649.75,-388.50,16012.25,"
-                             "-1078.25,-34.50,16011.00,23.50,W,E*BC38\r\n",
+                             "-1078.25,-34.50,16011.00,23.50,W,E,I*765D\r\n",
                              line);
-    TEST_ASSERT_EQUAL_UINT8(99, writer.length());
+    TEST_ASSERT_EQUAL_UINT8(101, writer.length());
 
     TEST_ASSERT_EQUAL_UINT8(1, feedText(line));
     TEST_ASSERT_TRUE(parser.typeIs(Protocol::Tag::IMU));
@@ -115,7 +116,8 @@ static void test_imu(void)
     TEST_ASSERT_TRUE(parser.fieldFloat(6, azFilt));
     TEST_ASSERT_FLOAT_WITHIN(0.001f, 16012.25f, azFilt);
     TEST_ASSERT_EQUAL_STRING("E", parser.field(12));
-    TEST_ASSERT_NULL(parser.field(13));
+    TEST_ASSERT_EQUAL_STRING("I", parser.field(13));
+    TEST_ASSERT_NULL(parser.field(14));
     TEST_ASSERT_EQUAL_UINT16(0, parser.malformedCount());
 }
 

@@ -6,7 +6,8 @@ serial/ and summary.json, written under ``DIR/.partial/`` and moved into
 place only when the position is complete, so a folder named after a position
 always holds a whole run and ``thermotilt fit DIR`` never sees half of one.
 ``DIR/campaign.json`` records the plan, the settings, and per position its
-status, seed, start time and the firmware versions the boards reported;
+status, seed, start time, the firmware versions the boards reported and,
+on real boards, the IMU's sensor ID (ICF's sensor_id, "" for none);
 it is rewritten after every position, so an interrupted campaign keeps every
 finished position and ``--resume`` redoes only the others.
 
@@ -112,6 +113,9 @@ class PositionRecord:
     firmware: dict[str, str] = field(default_factory=dict)
     reported_errors: list[str] = field(default_factory=list)
     error: str | None = None
+    # The IMU's sensor ID as its ICF gave it ("" none); None where the
+    # campaign did not ask (the twin, a campaign from before IDs).
+    sensor_id: str | None = None
 
 
 def select_positions(text: str | None) -> list[Position]:
@@ -193,16 +197,55 @@ class CampaignFile:
         for record in campaign.records.values():
             if record.status == DONE and not (out_dir / record.label / "run.csv").exists():
                 record.status = PENDING
+        campaign.sensor_id()
         return campaign
 
     def pending(self, positions: Iterable[Position]) -> list[Position]:
         return [p for p in positions if self.records[p.label].status != DONE]
+
+    def sensor_id(self) -> str | None:
+        """The sensor ID the done positions were logged with; None if none recorded one."""
+        return _one_sensor_id(self.path, [asdict(record) for record in self.records.values()])
 
     def save(self) -> None:
         document = {**self.header, "positions": [asdict(record) for record in self.records.values()]}
         temporary = self.path.with_name(self.path.name + ".tmp")
         temporary.write_text(json.dumps(document, indent=2) + "\n")
         os.replace(temporary, self.path)
+
+
+def _one_sensor_id(path: Path, positions: list[Any]) -> str | None:
+    recorded = {
+        entry["sensor_id"]
+        for entry in positions
+        if isinstance(entry, dict) and entry.get("status") == DONE and entry.get("sensor_id") is not None
+    }
+    if len(recorded) > 1:
+        names = ", ".join(repr(sensor_id) for sensor_id in sorted(recorded))
+        raise CampaignError(
+            f"{path}: its positions were logged with different sensors ({names}); one campaign is one sensor's"
+        )
+    return next(iter(recorded), None)
+
+
+def recorded_sensor_id(folder: Path) -> str | None:
+    """The sensor ID FOLDER/campaign.json says its done positions were logged
+    with ("" for a board without one); None when there is no campaign.json or
+    it recorded none. CampaignError when it cannot be read or names two."""
+    path = folder / CAMPAIGN_FILE
+    try:
+        document = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        return None
+    except (OSError, ValueError) as error:
+        raise CampaignError(f"cannot read {path}: {error}") from None
+    positions = document.get("positions") if isinstance(document, dict) else None
+    if not isinstance(positions, list):
+        raise CampaignError(f"{path}: not a campaign file (no list of positions)")
+    sensor_id = _one_sensor_id(path, positions)
+    if sensor_id is not None and not isinstance(sensor_id, str):
+        raise CampaignError(f"{path}: sensor_id {sensor_id!r} is not text")
+    return sensor_id
 
 
 def _utc_now() -> str:
@@ -259,6 +302,8 @@ def run_twin_position(
         position.incl_y_deg,
         seed=setup.position_seed(position),
         started_utc=_utc_now(),
+        # The twin's sensor is the batch's one the setup names.
+        sensor_id=setup.sensor,
     )
     partial = _fresh_partial(out_dir, position.label)
     reported = 0.0
@@ -360,14 +405,6 @@ def batch_of(folder: Path) -> tuple[str, ...]:
     if not isinstance(sensors, list) or not all(isinstance(s, str) and s for s in sensors):
         raise ValueError(f"{path}: sensors must be a list of sensor IDs")
     return tuple(sensors)
-
-
-def sensor_of(folder: Path) -> str:
-    """The sensor ID a campaign folder's campaign.json names ("" for none)."""
-    try:
-        return str(json.loads((folder / CAMPAIGN_FILE).read_text(encoding="utf-8")).get("sensor") or "")
-    except (OSError, ValueError, AttributeError):
-        return ""
 
 
 class TwinCampaign(_Campaign):
@@ -681,7 +718,7 @@ class BoardsCampaign(_Campaign):
         for position in self.todo:
             if not self.setup.confirm(position):
                 return CampaignOutcome([self.file.records[p.label] for p in self.positions], False)
-            record = run_boards_position(self.setup, position, self.out_dir)
+            record = run_boards_position(self.setup, position, self.out_dir, self.file.sensor_id())
             self.file.records[record.label] = record
             self.file.save()
             if on_position is not None:
@@ -713,9 +750,25 @@ def _board_version(client: Any, port: str) -> str:
         return f"{frame['device']} {frame['firmware_version']} protocol {frame['protocol_version']}"
 
 
-def run_boards_position(setup: BoardsSetup, position: Position, out_dir: Path) -> PositionRecord:
-    """The table is set: restart the IMU's filters, run the chamber's program
-    and log both boards until it ends."""
+def _board_sensor_id(client: Any, port: str) -> str:
+    """The IMU's sensor ID from its ICF ("" for none)."""
+    answer = client.command("STATUS")
+    frame = next((frame for frame in answer.data if frame.type == "ICF"), None)
+    if frame is None:
+        raise CampaignError(
+            f"the IMU reader on {port} answered STATUS without an ICF frame that has a sensor_id "
+            "(firmware before imu_reader 0.3.0? update it)"
+        )
+    return frame["sensor_id"]
+
+
+def run_boards_position(
+    setup: BoardsSetup, position: Position, out_dir: Path, campaign_sensor_id: str | None = None
+) -> PositionRecord:
+    """The table is set: check that the IMU is the sensor the campaign's
+    earlier positions were logged with (campaign_sensor_id, None: no
+    earlier position), restart its filters, run the chamber's program and
+    log both boards until it ends."""
     import serial
 
     from ..twin.scenarios import chamber_program
@@ -738,6 +791,12 @@ def run_boards_position(setup: BoardsSetup, position: Position, out_dir: Path) -
                 "imu_reader": _board_version(imu_client, setup.imu_port),
                 "thermal_chamber": _board_version(chamber_client, setup.chamber_port),
             }
+            record.sensor_id = _board_sensor_id(imu_client, setup.imu_port)
+            if campaign_sensor_id is not None and record.sensor_id != campaign_sensor_id:
+                raise CampaignError(
+                    f"the IMU reader on {setup.imu_port} is sensor {record.sensor_id or '(no ID)'}, "
+                    f"this campaign's positions so far were logged with {campaign_sensor_id or '(no ID)'}"
+                )
             imu_client.command("RESEED")
             for command in chamber_program(CALIBRATION_MIN_C, CALIBRATION_MAX_C, setup.options, 1):
                 chamber_client.command(command.frame_type, command.values)

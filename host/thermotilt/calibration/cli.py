@@ -1,6 +1,6 @@
 """The calibration's commands: ``campaign`` (every tilt position through the
 chamber's staircase, in the twin or on real boards), ``fit``, ``compare``,
-``validate`` and ``upload`` (docs/calibration.md)."""
+``validate``, ``upload`` and ``assign-id`` (docs/calibration.md)."""
 
 from __future__ import annotations
 
@@ -92,6 +92,12 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         help="axes to fit (default X Y); the others stay uncorrected",
     )
     fit.add_argument(
+        "--sensor-id",
+        type=sensor_id,
+        help="the sensor the campaign calibrated, for a campaign that did not record it "
+        "(campaign.json from real boards records the IMU's ID; upload refuses a fit for another sensor)",
+    )
+    fit.add_argument(
         "--compare-families",
         action="store_true",
         help="also score poly11, poly22 (the paper's), poly22+rate and poly33 by "
@@ -138,6 +144,29 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         "--no-save", action="store_true", help="upload to RAM only (coef_source U): no SAVECOE, no reset"
     )
     upload.set_defaults(run=_upload)
+
+    assign = commands.add_parser(
+        "assign-id", help="give the IMU reader the sensor ID its fits are made for (kept in its EEPROM)"
+    )
+    assign.add_argument("sensor_id", metavar="ID", type=sensor_id, help="up to 8 letters, digits, '_' or '-'")
+    assign.add_argument("--port", required=True, help="the IMU reader's serial port (or the twin's --pty port)")
+    assign.add_argument("--baud", type=within(int, 1), default=115200, help="line speed (default 115200)")
+    assign.add_argument(
+        "--replace",
+        action="store_true",
+        help="replace another ID the board already has (coefficients fitted for that ID then stop loading)",
+    )
+    assign.set_defaults(run=_assign_id)
+
+
+def sensor_id(text: str) -> str:
+    """An argparse type: a sensor ID (lib/Compensation's rule), not empty."""
+    from ..wire.coefficients import sensor_id_problem
+
+    problem = sensor_id_problem(text) if text else "a sensor ID cannot be empty"
+    if problem is not None:
+        raise argparse.ArgumentTypeError(problem)
+    return text
 
 
 def _campaign(args: argparse.Namespace) -> int:
@@ -238,9 +267,9 @@ def _campaign(args: argparse.Namespace) -> int:
             write_batch(out_dir, setup, sensor_ids)
         except CampaignError as error:
             raise UsageError(str(error)) from None
-        for sensor_id in sensor_ids:
-            print(f"== sensor {sensor_id}", flush=True)
-            status = _twin_campaign(out_dir / sensor_id, positions, replace(setup, sensor=sensor_id), args, cluster)
+        for unit in sensor_ids:
+            print(f"== sensor {unit}", flush=True)
+            status = _twin_campaign(out_dir / unit, positions, replace(setup, sensor=unit), args, cluster)
             if status != 0:
                 return status
         print(f"every sensor done; fit them with: thermotilt fit {out_dir} --out FIT_DIR (a folder per sensor)")
@@ -326,19 +355,20 @@ def _fit(args: argparse.Namespace) -> int:
     if not sensor_ids:
         _fit_one(campaign_dir, out_dir, args)
         return 0
+    if args.sensor_id is not None:
+        raise UsageError(f"--sensor-id names one sensor; {campaign_dir} is a batch, each sensor named by its campaign")
     results = []
-    for sensor_id in sensor_ids:
-        print(f"== sensor {sensor_id}")
-        results.append((sensor_id, _fit_one(campaign_dir / sensor_id, out_dir / sensor_id, args)))
+    for unit in sensor_ids:
+        print(f"== sensor {unit}")
+        results.append((unit, _fit_one(campaign_dir / unit, out_dir / unit, args)))
     print(f"{len(sensor_ids)} sensors fitted, one folder each in {out_dir}:")
-    for sensor_id, certificate in results:
-        print(f"  {sensor_id:<8}  U = {certificate['tilt_u95_deg']:.4f} deg  -> {out_dir / sensor_id}")
+    for unit, certificate in results:
+        print(f"  {unit:<8}  U = {certificate['tilt_u95_deg']:.4f} deg  -> {out_dir / unit}")
     return 0
 
 
 def _fit_one(campaign_dir: Path, out_dir: Path, args: argparse.Namespace) -> dict:
     """One sensor's campaign fitted into out_dir; its certificate."""
-    from .campaign import sensor_of
     from .certificate import certify, write_certificate
     from .dataset import CalibrationDataError, load
     from .families import compare_families, format_families, write_families
@@ -348,12 +378,22 @@ def _fit_one(campaign_dir: Path, out_dir: Path, args: argparse.Namespace) -> dic
     try:
         campaign = load(campaign_dir, settle_s=args.settle_seconds)
         fits = fit_campaign(campaign, tuple(args.axes))
-        certificate, errors = certify(campaign, fits, campaign_dir, sensor_of(campaign_dir))
+    except CalibrationDataError as error:
+        raise UsageError(str(error)) from None
+    fitted_for = campaign.sensor_id or ""
+    if args.sensor_id is not None:
+        if fitted_for and args.sensor_id != fitted_for:
+            raise UsageError(
+                f"--sensor-id {args.sensor_id}: the campaign in {campaign_dir} was logged with sensor {fitted_for}"
+            )
+        fitted_for = args.sensor_id
+    try:
+        certificate, errors = certify(campaign, fits, campaign_dir, fitted_for)
         families = compare_families(campaign, tuple(args.axes)) if args.compare_families else None
     except CalibrationDataError as error:
         raise UsageError(str(error)) from None
     try:
-        write_outputs(fits, campaign, out_dir)
+        write_outputs(fits, campaign, out_dir, fitted_for)
         if families is not None:
             write_families(families, out_dir)
         report = write_fit_report(out_dir, fits, campaign, format_families(families) if families else None)
@@ -376,6 +416,7 @@ def _fit_one(campaign_dir: Path, out_dir: Path, args: argparse.Namespace) -> dic
     )
     if families is not None:
         print(format_families(families))
+    print(f"fitted for sensor {fitted_for}" if fitted_for else "fitted for no particular sensor (no sensor ID)")
     uncertainty = certificate["uncertainty"]
     print(
         f"tilt uncertainty over the calibrated domain: U = {certificate['tilt_u95_deg']:.4f} deg "
@@ -439,4 +480,15 @@ def _upload(args: argparse.Namespace) -> int:
     except UploadError as error:
         raise UsageError(str(error)) from None
     print(format_result(result))
+    return 0
+
+
+def _assign_id(args: argparse.Namespace) -> int:
+    from .upload import UploadError, assign_id, format_assignment
+
+    try:
+        result = assign_id(args.port, args.sensor_id, baud=args.baud, replace=args.replace)
+    except UploadError as error:
+        raise UsageError(str(error)) from None
+    print(format_assignment(result))
     return 0

@@ -31,6 +31,7 @@ from ..run import SETTLE_S
 from ..run.folder import LOG_FILE
 from ..run.log import RunLogError, format_number, read_run_columns
 from ..run.positions import settled, staircase
+from .campaign import CampaignError, recorded_sensor_id
 
 REFERENCE_C = 25.0
 # Wide enough for a 2 degC staircase step's rows on both sides of 25 degC.
@@ -65,6 +66,9 @@ class Campaign:
     sets: dict[str, SetData]  # "W", "C"
     skipped_rows: int  # rows with an empty or unreadable cell
     stabilizing_rows: int = 0  # program rows before the chamber first reached its setpoint
+    # The IMU's sensor ID campaign.json recorded ("" a board without one);
+    # None where the folder does not say (no campaign.json, the twin).
+    sensor_id: str | None = None
 
 
 def run_logs(folder: Path) -> list[Path]:
@@ -186,4 +190,8 @@ def load(folder: Path, settle_s: float | None = None) -> Campaign:
             position=np.concatenate([np.full(len(part[1]), part[0]) for part in set_parts]),
             rate_c_per_s=data[:, 3],
         )
-    return Campaign(tuple(positions), sets, skipped, stabilizing)
+    try:
+        sensor_id = recorded_sensor_id(folder)
+    except CampaignError as error:
+        raise CalibrationDataError(str(error)) from None
+    return Campaign(tuple(positions), sets, skipped, stabilizing, sensor_id)

@@ -21,7 +21,7 @@ from statsmodels.regression.linear_model import OLS
 from statsmodels.tsa.stattools import acf
 
 from ..surfaces import AXES, COEFFICIENT_NAMES, SETS, ZERO_SURFACE, CoefficientTable, Surface
-from ..wire.coefficients import encode_block
+from ..wire.coefficients import SetDomain, encode_block
 from .dataset import FIT_AXES, CalibrationDataError, Campaign, SetData
 from .newey_west import hac_panel_bounds, hac_panel_covariance
 
@@ -172,6 +172,33 @@ def coefficient_table(fits: list[SurfaceFit]) -> CoefficientTable:
     return CoefficientTable(surfaces)
 
 
+def calibrated_domain(fits: list[SurfaceFit]) -> dict[str, SetDomain]:
+    """Per set, the range of the fitted rows: temperature, and acceleration
+    per fitted axis (an axis not fitted has none), rounded outwards to the
+    block's 1/100 degC and LSB."""
+    domain = {}
+    for set_name in SETS:
+        fitted = [fit for fit in fits if fit.set_name == set_name]
+        if not fitted:
+            domain[set_name] = SetDomain()
+            continue
+        temperature = (
+            min(fit.temperature_range_c[0] for fit in fitted),
+            max(fit.temperature_range_c[1] for fit in fitted),
+        )
+        domain[set_name] = SetDomain.covering(temperature, {fit.axis: fit.acceleration_range_lsb for fit in fitted})
+    return domain
+
+
+def _domain_json(domain: SetDomain) -> dict:
+    return {
+        "temperature_c": list(domain.temperature_c) if domain.temperature_c is not None else None,
+        "acceleration_lsb": {
+            axis: list(bounds) if bounds is not None else None for axis, bounds in domain.acceleration_lsb.items()
+        },
+    }
+
+
 def _fit_json(fit: SurfaceFit) -> dict:
     return {
         "points": fit.points,
@@ -211,11 +238,15 @@ def c_header(table: CoefficientTable) -> str:
     return "\n".join(lines)
 
 
-def write_outputs(fits: list[SurfaceFit], campaign: Campaign, out_dir: Path) -> CoefficientTable:
+def write_outputs(fits: list[SurfaceFit], campaign: Campaign, out_dir: Path, sensor_id: str = "") -> CoefficientTable:
     """coefficients.json, coefficients.bin (the firmware's EEPROM block) and
-    coefficients.h in out_dir."""
+    coefficients.h in out_dir, for the sensor sensor_id ("" for none, which
+    `upload` accepts only on a board without an ID)."""
     table = coefficient_table(fits)
+    domain = calibrated_domain(fits)
+    block = encode_block(table, sensor_id, domain)
     document = {
+        "sensor_id": sensor_id,
         "positions": list(campaign.positions),
         "skipped_rows": campaign.skipped_rows,
         "stabilizing_rows": campaign.stabilizing_rows,
@@ -225,10 +256,13 @@ def write_outputs(fits: list[SurfaceFit], campaign: Campaign, out_dir: Path) -> 
         },
         "fits": {f"{fit.set_name}{fit.axis}": _fit_json(fit) for fit in fits},
         "uncorrected_axes": [axis for axis in AXES if axis not in {fit.axis for fit in fits}],
+        # What coefficients.bin and the upload carry: the fitted rows' ranges
+        # in the block's units (1/100 degC, LSB), rounded outwards.
+        "calibrated_domain": {set_name: _domain_json(domain[set_name]) for set_name in SETS},
     }
     out_dir.mkdir(parents=True, exist_ok=True)
     (out_dir / "coefficients.json").write_text(json.dumps(document, indent=2) + "\n")
-    (out_dir / "coefficients.bin").write_bytes(encode_block(table))
+    (out_dir / "coefficients.bin").write_bytes(block)
     (out_dir / "coefficients.h").write_text(c_header(table))
     return table
 

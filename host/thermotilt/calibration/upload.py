@@ -1,21 +1,27 @@
 """``thermotilt upload FIT_DIR --port PORT``: a fit's surfaces into the IMU
-reader, each step checked before the next (docs/calibration.md, "Uploading").
+reader, each step checked before the next (docs/calibration.md, "Uploading"),
+and ``thermotilt assign-id ID --port PORT``: the sensor ID a board carries.
 
-1. The table: FIT_DIR/coefficients.json (``thermotilt fit``), as float32,
-   the firmware's type; a surface the fit did not make (Z, an axis not
-   fitted) is zero, as in coefficients.bin.
+1. The fit: FIT_DIR/coefficients.json (``thermotilt fit``): the table as
+   float32, the firmware's type (a surface the fit did not make, Z or an
+   axis not fitted, is zero, as in coefficients.bin), the sensor ID it was
+   fitted for ("" none) and its calibrated domain.
 2. The board: a Nano resets when its port is opened and sends VER once it
    has booted; a board that does not reset (the twin's pty) shows itself by
    any frame. Its VERSION answer must name the imu_reader and this host's
-   protocol.
+   protocol, and its ICF (STATUS) must carry the sensor ID the fit was made
+   for: a fit for one sensor never goes onto another, nor a fit for none
+   onto a board with an ID, nor a fit for a sensor onto a board without an
+   ID (assign-id gives it one). A refusal here has written nothing.
 3. Per set (W, C) and axis (X, Y, Z): SETCOE, then GETCOE, whose COE must
-   equal what was sent. A refusal, a silence or a mismatch stops the upload
+   equal what was sent; then per set with a domain SETDOM and GETDOM, whose
+   DOM must equal it. A refusal, a silence or a mismatch stops the upload
    before SAVECOE, so the EEPROM keeps what it held (the RAM keeps the
    surfaces sent so far, coef_source U, until the board resets).
 4. SAVECOE, RESET, the VER of the restart (reset_cause COMMANDED), then
-   coef_source E in ICF (STATUS) and in the IMU frames, and GETCOE again:
-   the board now runs what it loaded from its EEPROM. Without saving, only
-   STATUS: coef_source U.
+   coef_source E and the sensor ID in ICF (STATUS), coef_source E in the IMU
+   frames, and GETCOE and GETDOM again: the board now runs what it loaded
+   from its EEPROM. Without saving, only STATUS: coef_source U.
 
 "Equal" is to the COE frame's printed precision: the firmware writes each
 coefficient with five significant digits, so a value read back is equal
@@ -27,9 +33,10 @@ checked in the twin (host/tests/test_upload.py).
 
 from __future__ import annotations
 
+import json
 import math
-from collections.abc import Callable, Iterable
-from dataclasses import dataclass
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -37,6 +44,15 @@ import serial
 
 from ..surfaces import AXES, COEFFICIENT_NAMES, SETS, ZERO_SURFACE, CoefficientTable, Surface
 from ..wire.client import CommandClient, CommandRefused, CommandTimeout
+from ..wire.coefficients import (
+    CENTI,
+    INT16_MAX,
+    INT16_MIN,
+    NO_DOMAIN,
+    SetDomain,
+    domain_from_dom_frame,
+    sensor_id_problem,
+)
 from ..wire.protocol import PROTOCOL_VERSION, Frame
 from .compare import read_fit
 from .dataset import CalibrationDataError
@@ -50,12 +66,13 @@ BOOT_WAIT_S = 2.5
 RESTART_WAIT_S = 3.0
 # After a restart the IMU frames come at 10 Hz, once the sensor has settled.
 IMU_FRAME_WAIT_S = 3.0
-# SAVECOE writes up to 148 EEPROM bytes at 3.3 ms each on the chip.
+# SAVECOE writes up to 188 EEPROM bytes at 3.3 ms each on the chip (~0.6 s).
 SAVE_TIMEOUT_S = 2.0
 FLOAT32_MAX = 3.4028234663852886e38
 # FrameWriter::addScientific's default, which the COE frame uses.
 COE_SIGNIFICANT_DIGITS = 5
 
+NOTHING_WRITTEN = "; nothing written"
 NOTHING_SAVED = "; nothing saved (the EEPROM holds what it held)"
 SAVED_UNCHECKED = "; the coefficients are saved, but were not checked after a reset"
 AFTER_RESET = "; the board runs other coefficients than were sent"
@@ -63,6 +80,16 @@ AFTER_RESET = "; the board runs other coefficients than were sent"
 
 class UploadError(RuntimeError):
     """An upload that stopped: one readable line saying where and why."""
+
+
+@dataclass(frozen=True)
+class FitToUpload:
+    """What an upload sends: the surfaces (float32), the sensor ID they were
+    fitted for ("" none) and their calibrated domain per set."""
+
+    table: CoefficientTable
+    sensor_id: str = ""
+    domain: Mapping[str, SetDomain] = field(default_factory=lambda: dict(NO_DOMAIN))
 
 
 @dataclass(frozen=True)
@@ -76,6 +103,8 @@ class UploadResult:
     reset_cause: str | None
     coef_source: str
     imu_frames_checked: int
+    sensor_id: str = ""
+    domain: Mapping[str, SetDomain] = field(default_factory=lambda: dict(NO_DOMAIN))
 
 
 def read_table(fit_dir: Path) -> CoefficientTable:
@@ -99,6 +128,58 @@ def read_table(fit_dir: Path) -> CoefficientTable:
                     f"{path}: {set_name}{axis} {term} = {value:g}, which the firmware's float32 cannot hold"
                 )
     return CoefficientTable(surfaces).to_float32()
+
+
+def _range(value: Any, scale: int, what: str, path: Path) -> tuple[int, int] | None:
+    """A [min, max] of coefficients.json's calibrated_domain in the block's
+    units (value times scale, whole), or None for null."""
+    if value is None:
+        return None
+    if (
+        not isinstance(value, list)
+        or len(value) != 2
+        or not all(isinstance(bound, (int, float)) and not isinstance(bound, bool) for bound in value)
+        or not all(math.isfinite(bound) for bound in value)
+    ):
+        raise UploadError(f"{path}: calibrated_domain {what} is {value!r}, not [min, max]")
+    low, high = (round(bound * scale) for bound in value)
+    if not INT16_MIN <= low <= high <= INT16_MAX:
+        raise UploadError(f"{path}: calibrated_domain {what} {value!r} is not a range the board can hold")
+    return low, high
+
+
+def read_fit_identity(fit_dir: Path) -> tuple[str, dict[str, SetDomain]]:
+    """The sensor ID and calibrated domain FIT_DIR/coefficients.json states;
+    a fit from before they were written has neither ("" and no domain)."""
+    path = fit_dir / "coefficients.json"
+    try:
+        document = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as error:
+        raise UploadError(f"{path}: cannot read: {error}") from None
+    if not isinstance(document, dict):
+        raise UploadError(f"{path}: not a coefficients.json written by thermotilt fit")
+    sensor_id = document.get("sensor_id", "")
+    if not isinstance(sensor_id, str) or sensor_id_problem(sensor_id) is not None:
+        raise UploadError(f"{path}: {sensor_id_problem(str(sensor_id)) or f'sensor_id {sensor_id!r} is not text'}")
+    domains = document.get("calibrated_domain")
+    if domains is None:
+        return sensor_id, dict(NO_DOMAIN)
+    try:
+        domain = {}
+        for set_name in SETS:
+            entry = domains[set_name]
+            acceleration = entry["acceleration_lsb"]
+            domain[set_name] = SetDomain(
+                _range(entry["temperature_c"], CENTI, f"{set_name} temperature_c", path),
+                {axis: _range(acceleration[axis], 1, f"{set_name} {axis}", path) for axis in AXES},
+            )
+    except (KeyError, TypeError):
+        raise UploadError(f"{path}: calibrated_domain is not the one thermotilt fit writes") from None
+    return sensor_id, domain
+
+
+def read_fit_to_upload(fit_dir: Path) -> FitToUpload:
+    return FitToUpload(read_table(fit_dir), *read_fit_identity(fit_dir))
 
 
 def printed_equal(sent: float, printed: float, digits: int = COE_SIGNIFICANT_DIGITS) -> bool:
@@ -128,20 +209,96 @@ def _open(port: str, baud: int) -> Any:
 
 def upload(fit_dir: Path, port: str, baud: int = DEFAULT_BAUD, save: bool = True) -> UploadResult:
     """Reads FIT_DIR, opens PORT and uploads (upload_table); raises UploadError."""
-    table = read_table(fit_dir)
+    fit = read_fit_to_upload(fit_dir)
     line = _open(port, baud)
     try:
-        return upload_table(line, table, save=save, name=port)
+        return upload_table(line, fit, save=save, name=port, fit_name=str(fit_dir))
     except (serial.SerialException, OSError) as error:
         raise UploadError(f"lost {port}: {error}") from None
     finally:
         line.close()
 
 
-def upload_table(port: Any, table: CoefficientTable, save: bool = True, name: str = "the board") -> UploadResult:
-    """Uploads a float32 table through a pyserial port or a twin Board
-    (whose waits are then simulated time); raises UploadError."""
-    return _Session(port, name).run(table, save)
+def upload_table(
+    port: Any,
+    fit: FitToUpload | CoefficientTable,
+    save: bool = True,
+    name: str = "the board",
+    fit_name: str = "the fit",
+) -> UploadResult:
+    """Uploads a fit (a float32 table alone: fitted for no sensor, no
+    domain) through a pyserial port or a twin Board (whose waits are then
+    simulated time); raises UploadError."""
+    if isinstance(fit, CoefficientTable):
+        fit = FitToUpload(fit)
+    return _Session(port, name).run(fit, save, fit_name)
+
+
+@dataclass(frozen=True)
+class AssignResult:
+    port: str
+    previous_id: str
+    sensor_id: str
+    coef_source: str
+    reported: tuple[str, ...]  # the ERR frames the board reported on its own account
+
+
+def assign_id(port: str, sensor_id: str, baud: int = DEFAULT_BAUD, replace: bool = False) -> AssignResult:
+    """Opens PORT and gives its IMU reader the sensor ID (assign_sensor_id); raises UploadError."""
+    line = _open(port, baud)
+    try:
+        return assign_sensor_id(line, sensor_id, replace=replace, name=port)
+    except (serial.SerialException, OSError) as error:
+        raise UploadError(f"lost {port}: {error}") from None
+    finally:
+        line.close()
+
+
+def assign_sensor_id(port: Any, sensor_id: str, replace: bool = False, name: str = "the board") -> AssignResult:
+    """SETID on a pyserial port or a twin Board: the board keeps the ID in
+    its EEPROM, its coefficient block untouched. A board that already has
+    another ID keeps it unless replace: its coefficients, fitted for that
+    ID, would stop loading. Raises UploadError."""
+    problem = sensor_id_problem(sensor_id)
+    if problem is not None or not sensor_id:
+        raise UploadError(problem or "the sensor ID is empty")
+    session = _Session(port, name)
+    session.hello()
+    previous, source = session.identity()
+    if previous == sensor_id:
+        return AssignResult(name, previous, sensor_id, source, ())
+    if previous and not replace:
+        raise UploadError(
+            f"{name} is already sensor {previous}; add --replace to make it {sensor_id} "
+            f"(coefficients fitted for {previous} then stop loading); nothing written"
+        )
+    mark = len(session.frames)
+    session.command(f"SETID {sensor_id}", "SETID", [sensor_id], "")
+    assigned, source = session.identity()
+    if assigned != sensor_id:
+        raise UploadError(f"after SETID {sensor_id} {name} reports sensor ID {assigned or '(none)'}")
+    reported = tuple(
+        f"{frame['code']} {frame['detail']}"
+        for frame in session.frames[mark:]
+        if frame.type == "ERR" and frame["cmd_seq"] == -1
+    )
+    return AssignResult(name, previous, sensor_id, source, reported)
+
+
+def format_assignment(result: AssignResult) -> str:
+    if result.previous_id == result.sensor_id:
+        return f"{result.port} is already sensor {result.sensor_id}; nothing written (coef_source {result.coef_source})"
+    line = f"{result.port} is now sensor {result.sensor_id}"
+    if result.previous_id:
+        line += f" (was {result.previous_id})"
+    if result.coef_source == "E":
+        return line + "; its saved coefficients load for this ID (coef_source E)"
+    if "EEPROM_SENSOR DEFAULTS" in result.reported:
+        return line + (
+            "; its saved coefficients were fitted for another sensor, so it runs the defaults "
+            f"(coef_source {result.coef_source}) until a fit for {result.sensor_id} is uploaded"
+        )
+    return line + f"; it has no saved coefficients (coef_source {result.coef_source})"
 
 
 class _Session:
@@ -151,20 +308,37 @@ class _Session:
         self.frames: list[Frame] = []
         self.client = CommandClient(port, on_frame=self.frames.append)
 
-    def run(self, table: CoefficientTable, save: bool) -> UploadResult:
+    def run(self, fit: FitToUpload, save: bool, fit_name: str) -> UploadResult:
+        table = fit.table
         version = self.hello()
+        self.check_identity(fit.sensor_id, fit_name)
         read_back = {}
         for set_name in SETS:
             for axis in AXES:
                 surface = table.surface(set_name, axis)
                 self.command(f"SETCOE {set_name} {axis}", "SETCOE", [set_name, axis, *surface], NOTHING_SAVED)
                 read_back[(set_name, axis)] = self.read_back(set_name, axis, surface, "", NOTHING_SAVED)
+        domains = [set_name for set_name in SETS if fit.domain[set_name].temperature_centi_c is not None]
+        for set_name in domains:
+            domain = fit.domain[set_name]
+            self.command(f"SETDOM {set_name}", "SETDOM", domain.setdom_values(set_name), NOTHING_SAVED)
+            self.read_domain(set_name, domain, "", NOTHING_SAVED)
         if not save:
             source = self.coef_source("; the coefficients are in RAM, not saved")
             if source != "U":
                 raise UploadError(f"after the upload {self.name} runs coef_source {source}, not U")
             return UploadResult(
-                self.name, version["firmware_version"], table, CoefficientTable(read_back), None, False, None, source, 0
+                self.name,
+                version["firmware_version"],
+                table,
+                CoefficientTable(read_back),
+                None,
+                False,
+                None,
+                source,
+                0,
+                fit.sensor_id,
+                fit.domain,
             )
         saved_timeout = self.client.timeout_s
         self.client.timeout_s = SAVE_TIMEOUT_S
@@ -178,9 +352,14 @@ class _Session:
         finally:
             self.client.timeout_s = saved_timeout
         restart = self.restart()
-        source = self.coef_source(SAVED_UNCHECKED)
+        sensor_id, source = self.identity(SAVED_UNCHECKED)
         if source != "E":
             raise UploadError(f"after the reset {self.name} runs coef_source {source}, not E{self.reported(restart)}")
+        if sensor_id != fit.sensor_id:
+            raise UploadError(
+                f"after the reset {self.name} reports sensor ID {sensor_id or '(none)'}, "
+                f"not {fit.sensor_id or '(none)'}" + SAVED_UNCHECKED
+            )
         if self.wait(lambda frame: frame.type == "IMU", IMU_FRAME_WAIT_S, since=restart) is None:
             raise UploadError(
                 f"no IMU frame from {self.name} within {IMU_FRAME_WAIT_S:g} s after the reset"
@@ -191,6 +370,8 @@ class _Session:
             for s in SETS
             for a in AXES
         }
+        for set_name in SETS:
+            self.read_domain(set_name, fit.domain[set_name], " after the reset", AFTER_RESET)
         imu = [frame for frame in self.since(restart) if frame.type == "IMU"]
         wrong = sorted({frame["coef_source"] for frame in imu} - {"E"})
         if wrong:
@@ -205,6 +386,8 @@ class _Session:
             restart["reset_cause"],
             source,
             len(imu),
+            fit.sensor_id,
+            fit.domain,
         )
 
     def command(self, what: str, frame_type: str, values: Iterable[Any] = (), consequence: str = "") -> Any:
@@ -255,12 +438,50 @@ class _Session:
             raise UploadError(f"{what} read back {mismatch}{consequence}")
         return printed
 
-    def coef_source(self, consequence: str) -> str:
+    def identity(self, consequence: str = "") -> tuple[str, str]:
+        """The board's sensor ID ("" none) and coef_source, from its ICF."""
         answer = self.command("STATUS", "STATUS", (), consequence)
         configs = [frame for frame in answer.data if frame.type == "ICF"]
         if not configs:
-            raise UploadError(f"{self.name} answered STATUS without an ICF frame{consequence}")
-        return configs[-1]["coef_source"]
+            raise UploadError(
+                f"{self.name} answered STATUS without an ICF frame that has a sensor_id (firmware before "
+                f"imu_reader 0.3.0? update it){consequence}"
+            )
+        return configs[-1]["sensor_id"], configs[-1]["coef_source"]
+
+    def coef_source(self, consequence: str) -> str:
+        return self.identity(consequence)[1]
+
+    def check_identity(self, fitted_for: str, fit_name: str) -> None:
+        """Refuses, before anything is written, a fit made for another sensor than the board's."""
+        board_id, _ = self.identity(NOTHING_WRITTEN)
+        if board_id == fitted_for:
+            return
+        if not board_id:
+            raise UploadError(
+                f"{fit_name} was fitted for sensor {fitted_for}, {self.name} has no sensor ID: if it carries "
+                f"sensor {fitted_for}, assign it with `thermotilt assign-id {fitted_for} --port {self.name}`, "
+                f"then upload again{NOTHING_WRITTEN}"
+            )
+        if not fitted_for:
+            raise UploadError(
+                f"{fit_name} was fitted for no particular sensor, {self.name} is sensor {board_id}: if the "
+                f"campaign was this sensor's, fit it again with --sensor-id {board_id}{NOTHING_WRITTEN}"
+            )
+        raise UploadError(
+            f"{fit_name} was fitted for sensor {fitted_for}, {self.name} is sensor {board_id}{NOTHING_WRITTEN}"
+        )
+
+    def read_domain(self, set_name: str, sent: SetDomain, when: str, consequence: str) -> SetDomain:
+        what = f"GETDOM {set_name}{when}"
+        answer = self.command(what, "GETDOM", [set_name], consequence)
+        frames = [frame for frame in answer.data if frame.type == "DOM" and frame["set"] == set_name]
+        if not frames:
+            raise UploadError(f"{what}: {self.name} answered without its DOM frame{consequence}")
+        printed = domain_from_dom_frame(frames[-1])
+        if printed != sent:
+            raise UploadError(f"{what} read back {_domain_text(printed)}, sent {_domain_text(sent)}{consequence}")
+        return printed
 
     def restart(self) -> Frame:
         """RESET, and the VER of the board's restart."""
@@ -303,10 +524,19 @@ class _Session:
         return f" (it reported {', '.join(errors)})" if errors else ""
 
 
+def _domain_text(domain: SetDomain) -> str:
+    def bounds(pair: tuple[float, float] | None, unit: str) -> str:
+        return f"{pair[0]:g}..{pair[1]:g}{unit}" if pair is not None else "none"
+
+    axes = ", ".join(f"{axis} {bounds(domain.acceleration_lsb.get(axis), ' LSB')}" for axis in AXES)
+    return f"T {bounds(domain.temperature_c, ' degC')}, {axes}"
+
+
 def format_result(result: UploadResult) -> str:
     columns = "".join(f"{term:>12}" for term in COEFFICIENT_NAMES)
+    sensor = f"sensor {result.sensor_id}" if result.sensor_id else "no sensor ID"
     lines = [
-        f"imu_reader {result.firmware_version} on {result.port}: read back equal to what was sent at "
+        f"imu_reader {result.firmware_version} on {result.port} ({sensor}): read back equal to what was sent at "
         f"COE's {COE_SIGNIFICANT_DIGITS} significant digits",
         f"  set axis{columns}  read back  after reset",
     ]
@@ -315,6 +545,12 @@ def format_result(result: UploadResult) -> str:
             values = "".join(f"{value:>12.4e}" for value in result.sent.surface(set_name, axis))
             after = "equal" if result.after_reset is not None else "-"
             lines.append(f"  {set_name}   {axis}   {values}  {'equal':<9}  {after}")
+    for set_name in SETS:
+        domain = result.domain[set_name]
+        if domain.temperature_centi_c is not None:
+            lines.append(f"  calibrated domain {set_name}: {_domain_text(domain)}")
+    if all(result.domain[set_name].temperature_centi_c is None for set_name in SETS):
+        lines.append("  no calibrated domain: the IMU frames say temp_domain U")
     if result.saved:
         lines.append(
             f"saved to EEPROM; after the reset ({result.reset_cause}) the board runs them: coef_source "

@@ -5,7 +5,6 @@ of sensors")."""
 
 from __future__ import annotations
 
-import re
 import reprlib
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -14,12 +13,10 @@ from typing import Any
 
 import numpy as np
 
+from ..wire.coefficients import sensor_id_problem
 from .parameters import ModelError, Parameter
 from .terms import REGISTRY, SensorTerm
 
-# What an IMU board can store as its ID: up to 8 characters of letters,
-# digits, "-" and "_" (the coefficient block's sensor ID field, lib/Compensation).
-SENSOR_ID = re.compile(r"[A-Za-z0-9_-]{1,8}")
 SENSOR_TERMS = frozenset(name for name, term in REGISTRY.items() if issubclass(term, SensorTerm))
 
 
@@ -33,11 +30,12 @@ class BatchSensor:
 
 
 def check_sensor_id(text: Any, where: str) -> str:
-    if not isinstance(text, str) or not SENSOR_ID.fullmatch(text):
-        raise ModelError(
-            f"{where}: sensor id {reprlib.repr(text)} must be 1 to 8 letters, digits, '-' or '_' "
-            "(what the IMU's EEPROM stores)"
-        )
+    """An ID the IMU can store (wire.coefficients' rule, lib/Compensation's)."""
+    if not isinstance(text, str) or not text:
+        raise ModelError(f"{where}: a sensor table needs an id, got {reprlib.repr(text)}")
+    problem = sensor_id_problem(text)
+    if problem:
+        raise ModelError(f"{where}: {problem}")
     return text
 
 

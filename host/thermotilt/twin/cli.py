@@ -64,7 +64,7 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     simulate.add_argument(
         "--eeprom",
         metavar="FILE",
-        help="start the IMU with this 148-byte coefficient block in its EEPROM (coefficients.bin from thermotilt fit)",
+        help="start the IMU with this coefficient block in its EEPROM (coefficients.bin from thermotilt fit)",
     )
     simulate.add_argument("--sensor", metavar="ID", help="simulate this sensor of the model's [[sensors]] batch")
     simulate.set_defaults(run=_simulate)
@@ -89,16 +89,16 @@ def _eeprom_block(path: str) -> bytes:
     EEPROM a twin run saved (imu_reader_eeprom.bin). What it holds is the
     firmware's to judge at boot, as with a real EEPROM."""
     from ..run.folder import IMU_EEPROM_FILE
-    from ..wire.coefficients import BLOCK_SIZE
+    from ..wire.coefficients import BLOCK_SIZE, V1_BLOCK_SIZE
     from .simulate import IMU_EEPROM_BYTES
 
     data = read_at_most(path, IMU_EEPROM_BYTES)
-    if len(data) not in (BLOCK_SIZE, IMU_EEPROM_BYTES):
+    if len(data) not in (BLOCK_SIZE, V1_BLOCK_SIZE, IMU_EEPROM_BYTES):
         size = f"more than {IMU_EEPROM_BYTES}" if len(data) > IMU_EEPROM_BYTES else str(len(data))
         raise UsageError(
             f"{path}: {size} bytes; --eeprom takes the {BLOCK_SIZE}-byte coefficient block "
-            f"that thermotilt fit writes (coefficients.bin) or the {IMU_EEPROM_BYTES}-byte "
-            f"EEPROM a run saved ({IMU_EEPROM_FILE})"
+            f"that thermotilt fit writes (coefficients.bin; {V1_BLOCK_SIZE} bytes in version 1) or the "
+            f"{IMU_EEPROM_BYTES}-byte EEPROM a run saved ({IMU_EEPROM_FILE})"
         )
     return data
 

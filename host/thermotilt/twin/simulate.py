@@ -205,7 +205,7 @@ def run(
 ) -> RunResult:
     """Plays a scenario; writes run.csv, serial/ and summary.json in out_dir.
     eeprom: bytes the IMU's EEPROM holds from address 0 when it starts, e.g.
-    the 148-byte coefficient block of `thermotilt fit` (coefficients.bin).
+    the coefficient block of `thermotilt fit` (coefficients.bin).
     realtime: no step ends before its simulated time has passed on the wall
     clock, as on a board. timing: where the steps' wall time goes."""
     check_faults(scenario, model)

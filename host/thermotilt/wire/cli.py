@@ -1,5 +1,5 @@
 """The commands of the serial line: ``frames`` (count a capture's frames),
-``coefficients`` (a coefficient block as SETCOE frames) and ``log`` (real
+``coefficients`` (a coefficient block as SETCOE and SETDOM frames) and ``log`` (real
 boards, or the twin's pseudo-terminals, to a run folder)."""
 
 from __future__ import annotations
@@ -30,7 +30,9 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     coefficients = commands.add_parser(
         "coefficients", help="print SETCOE frames for the paper's or a stored coefficient block"
     )
-    coefficients.add_argument("--block", help="read a 148-byte EEPROM coefficient block")
+    coefficients.add_argument(
+        "--block", help="read an EEPROM coefficient block (coefficients.bin: 188 bytes, or 148 of version 1)"
+    )
     coefficients.add_argument("--write-block", help="also write the block to this file")
     coefficients.set_defaults(run=_coefficients)
 
@@ -84,22 +86,38 @@ def _frames(args: argparse.Namespace) -> int:
 
 
 def _coefficients(args: argparse.Namespace) -> int:
-    from ..surfaces import PAPER_DEFAULTS
-    from .coefficients import BLOCK_SIZE, CoefficientBlockError, decode_block, encode_block, setcoe_frames
+    from ..surfaces import PAPER_DEFAULTS, SETS
+    from .coefficients import (
+        BLOCK_SIZE,
+        CoefficientBlock,
+        CoefficientBlockError,
+        decode_block,
+        encode_block,
+        setcoe_frames,
+    )
+    from .protocol import SequenceCounter, build_frame
 
-    table = PAPER_DEFAULTS
+    block = CoefficientBlock(PAPER_DEFAULTS)
     if args.block:
         try:
-            table = decode_block(read_at_most(args.block, BLOCK_SIZE))
+            block = decode_block(read_at_most(args.block, BLOCK_SIZE))
         except CoefficientBlockError as error:
             raise UsageError(f"{args.block}: {error}") from None
     if args.write_block:
         try:
             with open(args.write_block, "wb") as output:
-                output.write(encode_block(table))
+                output.write(encode_block(block.table, block.sensor_id, block.domain))
         except OSError as error:
             raise UsageError(f"cannot write {args.write_block}: {error.strerror or error}") from None
-    for line in setcoe_frames(table):
+    lines = setcoe_frames(block.table)
+    # SETCOE leaves a set's domain unknown, so SETDOM follows it.
+    seq = SequenceCounter(len(lines))
+    lines += [
+        build_frame("SETDOM", seq.next(), block.domain[set_name].setdom_values(set_name))
+        for set_name in SETS
+        if block.domain[set_name].temperature_centi_c is not None
+    ]
+    for line in lines:
         sys.stdout.write(line.rstrip("\r\n") + "\n")
     return 0
 

@@ -2,7 +2,7 @@
 
 A board answers every command with ACK or ERR whose ``cmd_seq`` is the
 command's SEQ; a query sends its data frames (the ANSWER frames of
-ProtocolFrames.def: VER, ICF, PRG, GRD, COE) just before the ACK
+ProtocolFrames.def: VER, ICF, PRG, GRD, COE, DOM) just before the ACK
 (docs/protocol.md). It reads commands through a 64-byte receive
 ring (firmware/common/Uart0) and answers at the 115200-baud line rate, so a
 host that sends the next command before the answer came overruns that
@@ -14,8 +14,9 @@ got 10 answers, sent 9 ms apart 43, and only from 11 ms apart all 50.
 Retries: a command that gets no answer within the timeout is sent again with
 a new SEQ, and only the answer to the latest attempt counts, so a late
 answer to an earlier one is never mistaken for it. Every command but START
-is safe to carry out twice: queries change nothing, SETDEC, SETCOE, SETPRG,
-SETCTL, DEFCOE and STOP set a state that a second time leaves as it is, and
+is safe to carry out twice: queries change nothing, SETDEC, SETCOE, SETDOM,
+SETID, SETPRG, SETCTL, DEFCOE and STOP set a state that a second time leaves
+as it is, and
 SAVECOE writes bytes equal to those already stored (EEPROM.update skips
 them), and a second RESET resets a board that has just reset, losing
 nothing the first did not. START is sent once: on the chamber it restarts the staircase from

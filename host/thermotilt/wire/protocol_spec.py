@@ -26,6 +26,7 @@ FRAMES = {
             ("temp_c", "f"),
             ("comp_set", "t"),
             ("coef_source", "t"),
+            ("temp_domain", "t"),
         ),
     ),
     "CHS": (
@@ -61,6 +62,7 @@ FRAMES = {
             ("streaming", "i"),
             ("coef_source", "t"),
             ("hysteresis_c", "f"),
+            ("sensor_id", "t"),
         ),
     ),
     "PRG": (
@@ -108,6 +110,21 @@ FRAMES = {
             ("p20", "f"),
             ("p11", "f"),
             ("p02", "f"),
+        ),
+    ),
+    "DOM": (
+        "board",
+        "answer",
+        (
+            ("set", "t"),
+            ("t_min_c", "f"),
+            ("t_max_c", "f"),
+            ("ax_min", "i"),
+            ("ax_max", "i"),
+            ("ay_min", "i"),
+            ("ay_max", "i"),
+            ("az_min", "i"),
+            ("az_max", "i"),
         ),
     ),
     "ACK": (
@@ -208,6 +225,35 @@ FRAMES = {
     ),
     "SAVECOE": ("host", "command", ()),
     "DEFCOE": ("host", "command", ()),
+    "GETDOM": (
+        "host",
+        "command",
+        (
+            ("set", "t"),
+        ),
+    ),
+    "SETDOM": (
+        "host",
+        "command",
+        (
+            ("set", "t"),
+            ("t_min_c", "f"),
+            ("t_max_c", "f"),
+            ("ax_min", "i"),
+            ("ax_max", "i"),
+            ("ay_min", "i"),
+            ("ay_max", "i"),
+            ("az_min", "i"),
+            ("az_max", "i"),
+        ),
+    ),
+    "SETID": (
+        "host",
+        "command",
+        (
+            ("sensor_id", "t"),
+        ),
+    ),
     "RESET": ("host", "command", ()),
 }
 
@@ -239,6 +285,8 @@ ERRORS = {
             "SET_AXIS",
             "COEFFICIENTS",
             "OUTPUT_TOO_LARGE",
+            "DOMAIN",
+            "SENSOR_ID",
             "SETPRG_FIELDS",
             "START_RANGE",
             "MAX_RANGE",
@@ -288,6 +336,18 @@ ERRORS = {
         "imu, at start-up: a block with a sound CRC holding a surface SETCOE would refuse",
         (
             "DEFAULTS",
+        ),
+    ),
+    "EEPROM_SENSOR": (
+        "imu, at start-up or after SETID: a sound coefficient block fitted for another sensor ID than the board's",
+        (
+            "DEFAULTS",
+        ),
+    ),
+    "EEPROM_ID": (
+        "imu, at start-up or after SETID: the sensor ID record is damaged; the board has no ID",
+        (
+            "NO_ID",
         ),
     ),
     "RESET": (

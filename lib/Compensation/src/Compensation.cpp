@@ -150,3 +150,30 @@ CompSet TrendDetector::update(float tempC)
     }
     return state_;
 }
+
+void clearDomain(SetDomain& domain)
+{
+    domain.temperatureCentiC = NO_RANGE;
+    for (uint8_t a = 0; a < COMP_AXIS_COUNT; ++a) {
+        domain.accelLsb[a] = NO_RANGE;
+    }
+}
+
+void clearDomain(CalibratedDomain& domain)
+{
+    for (uint8_t s = 0; s < COMP_SET_COUNT; ++s) {
+        clearDomain(domain.set[s]);
+    }
+}
+
+DomainCheck checkTemperature(const SetDomain& domain, float tempC)
+{
+    const Int16Range& range = domain.temperatureCentiC;
+    if (!range.known()) {
+        return DomainCheck::Unknown;
+    }
+    // In the bounds' unit; the product's rounding (under 0.001 of it) is far
+    // below the sensor's 1/8 degC step.
+    float centiC = tempC * 100.0f;
+    return centiC >= (float)range.min && centiC <= (float)range.max ? DomainCheck::Inside : DomainCheck::Outside;
+}

@@ -8,6 +8,8 @@
 
 #include <stdint.h>
 
+#include "SensorId.h"
+
 const uint8_t COMP_SET_COUNT = 2;
 const uint8_t COMP_AXIS_COUNT = 3;
 const uint8_t COMP_COEFFICIENT_COUNT = 6;
@@ -57,12 +59,13 @@ const float COMP_ACCEL_MIN_LSB = -32768.0f;
 const float COMP_ACCEL_MAX_LSB = 32767.0f;
 
 // Largest |raw - f(T, raw)| an IMU frame carries. The longest IMU line of
-// protocol 2 has 87 characters besides the three compensated values
+// protocol 2 has 89 characters besides the three compensated values
 // ("$IMU", seq 65535, t_ms 4294967295, raws -32768, filtered -32768.0,
-// temperature -235.000, set, source, "*HHHH" and commas), which leaves 33 of
-// the 120: ten characters a value at one decimal, "-9999999.9", so |x| < 1e7.
-// 0.1 % below that covers the float rounding of f (~1 LSB near 1e7).
-const float COMP_OUTPUT_LIMIT_LSB = 9.99e6f;
+// temperature -235.000, set, source, temperature domain, "*HHHH" and
+// commas), which leaves 31 of the 120: nine characters a value at one
+// decimal, "-999999.9", so |x| < 1e6 (about 61 g, far beyond any int16
+// reading and its drift). 0.1 % below that covers the float rounding of f.
+const float COMP_OUTPUT_LIMIT_LSB = 9.99e5f;
 
 // True when raw - f(T, raw) is finite and below COMP_OUTPUT_LIMIT_LSB in
 // magnitude everywhere in that domain. It is a quadratic, so its largest
@@ -93,22 +96,80 @@ private:
     bool haveSample_;
 };
 
-// EEPROM/upload block, little-endian, shared byte for byte with the host:
-// [0] magic 'T', [1] version, [2..145] 36 float32 in order set (warming,
-// cooling) x axis (X, Y, Z) x term (p00..p02), [146..147] CRC-16/XMODEM of
-// bytes 0..145.
+// Where a fit had data, per set: the calibrated domain. Temperatures in
+// 1/100 degC and accelerations in LSB, as int16: two bytes a bound, finer
+// than the sensor resolves (1/8 degC, 1 LSB), and -327.68..327.67 degC and
+// the whole int16 reading range fit. A range whose min is above its max is
+// none: a temperature range so is unknown (the defaults, a version 1 block,
+// surfaces sent without SETDOM), an axis range so was not fitted.
+struct Int16Range {
+    int16_t min;
+    int16_t max;
+
+    bool known() const { return min <= max; }
+};
+
+struct SetDomain {
+    Int16Range temperatureCentiC;
+    Int16Range accelLsb[COMP_AXIS_COUNT];  // X, Y, Z
+};
+
+struct CalibratedDomain {
+    SetDomain set[COMP_SET_COUNT];  // indexed by CompSet
+};
+
+const Int16Range NO_RANGE = {INT16_MAX, INT16_MIN};
+
+// Every range none.
+void clearDomain(SetDomain& domain);
+void clearDomain(CalibratedDomain& domain);
+
+enum class DomainCheck : uint8_t { Inside, Outside, Unknown };
+
+// Whether tempC lies within the set's calibrated temperature range (bounds
+// included); Unknown without one.
+DomainCheck checkTemperature(const SetDomain& domain, float tempC);
+
+// EEPROM/upload block, little-endian, shared byte for byte with the host.
+// Version 2: [0] magic 'T', [1] version, [2..145] 36 float32 in order set
+// (warming, cooling) x axis (X, Y, Z) x term (p00..p02), [146..153] the
+// sensor ID it was fitted for (putSensorIdField; all NUL: any sensor),
+// [154..185] the calibrated domain, per set (W, C) temperature min, max then
+// per axis (X, Y, Z) acceleration min, max, int16 each, [186..187]
+// CRC-16/XMODEM of bytes 0..185. Version 1 ends after the floats with its
+// CRC at [146..147] and has no ID (any sensor) and no domain (unknown).
 const uint8_t COEFFICIENT_BLOCK_MAGIC = 0x54;
-const uint8_t COEFFICIENT_BLOCK_VERSION = 1;
-const uint8_t COEFFICIENT_BLOCK_SIZE = 148;
+const uint8_t COEFFICIENT_BLOCK_VERSION = 2;
+const uint8_t COEFFICIENT_BLOCK_V1_SIZE = 148;
+// The size of the version written, and enough bytes for any version read.
+const uint8_t COEFFICIENT_BLOCK_SIZE = 188;
 
 // Blank: every byte 0xFF, an erased EEPROM that was never saved to.
-// BadValues: a sound block with a surface surfaceOutputFitsFrame refuses.
-enum class BlockStatus : uint8_t { Ok, Blank, BadMagic, BadVersion, BadCrc, BadValues };
+// BadValues: a sound block with a surface surfaceOutputFitsFrame refuses or
+// an ID that is not one. OtherSensor: a sound block fitted for another ID
+// than the board's.
+enum class BlockStatus : uint8_t { Ok, Blank, BadMagic, BadVersion, BadCrc, BadValues, OtherSensor };
 
-void encodeCoefficients(const Coefficients& in, uint8_t out[COEFFICIENT_BLOCK_SIZE]);
-// Leaves `out` untouched unless the block is valid. Checks for a blank block,
-// then magic, version (another version may have another layout), CRC, and
-// last the values.
-BlockStatus decodeCoefficients(const uint8_t in[COEFFICIENT_BLOCK_SIZE], Coefficients& out);
+// A block read or written a byte at a time, by index from 0: where it is
+// stored (the board's EEPROM) the block then needs no copy of its 188 bytes
+// on the Nano's stack. context is passed on as it was given.
+typedef uint8_t (*ReadBlockByte)(const void* context, uint8_t index);
+typedef void (*WriteBlockByte)(void* context, uint8_t index, uint8_t value);
+
+// Writes bytes 0..COEFFICIENT_BLOCK_SIZE - 1 in order, each once.
+void encodeCoefficients(const Coefficients& in, const CalibratedDomain& domain, const char* sensorId,
+                        WriteBlockByte write, void* context);
+void encodeCoefficients(const Coefficients& in, const CalibratedDomain& domain, const char* sensorId,
+                        uint8_t out[COEFFICIENT_BLOCK_SIZE]);
+// For the board whose ID is boardSensorId ("" unassigned): a block fitted for
+// an ID loads only there, one fitted for none (version 1, or an empty ID)
+// anywhere. Leaves `out` and `domain` untouched unless the block is valid.
+// Checks for a blank block, then magic, version (another version may have
+// another layout), CRC, the values, and last the ID. Reads bytes
+// 0..COEFFICIENT_BLOCK_SIZE - 1, some more than once.
+BlockStatus decodeCoefficients(ReadBlockByte read, const void* context, const char* boardSensorId, Coefficients& out,
+                               CalibratedDomain& domain);
+BlockStatus decodeCoefficients(const uint8_t in[COEFFICIENT_BLOCK_SIZE], const char* boardSensorId, Coefficients& out,
+                               CalibratedDomain& domain);
 
 #endif
