@@ -62,9 +62,10 @@ COLUMNS = (
     "method",
 )
 # The Python a run's outcome depends on (not the report, the rates or the
-# command line; the model file's parser by what it reads, below): a change
-# to any of these makes every row of the record stale (method_digest), as
-# does a change in the default model or in what the native library computes.
+# command line; the model file's parser and the native library by what they
+# give, method_digest): a change to any of these makes every row of the
+# record stale, as does a change in the default model or in what the native
+# library computes.
 METHOD_SOURCES = (
     "discovery/benchmark.py",
     "discovery/candidates.py",
@@ -81,7 +82,6 @@ METHOD_SOURCES = (
     "run/folder.py",
     "run/log.py",
     "run/positions.py",
-    "native.py",
     "surfaces.py",
 )
 
@@ -297,9 +297,14 @@ def method_digest() -> str:
     axes = [np.rint(level + 20.0 * rng.standard_normal(samples)) for level in (8000.0, -3000.0, 14000.0)]
     reset = np.zeros(samples, dtype=bool)
     reset[::1500] = True
-    processed = native.imu_process_unrounded(*axes, ramp_c, reset)
-    for name in sorted(processed):
-        digest.update(np.ascontiguousarray(processed[name]).tobytes())
+    # Both paths the runs take: hide's registers, the replay's model values.
+    registers = np.rint((ramp_c - 21.0) * 8.0)
+    for processed in (
+        native.imu_process(*axes, registers, reset),
+        native.imu_process_unrounded(*axes, ramp_c, reset),
+    ):
+        for name in native.OUTPUTS:
+            digest.update(np.ascontiguousarray(processed[name]).tobytes())
     return digest.hexdigest()
 
 
