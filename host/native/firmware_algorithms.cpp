@@ -94,6 +94,13 @@ float* firstTerm(Coefficients& coefficients)
 
 const uint8_t TERMS = COMP_SET_COUNT * COMP_AXIS_COUNT * COMP_COEFFICIENT_COUNT;
 
+void tableFromValues(const float* values, Coefficients& out)
+{
+    for (uint8_t i = 0; i < TERMS; ++i) {
+        firstTerm(out)[i] = values[i];
+    }
+}
+
 }  // namespace
 
 extern "C" int thermotilt_coefficient_block_encode(const float* coefficients, const int16_t* domain,
@@ -103,9 +110,7 @@ extern "C" int thermotilt_coefficient_block_encode(const float* coefficients, co
         return THERMOTILT_HOST_BAD_ARGUMENT;
     }
     Coefficients table;
-    for (uint8_t i = 0; i < TERMS; ++i) {
-        firstTerm(table)[i] = coefficients[i];
-    }
+    tableFromValues(coefficients, table);
     CalibratedDomain calibrated;
     domainFromValues(domain, calibrated);
     encodeCoefficients(table, calibrated, sensorId, block);
@@ -119,9 +124,7 @@ extern "C" int thermotilt_coefficient_block_decode(const uint8_t* block, const c
         return THERMOTILT_HOST_BAD_ARGUMENT;
     }
     Coefficients table;
-    for (uint8_t i = 0; i < TERMS; ++i) {
-        firstTerm(table)[i] = coefficients[i];
-    }
+    tableFromValues(coefficients, table);
     CalibratedDomain calibrated;
     domainFromValues(domain, calibrated);
     *status = (uint8_t)decodeCoefficients(block, boardSensorId, table, calibrated);
