@@ -101,6 +101,7 @@ def _errors(campaign: Campaign, fits: list[SurfaceFit]) -> _Errors:
         slope = np.degrees(1.0 / np.sqrt(np.maximum(LSB_PER_G**2 - (at_25 + left) ** 2, 1.0)))
         for position in np.unique(data.position).tolist():
             mine = data.position == position
+            rms_lsb = float(np.sqrt(np.mean(left[mine] ** 2)))
             labels.append(np.full(int(mine.sum()), len(points)))
             points.append(
                 PointError(
@@ -109,8 +110,8 @@ def _errors(campaign: Campaign, fits: list[SurfaceFit]) -> _Errors:
                     fit.axis,
                     int(mine.sum()),
                     (float(temperature[mine].min()), float(temperature[mine].max())),
-                    float(np.sqrt(np.mean(left[mine] ** 2))),
-                    float(np.sqrt(np.mean(left[mine] ** 2)) * MG_PER_LSB),
+                    rms_lsb,
+                    rms_lsb * MG_PER_LSB,
                     float(np.percentile(np.abs(tilt[mine]), 95.0)),
                 )
             )
