@@ -20,6 +20,7 @@ from child_process import THERMOTILT, run
 from twin_helpers import pty_twin
 
 from thermotilt import physics
+from thermotilt.run.folder import RunFolder
 from thermotilt.run.log import ALL_COLUMNS, read_run_log
 from thermotilt.run.summary import read_summary
 from thermotilt.surfaces import PAPER_DEFAULTS
@@ -488,3 +489,35 @@ def test_the_twin_through_pseudo_terminals(tmp_path):
     ]
     for row in logged_rows:
         assert {c: row[c] for c in same_columns} == {c: twin_rows[row["imu_seq"]][c] for c in same_columns}
+
+
+@pytest.mark.twin
+def test_one_chamber_run_carrying_two_sensors_gives_each_what_it_gives_alone(tmp_path):
+    # The coupling is one way (the chamber's face drives each sensor), so a
+    # sensor's run folder must not depend on what else the table carries.
+    batch = physics.Model.load().with_population(2, seed=4)
+    scenario = build("fig8", ScenarioOptions(hold_s=5))
+    imus = [
+        simulate_module.ImuRun(batch.for_sensor(sensor_id), tmp_path / "together" / sensor_id, seed=11 + number)
+        for number, sensor_id in enumerate(batch.sensor_ids)
+    ]
+    together = simulate_module.run_sensors(scenario, batch, imus)
+    alone = [
+        simulate_module.run(scenario, imu.model, tmp_path / "alone" / imu.out_dir.name, seed=imu.seed) for imu in imus
+    ]
+    files = ("run.csv", "serial/imu_reader.txt", "serial/thermal_chamber.txt", RunFolder.at(tmp_path).imu_eeprom.name)
+    for shared, single in zip(together, alone):
+        for name in files:
+            assert (shared.out_dir / name).read_bytes() == (single.out_dir / name).read_bytes(), name
+        assert shared.summary.boards == single.summary.boards
+        assert shared.summary.rows == single.summary.rows > 0
+    first, second = ((result.out_dir / "run.csv").read_bytes() for result in together)
+    assert first != second
+
+
+@pytest.mark.twin
+def test_a_run_of_several_sensors_refuses_a_fault_on_one_imu_board(tmp_path):
+    model = physics.Model.load().with_faults([physics.parse_fault("imu_hang@1")])
+    imus = [simulate_module.ImuRun(model, tmp_path / name) for name in ("a", "b")]
+    with pytest.raises(simulate_module.SimulationError, match="imu_hang acts on one IMU board"):
+        simulate_module.run_sensors(build("fig8", ScenarioOptions(hold_s=5)), model, imus)

@@ -17,8 +17,10 @@ clock (``realtime``), as a client of the ``pty`` ports expects of a board.
 
 from __future__ import annotations
 
+import shutil
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from contextlib import ExitStack
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import BinaryIO
@@ -161,13 +163,18 @@ class _FaultSchedule:
                 FAULTS[fault.name].apply(self._target, active, fault.rate)
 
 
-def check_faults(scenario: Scenario, model: Model) -> None:
+def check_faults(scenario: Scenario, model: Model, imu_boards: int = 1) -> None:
     """SimulationError for a fault the run cannot have: its board is not
-    in the scenario, or the physics term it acts through is off."""
+    in the scenario, it would act on one of several IMU boards, or the
+    physics term it acts through is off."""
     for fault in model.faults:
         kind = FAULTS[fault.name]
         if kind.board == CHAMBER and not scenario.uses_chamber:
             raise SimulationError(f"fault {fault.name} needs the chamber, but {scenario.name} runs the IMU alone")
+        if kind.board == IMU and imu_boards > 1:
+            raise SimulationError(
+                f"fault {fault.name} acts on one IMU board, and this run has {imu_boards}; run that sensor alone"
+            )
         if kind.needs_term is not None and not model.enabled(kind.needs_term):
             raise SimulationError(f"fault {fault.name} needs the {kind.needs_term} term enabled")
 
@@ -191,6 +198,19 @@ def _truth(sample: SensorSample, chamber: Chamber | None, drive: Drive | None) -
     }
 
 
+@dataclass(frozen=True)
+class ImuRun:
+    """One IMU board of a run: its sensor's model, the folder its run.csv,
+    serial/ and summary.json go to, its noise seed, and the bytes its EEPROM
+    holds from address 0 when it starts (e.g. the coefficient block of
+    `thermotilt fit`, coefficients.bin)."""
+
+    model: Model
+    out_dir: Path
+    seed: int = 1
+    eeprom: bytes | None = None
+
+
 def run(
     scenario: Scenario,
     model: Model,
@@ -204,32 +224,62 @@ def run(
     timing: StepTiming | None = None,
 ) -> RunResult:
     """Plays a scenario; writes run.csv, serial/ and summary.json in out_dir.
-    eeprom: bytes the IMU's EEPROM holds from address 0 when it starts, e.g.
-    the coefficient block of `thermotilt fit` (coefficients.bin).
+    eeprom: what the IMU's EEPROM holds when it starts (ImuRun).
     realtime: no step ends before its simulated time has passed on the wall
     clock, as on a board. timing: where the steps' wall time goes."""
-    check_faults(scenario, model)
-    folder = RunFolder.at(out_dir)
-    folder.serial_dir.mkdir(parents=True, exist_ok=True)
+    return _play(scenario, model, [ImuRun(model, out_dir, seed, eeprom)], pty, on_pty, progress, realtime, timing)[0]
+
+
+def run_sensors(
+    scenario: Scenario,
+    chamber_model: Model,
+    imus: Sequence[ImuRun],
+    progress: Callable[[float], None] | None = None,
+) -> list[RunResult]:
+    """One chamber run carrying several IMU boards, as a tilt table carries
+    several sensors: the chamber's face temperature drives every sensor, and
+    no sensor acts on the chamber, so each IMU's run folder holds what a run
+    of that sensor alone with its seed gives (the chamber's capture copied
+    into each). The chamber's physics is chamber_model's."""
+    return _play(scenario, chamber_model, imus, progress=progress)
+
+
+def _play(
+    scenario: Scenario,
+    chamber_model: Model,
+    imus: Sequence[ImuRun],
+    pty: bool = False,
+    on_pty: Callable[[str, str], None] | None = None,
+    progress: Callable[[float], None] | None = None,
+    realtime: bool = False,
+    timing: StepTiming | None = None,
+) -> list[RunResult]:
+    if not imus:
+        raise SimulationError("a run needs at least one IMU board")
+    if pty and len(imus) > 1:
+        raise SimulationError("the pty ports serve one IMU board; run one sensor")
+    check_faults(scenario, chamber_model, len(imus))
+    folders = [RunFolder.at(imu.out_dir) for imu in imus]
+    for folder in folders:
+        folder.serial_dir.mkdir(parents=True, exist_ok=True)
     wall_start = time.perf_counter()
-    links: dict[str, BoardLink] = {}
-    with open(folder.log, "w", newline="") as csv_stream:
+    units: list[ImuUnit] = []
+    chamber_link: BoardLink | None = None
+    with ExitStack() as open_files:
         try:
-            links[IMU] = BoardLink.open(IMU, Board.imu_reader(), open(folder.capture(IMU), "wb"))
-            if eeprom is not None:
-                imu_eeprom_bytes = links[IMU].board.eeprom_size
-                if len(eeprom) > imu_eeprom_bytes:
-                    raise SimulationError(
-                        f"{len(eeprom)} bytes do not fit the IMU's EEPROM of {imu_eeprom_bytes} bytes"
-                    )
-                links[IMU].board.write_eeprom(eeprom)
+            for imu, folder in zip(imus, folders):
+                link = BoardLink.open(IMU, Board.imu_reader(), open(folder.capture(IMU), "wb"))
+                csv_stream = open_files.enter_context(open(folder.log, "w", newline=""))
+                recorder = FrameRecorder(
+                    RunLogWriter(csv_stream, with_truth=True, flush_each_row=False),
+                    watch_program=scenario.ends_with_program,
+                )
+                units.append(ImuUnit(link, Sensor(imu.model, imu.seed, scenario.ambient_c(0.0)), recorder))
+                if imu.eeprom is not None:
+                    _preload_eeprom(link.board, imu.eeprom)
             if scenario.uses_chamber:
-                links[CHAMBER] = BoardLink.open(CHAMBER, Board.thermal_chamber(), open(folder.capture(CHAMBER), "wb"))
-            recorder = FrameRecorder(
-                RunLogWriter(csv_stream, with_truth=True, flush_each_row=False),
-                watch_program=scenario.ends_with_program,
-            )
-            lockstep = Lockstep(scenario, model, seed, links, recorder)
+                chamber_link = BoardLink.open(CHAMBER, Board.thermal_chamber(), open(folders[0].capture(CHAMBER), "wb"))
+            lockstep = Lockstep(scenario, chamber_model, imus[0].seed, units, chamber_link)
             try:
                 if pty:
                     lockstep.open_ptys(on_pty)
@@ -237,60 +287,91 @@ def run(
             except KeyboardInterrupt:
                 # Ctrl-C keeps what was simulated so far, summary included.
                 end_reason = INTERRUPTED
-            simulated = links[IMU].board.seconds
-            reports = {name: link.report() for name, link in links.items()}
-            # What the IMU saved (SAVECOE), as a real board would keep it: the
+            simulated = units[0].link.board.seconds
+            chamber_report = chamber_link.report() if chamber_link is not None else None
+            imu_reports = [unit.link.report() for unit in units]
+            # What each IMU saved (SAVECOE), as a real board would keep it: the
             # next run can start from it with eeprom=.
-            folder.imu_eeprom.write_bytes(links[IMU].board.read_eeprom())
+            for unit, folder in zip(units, folders):
+                folder.imu_eeprom.write_bytes(unit.link.board.read_eeprom())
         finally:
-            for link in links.values():
+            for link in [unit.link for unit in units] + ([chamber_link] if chamber_link else []):
                 link.capture.close()
                 link.board.close()
+    for folder in folders[1:] if chamber_link is not None else ():
+        shutil.copyfile(folders[0].capture(CHAMBER), folder.capture(CHAMBER))
     wall = time.perf_counter() - wall_start
-    summary = RunSummary(
-        source=TWIN,
-        scenario=scenario.name,
-        description=scenario.description,
-        options=asdict(scenario.options) if scenario.options is not None else None,
-        seed=seed,
-        model=model.source,
-        terms={name: model.enabled(name) for name in model.terms},
-        faults=[vars(fault) for fault in model.faults],
-        imu_eeprom_preloaded_bytes=len(eeprom) if eeprom is not None else 0,
-        end_reason=end_reason,
-        realtime=realtime,
-        sim_seconds=round(simulated, 3),
-        wall_seconds=round(wall, 3),
-        speed_x_real_time=round(simulated / wall, 2) if wall > 0 else None,
-        rows=recorder.rows,
-        marks=scenario.marks,
-        positions=[vars(position) for position in scenario.positions],
-        boards=reports,
-    )
-    summary.write(out_dir)
-    return RunResult(out_dir, summary)
+    results = []
+    for imu, unit, imu_report in zip(imus, units, imu_reports):
+        summary = RunSummary(
+            source=TWIN,
+            scenario=scenario.name,
+            description=scenario.description,
+            options=asdict(scenario.options) if scenario.options is not None else None,
+            seed=imu.seed,
+            model=imu.model.source,
+            terms={name: imu.model.enabled(name) for name in imu.model.terms},
+            faults=[vars(fault) for fault in imu.model.faults],
+            imu_eeprom_preloaded_bytes=len(imu.eeprom) if imu.eeprom is not None else 0,
+            end_reason=end_reason,
+            realtime=realtime,
+            sim_seconds=round(simulated, 3),
+            wall_seconds=round(wall, 3),
+            speed_x_real_time=round(simulated / wall, 2) if wall > 0 else None,
+            rows=unit.recorder.rows,
+            marks=scenario.marks,
+            positions=[vars(position) for position in scenario.positions],
+            boards={IMU: imu_report, **({CHAMBER: chamber_report} if chamber_report else {})},
+        )
+        summary.write(imu.out_dir)
+        results.append(RunResult(imu.out_dir, summary))
+    return results
+
+
+def _preload_eeprom(board: Board, eeprom: bytes) -> None:
+    if len(eeprom) > board.eeprom_size:
+        raise SimulationError(f"{len(eeprom)} bytes do not fit the IMU's EEPROM of {board.eeprom_size} bytes")
+    board.write_eeprom(eeprom)
+
+
+@dataclass
+class ImuUnit:
+    """An IMU board in the loop: its serial line, its sensor's physics, its
+    run.csv, and the sample the sensor gave in the current step."""
+
+    link: BoardLink
+    sensor: Sensor
+    recorder: FrameRecorder
+    sample: SensorSample | None = None
 
 
 class Lockstep:
     """The twin's loop over its 10 ms steps, and what a fault acts on
-    (``thermotilt.twin.faults.FaultTarget``): the boards by name, the
-    chamber physics, the Peltier's leads and the seed."""
+    (``thermotilt.twin.faults.FaultTarget``): the boards by name (the first
+    IMU's, the only one a run with IMU faults has), the chamber physics,
+    the Peltier's leads and the seed."""
 
     def __init__(
-        self, scenario: Scenario, model: Model, seed: int, links: dict[str, BoardLink], recorder: FrameRecorder
+        self,
+        scenario: Scenario,
+        model: Model,
+        seed: int,
+        imus: list[ImuUnit],
+        chamber_link: BoardLink | None,
     ) -> None:
         self.scenario = scenario
         self.seed = seed
-        self.links = links
-        self.boards = {name: link.board for name, link in links.items()}
-        self.recorder = recorder
+        self.imus = imus
+        self.chamber_link = chamber_link
+        self.links = {IMU: imus[0].link, **({CHAMBER: chamber_link} if chamber_link else {})}
+        self.boards = {name: link.board for name, link in self.links.items()}
         self.peltier_reversed = False
-        self.boards[IMU].attach_lsm9ds0()
+        for unit in imus:
+            unit.link.board.attach_lsm9ds0()
         self.chamber: Chamber | None = None
-        if CHAMBER in links:
-            self.boards[CHAMBER].attach_l298n()
+        if chamber_link is not None:
+            chamber_link.board.attach_l298n()
             self.chamber = Chamber(model, scenario.ambient_c(0.0))
-        self.sensor = Sensor(model, seed, scenario.ambient_c(0.0))
         self._faults = _FaultSchedule(model.faults, self)
 
     def open_ptys(self, on_pty: Callable[[str, str], None] | None) -> None:
@@ -304,14 +385,16 @@ class Lockstep:
     ) -> str:
         """Steps to the scenario's end, or to the end of its chamber program
         (ends_with_program); returns why it stopped (the summary's end_reason)."""
-        scenario, recorder, links = self.scenario, self.recorder, self.links
-        imu = links[IMU]
-        chamber_link = links.get(CHAMBER)
-        chamber, sensor, faults = self.chamber, self.sensor, self._faults
+        scenario, imus, links = self.scenario, self.imus, self.links
+        chamber_link = self.chamber_link
+        recorders = [unit.recorder for unit in imus]
+        chamber, faults = self.chamber, self._faults
+        boards = [unit.link.board for unit in imus] + ([chamber_link.board] if chamber_link else [])
         commands = list(scenario.commands)
         positions = list(scenario.positions)
         position = positions.pop(0)
-        recorder.move_table(position.incl_x_deg, position.incl_y_deg, position.at_s)
+        for recorder in recorders:
+            recorder.move_table(position.incl_x_deg, position.incl_y_deg, position.at_s)
         drive = None
         steps = round(scenario.duration_s / STEP_S)
         pacer = WallClockPacer() if realtime else None
@@ -324,10 +407,15 @@ class Lockstep:
             faults.update(t)
             while positions and positions[0].at_s <= t:
                 position = positions.pop(0)
-                recorder.move_table(position.incl_x_deg, position.incl_y_deg, position.at_s)
+                for recorder in recorders:
+                    recorder.move_table(position.incl_x_deg, position.incl_y_deg, position.at_s)
             while commands and commands[0].at_s <= t:
                 command = commands.pop(0)
-                links[command.board].send(command.frame_type, command.values)
+                if command.board == IMU:
+                    for unit in imus:
+                        unit.link.send(command.frame_type, command.values)
+                else:
+                    links[command.board].send(command.frame_type, command.values)
             ambient = scenario.ambient_c(t)
             environment = ambient
             lap("other")
@@ -342,30 +430,33 @@ class Lockstep:
                 chamber_link.board.set_adc_millivolts(OUTER_THERMISTOR_CHANNEL, outer_mv)
                 environment = chamber.inner_c
                 lap("board_io")
-            sample = sensor.step(STEP_S, environment, position.incl_x_deg, position.incl_y_deg)
-            lap("physics")
-            imu.board.set_lsm9ds0(sample.ax, sample.ay, sample.az, sample.temperature_raw)
-            lap("board_io")
+            for unit in imus:
+                sample = unit.sensor.step(STEP_S, environment, position.incl_x_deg, position.incl_y_deg)
+                lap("physics")
+                unit.sample = sample
+                unit.link.board.set_lsm9ds0(sample.ax, sample.ay, sample.az, sample.temperature_raw)
+                lap("board_io")
 
             end = (step + 1) * STEP_S
-            for link in links.values():
-                link.board.run_until(end)
+            for board in boards:
+                board.run_until(end)
             lap("boards")
             if pacer is not None:
                 pacer.wait_until(end)
                 lap("other")
-            if chamber_link is not None:
-                recorder.record_chamber(chamber_link.receive())
-            imu_frames = [frame for frame in imu.receive() if frame.type == "IMU"]
-            lap("frames")
-            if imu_frames:
-                recorder.set_ambient(ambient)
-                truth = _truth(sample, chamber, drive)
-                for frame in imu_frames:
-                    recorder.record_imu(frame, end, truth)
-            lap("csv")
+            chamber_frames = chamber_link.receive() if chamber_link is not None else []
+            for unit in imus:
+                unit.recorder.record_chamber(chamber_frames)
+                imu_frames = [frame for frame in unit.link.receive() if frame.type == "IMU"]
+                lap("frames")
+                if imu_frames:
+                    unit.recorder.set_ambient(ambient)
+                    truth = _truth(unit.sample, chamber, drive)
+                    for frame in imu_frames:
+                        unit.recorder.record_imu(frame, end, truth)
+                lap("csv")
             if progress is not None and step % 100 == 99:
                 progress(end)
-            if recorder.end_reason:
-                return recorder.end_reason
+            if recorders[0].end_reason:
+                return recorders[0].end_reason
         return f"{scenario.duration_s:g} s simulated"
