@@ -91,3 +91,22 @@ def test_a_drawn_population_has_the_stated_spreads():
     # Y's slope spread: the tempco's and the shape's (DRIFT_SHAPE_SPREAD of p10) in quadrature.
     expected = np.hypot(TEMPCO_SPREAD_MG_PER_C * lsb_per_mg, DRIFT_SHAPE_SPREAD * base.p10)
     assert np.std(slopes) == pytest.approx(expected, rel=tolerance)
+
+
+def test_a_batch_model_written_and_read_back_is_the_same_batch(tmp_path):
+    from thermotilt.physics.document import write_model
+
+    drawn = Model.load().with_population(2, seed=3)
+    write_model(drawn, tmp_path / "batch.toml")
+    again = Model.load(str(tmp_path / "batch.toml"))
+    assert again.sensor_ids == drawn.sensor_ids
+    for sensor_id in drawn.sensor_ids:
+        assert again.for_sensor(sensor_id).terms == drawn.for_sensor(sensor_id).terms
+
+
+def test_switching_a_term_reaches_every_sensor_of_the_batch():
+    drawn = Model.load().with_population(2, seed=3)
+    switched = drawn.with_terms({"drift": False})
+    assert not switched.enabled("drift")
+    assert not any(switched.for_sensor(sensor_id).enabled("drift") for sensor_id in drawn.sensor_ids)
+    assert all(drawn.for_sensor(sensor_id).enabled("drift") for sensor_id in drawn.sensor_ids)

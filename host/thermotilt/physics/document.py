@@ -22,7 +22,8 @@ def plain(value: Any) -> Any:
 
 
 def model_document(model: Model) -> dict[str, Any]:
-    """Every hardware section and term with all its values, and the faults."""
+    """Every hardware section and term with all its values, the faults, and
+    a batch's sensors with the terms each overrides."""
     document: dict[str, Any] = {name: plain(values) for name, values in model.constants.items()}
     document.update({name: plain(values) for name, values in model.terms.items()})
     faults = []
@@ -35,6 +36,11 @@ def model_document(model: Model) -> dict[str, Any]:
         faults.append(table)
     if faults:
         document["faults"] = faults
+    if model.sensors:
+        document["sensors"] = [
+            {"id": sensor.id, **{name: plain(values) for name, values in sensor.terms.items()}}
+            for sensor in model.sensors
+        ]
     return document
 
 

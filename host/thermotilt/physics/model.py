@@ -108,14 +108,23 @@ class Model:
         return bool(self.terms[term]["enabled"])
 
     def with_terms(self, changes: Mapping[str, bool]) -> Model:
-        """A copy with the named terms switched on (True) or off (False)."""
-        terms = dict(self.terms)
+        """A copy with the named terms switched on (True) or off (False), in
+        the batch's sensors too."""
         for term, enabled in changes.items():
             self._check_term(term)
             if not isinstance(enabled, bool):
                 raise ModelError(f"{self.source}: [{term}] enabled must be true or false")
-            terms[term] = MappingProxyType({**self.terms[term], "enabled": enabled})
-        return replace(self, terms=MappingProxyType(terms))
+
+        def switched(terms: Mapping[str, Mapping[str, Any]]) -> MappingProxyType:
+            return MappingProxyType(
+                {
+                    name: MappingProxyType({**values, "enabled": changes[name]}) if name in changes else values
+                    for name, values in terms.items()
+                }
+            )
+
+        sensors = tuple(replace(sensor, terms=switched(sensor.terms)) for sensor in self.sensors)
+        return replace(self, terms=switched(self.terms), sensors=sensors)
 
     def with_faults(self, faults: Iterable[Fault]) -> Model:
         """A copy with these faults appended."""
