@@ -5,6 +5,7 @@ only the others, and bad input as one line (docs/calibration.md)."""
 import json
 import signal
 import subprocess
+import zlib
 
 import pytest
 from child_process import THERMOTILT, popen, run
@@ -13,6 +14,7 @@ from twin_helpers import pty_twin
 
 from thermotilt import cli
 from thermotilt.calibration.campaign import select_positions
+from thermotilt.physics import Model
 from thermotilt.run.log import read_run_log
 from thermotilt.twin.scenarios import campaign_positions
 
@@ -282,3 +284,38 @@ def test_one_job_reports_progress_while_a_position_runs(tmp_path):
     # The bar moves while the position still runs in its partial folder,
     # not all at once after it ends.
     assert running.count(True) > 1
+
+
+@pytest.mark.twin
+def test_a_batch_is_one_chamber_run_per_position_and_a_campaign_per_sensor(tmp_path, capsys):
+    out = tmp_path / "batch"
+    arguments = ["campaign", "--twin", "--out", str(out), "--positions", "0,X+30", "--sensors", "2", "--seed", "5"]
+    assert cli.main([*arguments, "--jobs", "2", *SHORT]) == 0
+    stdout = capsys.readouterr().out
+    assert "a batch of 2 sensors (TT-01, TT-02) on one tilt table" in stdout
+    assert "all 4 sensor positions done" in stdout and f"thermotilt fit {out}" in stdout
+    batch = json.loads((out / "batch.json").read_text())
+    assert batch["sensors"] == ["TT-01", "TT-02"] and batch["drawn"] == 2
+    # The drawn batch is kept as a model file: each sensor's truth.
+    kept, drawn = Model.load(str(out / batch["model_file"])), Model.load().with_population(2, seed=5)
+    assert kept.sensor_ids == drawn.sensor_ids
+    assert all(kept.for_sensor(sensor).terms == drawn.for_sensor(sensor).terms for sensor in drawn.sensor_ids)
+    index = {label: number for number, (label, _, _) in enumerate(campaign_positions())}
+    for sensor in batch["sensors"]:
+        document = campaign_file(out / sensor)
+        assert document["sensor"] == sensor and document["model"] == f"default (sensor {sensor})"
+        for entry in document["positions"]:
+            assert entry["status"] == "done" and entry["sensor_id"] == sensor
+            assert entry["seed"] == 5 + index[entry["label"]] + zlib.crc32(sensor.encode())
+        assert f"{sensor} X+30: done" in stdout
+    for label in ("0", "X+30"):
+        chamber = {
+            (out / sensor / label / "serial" / "thermal_chamber.txt").read_bytes() for sensor in batch["sensors"]
+        }
+        imu = {(out / sensor / label / "run.csv").read_bytes() for sensor in batch["sensors"]}
+        # One chamber run carried both sensors; each sensor drifted its own way.
+        assert len(chamber) == 1 and len(imu) == 2
+    # A resumed batch must be the same sensors.
+    assert cli.main([*arguments[:-4], "--sensors", "3", "--resume", *SHORT]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "its batch is TT-01, TT-02" in err, err

@@ -15,6 +15,7 @@ from thermotilt import cli
 from thermotilt.calibration.campaign import (
     CAMPAIGN_FILE,
     TwinSetup,
+    Unit,
     run_twin_position_shipped,
     select_positions,
 )
@@ -40,8 +41,9 @@ def files_of(folder):
 
 
 @pytest.mark.twin
-def test_a_dask_cluster_writes_what_local_workers_write(cluster, tmp_path, capsys):
-    positions = ["--positions", "X+30,Y-15", "--seed", "5", *SHORT]
+@pytest.mark.parametrize("batch", [[], ["--sensors", "2"]], ids=["one sensor", "a batch of two"])
+def test_a_dask_cluster_writes_what_local_workers_write(cluster, tmp_path, capsys, batch):
+    positions = ["--positions", "X+30,Y-15", "--seed", "5", *batch, *SHORT]
     local, dask = tmp_path / "local", tmp_path / "dask"
     assert cli.main(["campaign", "--twin", "--out", str(local), "--jobs", "2", *positions]) == 0
     capsys.readouterr()
@@ -50,17 +52,25 @@ def test_a_dask_cluster_writes_what_local_workers_write(cluster, tmp_path, capsy
     )
     stdout = capsys.readouterr().out
     assert f"on the Dask cluster at {cluster.scheduler_address} (2 worker threads)" in stdout
-    assert "all 2 positions done" in stdout
     assert files_of(dask) == files_of(local)
-    for label in ("X+30", "Y-15"):
-        for name in ("run.csv", "serial/imu_reader.txt", "serial/thermal_chamber.txt", "imu_reader_eeprom.bin"):
-            assert (dask / label / name).read_bytes() == (local / label / name).read_bytes(), (label, name)
-    assert records_without_times(dask) == records_without_times(local)
-    header = {key: value for key, value in campaign_file(local).items() if key not in ("created_utc", "positions")}
-    assert header == {
-        key: value for key, value in campaign_file(dask).items() if key not in ("created_utc", "positions")
-    }
-    assert not (dask / ".partial").exists()
+    campaigns = [path.parent.relative_to(local) for path in local.rglob(CAMPAIGN_FILE)]
+    assert len(campaigns) == max(1, len(batch) and int(batch[1]))
+    for campaign in campaigns:
+        for label in ("X+30", "Y-15"):
+            for name in ("run.csv", "serial/imu_reader.txt", "serial/thermal_chamber.txt", "imu_reader_eeprom.bin"):
+                assert (dask / campaign / label / name).read_bytes() == (local / campaign / label / name).read_bytes()
+        assert records_without_times(dask / campaign) == records_without_times(local / campaign)
+        header = {
+            key: value
+            for key, value in campaign_file(local / campaign).items()
+            if key not in ("created_utc", "positions")
+        }
+        assert header == {
+            key: value
+            for key, value in campaign_file(dask / campaign).items()
+            if key not in ("created_utc", "positions")
+        }
+        assert not (dask / campaign / ".partial").exists()
 
 
 @pytest.mark.twin
@@ -97,10 +107,13 @@ def test_a_position_on_a_worker_stops_at_the_campaigns_stop_event_and_ships_what
     with Client(cluster.scheduler_address, set_as_default=False) as client:
         stop = Event("test-stop-event", client=client)
         stop.set()
-        shipped = client.submit(run_twin_position_shipped, setup, position, stop.name).result(timeout=60)
-    assert shipped.record.status == "interrupted"
-    assert set(shipped.files) >= {"run.csv", "summary.json", "serial/imu_reader.txt", "serial/thermal_chamber.txt"}
-    summary = json.loads(shipped.files["summary.json"])
+        shipped = client.submit(run_twin_position_shipped, setup, position, (Unit(None, ""),), stop.name).result(
+            timeout=60
+        )
+    ((record,), (files,)) = shipped.records, shipped.files
+    assert record.status == "interrupted"
+    assert set(files) >= {"run.csv", "summary.json", "serial/imu_reader.txt", "serial/thermal_chamber.txt"}
+    summary = json.loads(files["summary.json"])
     assert summary["interrupted"] is True and summary["sim_seconds"] < 5
     assert shipped.sim_seconds == pytest.approx(summary["sim_seconds"], abs=1.0)
 

@@ -11,11 +11,17 @@ on real boards, the IMU's sensor ID (ICF's sensor_id, "" for none);
 it is rewritten after every position, so an interrupted campaign keeps every
 finished position and ``--resume`` redoes only the others.
 
+A batch (a model's [[sensors]], or sensors drawn about it) is one campaign
+per sensor, ``DIR/<id>/``, beside ``DIR/batch.json``; the table carries
+them all, so each position is one chamber run driving every sensor's IMU
+board.
+
 In the twin positions are independent runs, so they run in parallel worker
 processes, or on the workers of a Dask cluster (``--scheduler``), which send
 each position's files back to be written here the same way. Each position's
 noise seed is the campaign's seed plus the position's index among the
-paper's 37, so a subset reproduces the same positions of the full campaign.
+paper's 37 (plus a number from a batch sensor's ID), so a subset
+reproduces the same positions of the full campaign.
 """
 
 from __future__ import annotations
@@ -46,8 +52,10 @@ if TYPE_CHECKING:
     from distributed import Client
 
 CAMPAIGN_FILE = "campaign.json"
-# A batch campaign's folder: which sensors it holds, each in FOLDER/ID/.
+# A batch campaign's folder: which sensors it holds, each in FOLDER/ID/, and
+# in the twin the batch's model as it ran (its [[sensors]], drawn or given).
 BATCH_FILE = "batch.json"
+BATCH_MODEL_FILE = "model.toml"
 PARTIAL_DIR = ".partial"
 FORMAT = 1
 SEED_MODULUS = 2**64
@@ -89,15 +97,41 @@ class TwinSetup:
         model = Model.load(self.model_path)
         return model.with_population(self.population, self.seed) if self.population else model
 
-    def model(self) -> Any:
+    def chamber_model(self) -> Any:
+        """The model as loaded and switched, with the chamber's terms every
+        sensor of its batch shares."""
         changes = {name: True for name in self.enable} | {name: False for name in self.disable}
-        model = self.batch_model()
-        return (model.for_sensor(self.sensor) if self.sensor else model).with_terms(changes)
+        return self.batch_model().with_terms(changes)
 
-    def position_seed(self, position: Position) -> int:
+    def model(self, sensor: str | None = None) -> Any:
+        """The model of one sensor of the batch: ``sensor``, else the
+        setup's; the model itself for neither."""
+        sensor = sensor or self.sensor
+        model = self.chamber_model()
+        return model.for_sensor(sensor) if sensor else model
+
+    def units(self) -> tuple[Unit, ...]:
+        """The sensors a campaign with this setup calibrates: a batch's
+        (each its campaign in DIR/<id>/), or one in DIR."""
+        if self.sensor:
+            self.model()
+            return (Unit(self.sensor, ""),)
+        return tuple(Unit(sensor_id, sensor_id) for sensor_id in self.batch_model().sensor_ids) or (Unit(None, ""),)
+
+    def position_seed(self, position: Position, sensor: str | None = None) -> int:
         # Each sensor of a batch its own draws, the same for the same ID.
-        offset = zlib.crc32(self.sensor.encode()) if self.sensor else 0
+        sensor = sensor or self.sensor
+        offset = zlib.crc32(sensor.encode()) if sensor else 0
         return (self.seed + position.index + offset) % SEED_MODULUS
+
+
+@dataclass(frozen=True)
+class Unit:
+    """One sensor a campaign calibrates: its ID (None for a model's only
+    sensor) and its campaign's folder inside the campaign's ("" for DIR)."""
+
+    sensor: str | None
+    folder: str
 
 
 @dataclass
@@ -283,29 +317,40 @@ def _start_worker(progress_queue: Any, stop_event: Any) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
-def _run_in_worker(setup: TwinSetup, position: Position, out_dir: Path) -> PositionRecord:
-    return run_twin_position(setup, position, out_dir, _progress_queue, _stop_event)
+def _run_in_worker(
+    setup: TwinSetup, position: Position, units: tuple[Unit, ...], out_dir: Path
+) -> list[PositionRecord]:
+    return run_twin_position(setup, position, units, out_dir, _progress_queue, _stop_event)
 
 
 def run_twin_position(
-    setup: TwinSetup, position: Position, out_dir: Path, progress_queue: Any = None, stop_event: Any = None
-) -> PositionRecord:
-    """One position in the twin, in this process; puts the simulated seconds
-    into ``progress_queue`` as they pass (a whole position's by its end) and
-    stops when ``stop_event`` is set."""
+    setup: TwinSetup,
+    position: Position,
+    units: tuple[Unit, ...],
+    out_dir: Path,
+    progress_queue: Any = None,
+    stop_event: Any = None,
+) -> list[PositionRecord]:
+    """One position in the twin, in this process: one chamber run carrying
+    each unit's sensor, into each unit's campaign folder; puts the
+    simulated seconds into ``progress_queue`` as they pass (a whole
+    position's by its end) and stops when ``stop_event`` is set."""
     from ..twin import simulate
     from ..twin.boards import TwinError
 
-    record = PositionRecord(
-        position.label,
-        position.incl_x_deg,
-        position.incl_y_deg,
-        seed=setup.position_seed(position),
-        started_utc=_utc_now(),
-        # The twin's sensor is the batch's one the setup names.
-        sensor_id=setup.sensor,
-    )
-    partial = _fresh_partial(out_dir, position.label)
+    records = [
+        PositionRecord(
+            position.label,
+            position.incl_x_deg,
+            position.incl_y_deg,
+            seed=setup.position_seed(position, unit.sensor),
+            started_utc=_utc_now(),
+            # The twin's sensor is the batch's one the unit names.
+            sensor_id=unit.sensor,
+        )
+        for unit in units
+    ]
+    partials = [_fresh_partial(out_dir / unit.folder, position.label) for unit in units]
     reported = 0.0
 
     def progress(sim_seconds: float) -> None:
@@ -317,14 +362,26 @@ def run_twin_position(
             raise KeyboardInterrupt
 
     scenario = position_scenario(setup.options, position)
+    imus = [
+        simulate.ImuRun(setup.model(unit.sensor), partial, record.seed)
+        for unit, partial, record in zip(units, partials, records)
+    ]
     try:
-        summary = simulate.run(scenario, setup.model(), partial, seed=record.seed, progress=progress).summary
+        summaries = [result.summary for result in simulate.run_sensors(scenario, setup.chamber_model(), imus, progress)]
     except (TwinError, simulate.SimulationError, OSError) as error:
-        record.status, record.error = FAILED, str(error)
-        return record
-    if progress_queue is not None and not summary.interrupted:
+        for record in records:
+            record.status, record.error = FAILED, str(error)
+        return records
+    if progress_queue is not None and not summaries[0].interrupted:
         # The run ends with the chamber's program, before the scenario's bound.
         progress_queue.put(scenario.duration_s - reported)
+    for unit, record, summary in zip(units, records, summaries):
+        _finish_record(record, summary, out_dir / unit.folder)
+    return records
+
+
+def _finish_record(record: PositionRecord, summary: Any, folder: Path) -> None:
+    """What the position's run says of it; a done one moved into place."""
     record.sim_seconds = summary.sim_seconds
     record.wall_seconds = summary.wall_seconds
     record.firmware = {
@@ -335,13 +392,11 @@ def run_twin_position(
     ]
     if summary.interrupted:
         record.status = INTERRUPTED
-        return record
-    if summary.end_reason.startswith(CHAMBER_FAULT):
+    elif summary.end_reason.startswith(CHAMBER_FAULT):
         record.status, record.error = FAILED, f"the program ended early: {summary.end_reason}"
-        return record
-    _move_into_place(out_dir, position.label)
-    record.status = DONE
-    return record
+    else:
+        _move_into_place(folder, record.label)
+        record.status = DONE
 
 
 @dataclass(frozen=True)
@@ -351,45 +406,78 @@ class CampaignOutcome:
 
 
 class _Campaign:
-    """campaign.json started (or resumed) in out_dir; ``todo`` the positions not yet done."""
+    """Each unit's campaign.json started (or resumed) in its folder;
+    ``todo`` the positions some unit has not yet done."""
 
     def _start(
-        self, out_dir: Path, positions: list[Position], header: dict[str, Any], resume: bool, force: bool
+        self,
+        out_dir: Path,
+        positions: list[Position],
+        headers: dict[Unit, dict[str, Any]],
+        resume: bool,
+        force: bool,
     ) -> None:
-        try:
-            out_dir.mkdir(parents=True, exist_ok=True)
-        except OSError as error:
-            raise CampaignError(f"cannot create {out_dir}: {error.strerror or error}") from None
         self.out_dir, self.positions = out_dir, positions
-        self.file = CampaignFile.start(out_dir, header, positions, resume, force)
-        self.todo = self.file.pending(positions)
-        self.file.save()
+        self.files: dict[Unit, CampaignFile] = {}
+        for unit, header in headers.items():
+            folder = out_dir / unit.folder
+            try:
+                folder.mkdir(parents=True, exist_ok=True)
+            except OSError as error:
+                raise CampaignError(f"cannot create {folder}: {error.strerror or error}") from None
+            self.files[unit] = CampaignFile.start(folder, header, positions, resume, force)
+        for file in self.files.values():
+            file.save()
+        self.todo = [position for position in positions if self.pending_units(position)]
+
+    def pending_units(self, position: Position) -> tuple[Unit, ...]:
+        return tuple(unit for unit, file in self.files.items() if file.records[position.label].status != DONE)
+
+    def _finished(self, record: PositionRecord) -> None:
+        file = next(file for unit, file in self.files.items() if unit.sensor == record.sensor_id)
+        file.records[record.label] = record
+        file.save()
+
+    def records(self) -> list[PositionRecord]:
+        return [file.records[p.label] for file in self.files.values() for p in self.positions]
 
 
-def batch_sensor_ids(setup: TwinSetup) -> tuple[str, ...]:
-    """The sensors a batch campaign runs, one campaign each: those drawn or
-    the model's [[sensors]]; none for one sensor (--sensor, or a model
-    without a batch)."""
-    if setup.sensor:
-        setup.model()
-        return ()
-    return setup.batch_model().sensor_ids
+def write_batch(out_dir: Path, setup: TwinSetup, units: tuple[Unit, ...], resume: bool) -> None:
+    """BATCH_FILE: which sensors the folder holds, one campaign folder each;
+    a resumed batch must be the same sensors."""
+    sensors = [unit.sensor for unit in units]
+    if resume and (out_dir / BATCH_FILE).is_file():
+        try:
+            earlier = batch_of(out_dir)
+        except ValueError as error:
+            raise CampaignError(str(error)) from None
+        if list(earlier) != sensors:
+            raise CampaignError(
+                f"cannot resume {out_dir}: its batch is {', '.join(earlier)}, this command's "
+                f"{', '.join(sensors)}; give the same sensors or start again with --force"
+            )
+    from ..physics.document import write_model
 
-
-def write_batch(out_dir: Path, setup: TwinSetup, sensor_ids: tuple[str, ...]) -> None:
-    """BATCH_FILE: which sensors the folder holds, one campaign folder each."""
+    model = setup.chamber_model()
     document = {
         "format": FORMAT,
-        "sensors": list(sensor_ids),
+        "sensors": sensors,
         "drawn": setup.population or None,
         "seed": setup.seed,
-        "model": setup.batch_model().source,
+        "model": model.source,
+        "model_file": BATCH_MODEL_FILE,
     }
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
+        write_model(
+            model,
+            out_dir / BATCH_MODEL_FILE,
+            f"The model of this batch campaign as it ran ({model.source}), each sensor's terms in [[sensors]]:\n"
+            "thermotilt compare FIT/<id> --reference this file compares a sensor's fit with its own drift.",
+        )
         (out_dir / BATCH_FILE).write_text(json.dumps(document, indent=2) + "\n")
     except OSError as error:
-        raise CampaignError(f"cannot write {out_dir / BATCH_FILE}: {error.strerror or error}") from None
+        raise CampaignError(f"cannot write {error.filename or out_dir}: {error.strerror or error}") from None
 
 
 def batch_of(folder: Path) -> tuple[str, ...]:
@@ -408,8 +496,9 @@ def batch_of(folder: Path) -> tuple[str, ...]:
 
 
 class TwinCampaign(_Campaign):
-    """A campaign in the twin: the plan checked and campaign.json started
-    on construction, the positions not yet done run by ``run``."""
+    """A campaign in the twin: the plan checked and each sensor's
+    campaign.json started on construction, the positions not yet done run
+    by ``run``, each one chamber run for every sensor that still needs it."""
 
     def __init__(
         self, out_dir: Path, positions: list[Position], setup: TwinSetup, resume: bool = False, force: bool = False
@@ -417,22 +506,29 @@ class TwinCampaign(_Campaign):
         from ..physics import ModelError
 
         try:
-            model = setup.model()
+            self.units = setup.units()
+            models = {unit: setup.model(unit.sensor) for unit in self.units}
             self.position_seconds = position_scenario(setup.options, positions[0]).duration_s
         except (ModelError, ScenarioError) as error:
             raise CampaignError(str(error)) from None
-        header = {
-            "format": FORMAT,
-            "rig": "twin",
-            "created_utc": _utc_now(),
-            "program": program_settings(setup.options),
-            "seed": setup.seed,
-            "model": model.source,
-            "terms": {name: model.enabled(name) for name in model.terms},
-            **({"sensor": setup.sensor} if setup.sensor else {}),
+        self.batch = any(unit.folder for unit in self.units)
+        if self.batch:
+            write_batch(out_dir, setup, self.units, resume)
+        headers = {
+            unit: {
+                "format": FORMAT,
+                "rig": "twin",
+                "created_utc": _utc_now(),
+                "program": program_settings(setup.options),
+                "seed": setup.seed,
+                "model": model.source,
+                "terms": {name: model.enabled(name) for name in model.terms},
+                **({"sensor": unit.sensor} if unit.sensor else {}),
+            }
+            for unit, model in models.items()
         }
         self.setup = setup
-        self._start(out_dir, positions, header, resume, force)
+        self._start(out_dir, positions, headers, resume, force)
 
     def run(
         self,
@@ -446,22 +542,25 @@ class TwinCampaign(_Campaign):
         position's once it is back."""
 
         def finished(record: PositionRecord) -> None:
-            self.file.records[record.label] = record
-            self.file.save()
+            self._finished(record)
             if on_position is not None:
                 on_position(record)
 
+        tasks = [(position, self.pending_units(position)) for position in self.todo]
         if cluster is not None:
-            interrupted = _run_on_cluster(self.todo, self.setup, self.out_dir, cluster, progress, finished)
-        elif jobs <= 1 or len(self.todo) <= 1:
-            interrupted = _run_here(self.todo, self.setup, self.out_dir, progress, finished)
+            interrupted = _run_on_cluster(tasks, self.setup, self.out_dir, cluster, progress, finished)
+        elif jobs <= 1 or len(tasks) <= 1:
+            interrupted = _run_here(tasks, self.setup, self.out_dir, progress, finished)
         else:
-            interrupted = _run_in_workers(
-                self.todo, self.setup, self.out_dir, min(jobs, len(self.todo)), progress, finished
-            )
+            interrupted = _run_in_workers(tasks, self.setup, self.out_dir, min(jobs, len(tasks)), progress, finished)
         if not interrupted:
-            shutil.rmtree(self.out_dir / PARTIAL_DIR, ignore_errors=True)
-        return CampaignOutcome([self.file.records[p.label] for p in self.positions], interrupted)
+            for unit in self.units:
+                shutil.rmtree(self.out_dir / unit.folder / PARTIAL_DIR, ignore_errors=True)
+        return CampaignOutcome(self.records(), interrupted)
+
+
+# A position to run and the sensors that still need it.
+Task = tuple[Position, tuple[Unit, ...]]
 
 
 class _ProgressNow:
@@ -477,22 +576,23 @@ class _ProgressNow:
 
 
 def _run_here(
-    todo: list[Position],
+    tasks: list[Task],
     setup: TwinSetup,
     out_dir: Path,
     progress: Callable[[float], None] | None,
     finished: Callable[[PositionRecord], None],
 ) -> bool:
-    for position in todo:
-        record = run_twin_position(setup, position, out_dir, _ProgressNow(progress))
-        finished(record)
-        if record.status == INTERRUPTED:
+    for position, units in tasks:
+        records = run_twin_position(setup, position, units, out_dir, _ProgressNow(progress))
+        for record in records:
+            finished(record)
+        if any(record.status == INTERRUPTED for record in records):
             return True
     return False
 
 
 def _run_in_workers(
-    todo: list[Position],
+    tasks: list[Task],
     setup: TwinSetup,
     out_dir: Path,
     jobs: int,
@@ -511,8 +611,8 @@ def _run_in_workers(
             jobs, mp_context=context, initializer=_start_worker, initargs=(progress_queue, stop)
         ) as pool,
     ):
-        running: dict[Future[PositionRecord], Position] = {
-            pool.submit(_run_in_worker, setup, position, out_dir): position for position in todo
+        running: dict[Future[list[PositionRecord]], Task] = {
+            pool.submit(_run_in_worker, setup, position, units, out_dir): (position, units) for position, units in tasks
         }
         while running:
             if pressed() and not interrupted:
@@ -523,15 +623,16 @@ def _run_in_workers(
             done, _ = wait(running, timeout=0.25, return_when=FIRST_COMPLETED)
             _drain(progress_queue, progress)
             for future in done:
-                position = running.pop(future)
+                task = running.pop(future)
                 if future.cancelled():
                     continue
                 try:
-                    record = future.result()
+                    records = future.result()
                 except Exception as error:
-                    record = _worker_failed(position, error)
-                interrupted |= record.status == INTERRUPTED
-                finished(record)
+                    records = _worker_failed(task, error)
+                for record in records:
+                    interrupted |= record.status == INTERRUPTED
+                    finished(record)
         _drain(progress_queue, progress)
     return interrupted
 
@@ -546,11 +647,20 @@ def _drain(progress_queue: Any, progress: Callable[[float], None] | None) -> Non
             progress(seconds)
 
 
-def _worker_failed(position: Position, error: Exception) -> PositionRecord:
+def _worker_failed(task: Task, error: Exception) -> list[PositionRecord]:
     """A worker that died or raised: the position failed, not the campaign."""
-    return PositionRecord(
-        position.label, position.incl_x_deg, position.incl_y_deg, status=FAILED, error=f"worker failed: {error}"
-    )
+    position, units = task
+    return [
+        PositionRecord(
+            position.label,
+            position.incl_x_deg,
+            position.incl_y_deg,
+            status=FAILED,
+            error=f"worker failed: {error}",
+            sensor_id=unit.sensor,
+        )
+        for unit in units
+    ]
 
 
 def twin_build_problem() -> str | None:
@@ -569,12 +679,12 @@ def twin_build_problem() -> str | None:
 @dataclass(frozen=True)
 class ShippedPosition:
     """A position run on a Dask worker, whose disk this machine may not see:
-    its record, the simulated seconds its progress counted, and its folder's
-    files by their path inside it."""
+    each unit's record, the simulated seconds its progress counted, and each
+    unit's position folder's files by their path inside it."""
 
-    record: PositionRecord
+    records: list[PositionRecord]
     sim_seconds: float
-    files: dict[str, bytes]
+    files: list[dict[str, bytes]]
 
 
 class _SecondsCounted:
@@ -606,27 +716,34 @@ class _ClusterStop:
         return self._set
 
 
-def run_twin_position_shipped(setup: TwinSetup, position: Position, stop_name: str) -> ShippedPosition:
+def run_twin_position_shipped(
+    setup: TwinSetup, position: Position, units: tuple[Unit, ...], stop_name: str
+) -> ShippedPosition:
     """One position on a Dask worker, in a temporary folder there."""
     from distributed import get_worker
 
     counted = _SecondsCounted()
     with tempfile.TemporaryDirectory(prefix="thermotilt-position-") as scratch:
-        record = run_twin_position(setup, position, Path(scratch), counted, _ClusterStop(stop_name))
-        written = Path(scratch) if record.status == DONE else Path(scratch) / PARTIAL_DIR
-        folder = written / position.label
-        files = {
-            path.relative_to(folder).as_posix(): path.read_bytes()
-            for path in sorted(folder.rglob("*"))
-            if path.is_file()
-        }
-    if record.error is not None:
-        record.error = f"on Dask worker {get_worker().address}: {record.error}"
-    return ShippedPosition(record, counted.total, files)
+        records = run_twin_position(setup, position, units, Path(scratch), counted, _ClusterStop(stop_name))
+        files = []
+        for unit, record in zip(units, records):
+            written = Path(scratch) / unit.folder
+            folder = (written if record.status == DONE else written / PARTIAL_DIR) / position.label
+            files.append(
+                {
+                    path.relative_to(folder).as_posix(): path.read_bytes()
+                    for path in sorted(folder.rglob("*"))
+                    if path.is_file()
+                }
+            )
+    for record in records:
+        if record.error is not None:
+            record.error = f"on Dask worker {get_worker().address}: {record.error}"
+    return ShippedPosition(records, counted.total, files)
 
 
 def _run_on_cluster(
-    todo: list[Position],
+    tasks: list[Task],
     setup: TwinSetup,
     out_dir: Path,
     client: Client,
@@ -639,13 +756,19 @@ def _run_on_cluster(
     stop = Event(f"thermotilt-stop-{campaign_id}", client=client)
     running = {
         client.submit(
-            run_twin_position_shipped, setup, position, stop.name, key=f"thermotilt-{position.label}-{campaign_id}"
-        ): position
-        for position in todo
+            run_twin_position_shipped,
+            setup,
+            position,
+            units,
+            stop.name,
+            key=f"thermotilt-{position.label}-{campaign_id}",
+        ): (position, units)
+        for position, units in tasks
     }
     try:
         for future in as_completed(running, loop=client.loop):
-            finished(_write_shipped(out_dir, running[future], future, progress))
+            for record in _write_shipped(out_dir, running[future], future, progress):
+                finished(record)
     except KeyboardInterrupt:
         # The running positions stop at their next look at the event; what
         # they simulated is not waited for, and they stay pending.
@@ -656,27 +779,31 @@ def _run_on_cluster(
 
 
 def _write_shipped(
-    out_dir: Path, position: Position, future: Any, progress: Callable[[float], None] | None
-) -> PositionRecord:
+    out_dir: Path, task: Task, future: Any, progress: Callable[[float], None] | None
+) -> list[PositionRecord]:
     """A position back from a Dask worker, written as run_twin_position
     writes one here."""
     try:
         shipped: ShippedPosition = future.result()
     except Exception as error:
-        return _worker_failed(position, error)
+        return _worker_failed(task, error)
     if progress is not None:
         progress(shipped.sim_seconds)
-    record = shipped.record
-    try:
-        partial = _fresh_partial(out_dir, position.label)
-        for name, data in shipped.files.items():
-            (partial / name).parent.mkdir(parents=True, exist_ok=True)
-            (partial / name).write_bytes(data)
-        if record.status == DONE:
-            _move_into_place(out_dir, position.label)
-    except OSError as error:
-        return replace(record, status=FAILED, error=f"cannot write {position.label}: {error.strerror or error}")
-    return record
+    position, units = task
+    records = []
+    for unit, record, files in zip(units, shipped.records, shipped.files):
+        folder = out_dir / unit.folder
+        try:
+            partial = _fresh_partial(folder, position.label)
+            for name, data in files.items():
+                (partial / name).parent.mkdir(parents=True, exist_ok=True)
+                (partial / name).write_bytes(data)
+            if record.status == DONE:
+                _move_into_place(folder, position.label)
+        except OSError as error:
+            record = replace(record, status=FAILED, error=f"cannot write {position.label}: {error.strerror or error}")
+        records.append(record)
+    return records
 
 
 # A Nano resets when its port opens and its bootloader waits ~1-2 s; a Mega the same.
@@ -712,12 +839,13 @@ class BoardsCampaign(_Campaign):
             "ports": {"imu_reader": setup.imu_port, "thermal_chamber": setup.chamber_port},
         }
         self.setup = setup
-        self._start(out_dir, positions, header, resume, force)
+        self._start(out_dir, positions, {Unit(None, ""): header}, resume, force)
+        (self.file,) = self.files.values()
 
     def run(self, on_position: Callable[[PositionRecord], None] | None = None) -> CampaignOutcome:
         for position in self.todo:
             if not self.setup.confirm(position):
-                return CampaignOutcome([self.file.records[p.label] for p in self.positions], False)
+                return CampaignOutcome(self.records(), False)
             record = run_boards_position(self.setup, position, self.out_dir, self.file.sensor_id())
             self.file.records[record.label] = record
             self.file.save()
@@ -725,11 +853,9 @@ class BoardsCampaign(_Campaign):
                 on_position(record)
             if record.status != DONE:
                 # With hardware a failure needs a person: the next position waits for --resume.
-                return CampaignOutcome(
-                    [self.file.records[p.label] for p in self.positions], record.status == INTERRUPTED
-                )
+                return CampaignOutcome(self.records(), record.status == INTERRUPTED)
         shutil.rmtree(self.out_dir / PARTIAL_DIR, ignore_errors=True)
-        return CampaignOutcome([self.file.records[p.label] for p in self.positions], False)
+        return CampaignOutcome(self.records(), False)
 
 
 def _board_version(client: Any, port: str) -> str:

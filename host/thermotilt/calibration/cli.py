@@ -8,7 +8,6 @@ import argparse
 import json
 import os
 import sys
-from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -112,7 +111,8 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     compare.add_argument(
         "--reference",
         default="paper",
-        help="paper (default) or a model file (TOML) whose drift surfaces to compare with",
+        help="paper (default) or a model file (TOML) whose drift surfaces to compare with; of a batch "
+        "model (a batch campaign's model.toml), the fitted sensor's",
     )
     compare.set_defaults(run=_compare)
 
@@ -180,10 +180,8 @@ def _campaign(args: argparse.Namespace) -> int:
         BoardsSetup,
         CampaignError,
         TwinSetup,
-        batch_sensor_ids,
         select_positions,
         twin_build_problem,
-        write_batch,
     )
 
     boards = args.imu_port is not None or args.chamber_port is not None
@@ -257,23 +255,9 @@ def _campaign(args: argparse.Namespace) -> int:
                 sensor=args.sensor,
                 population=args.sensors or 0,
             )
-            sensor_ids = batch_sensor_ids(setup)
         except (CampaignError, ClusterError, ModelError) as error:
             raise UsageError(str(error)) from None
-        if not sensor_ids:
-            return _twin_campaign(out_dir, positions, setup, args, cluster)
-        print(f"a batch of {len(sensor_ids)} sensors ({', '.join(sensor_ids)}), one campaign each -> {out_dir}")
-        try:
-            write_batch(out_dir, setup, sensor_ids)
-        except CampaignError as error:
-            raise UsageError(str(error)) from None
-        for unit in sensor_ids:
-            print(f"== sensor {unit}", flush=True)
-            status = _twin_campaign(out_dir / unit, positions, replace(setup, sensor=unit), args, cluster)
-            if status != 0:
-                return status
-        print(f"every sensor done; fit them with: thermotilt fit {out_dir} --out FIT_DIR (a folder per sensor)")
-        return 0
+        return _twin_campaign(out_dir, positions, setup, args, cluster)
 
 
 def _twin_campaign(
@@ -294,6 +278,12 @@ def _twin_campaign(
     else:
         threads = sum(cluster.nthreads().values())
         running_on = f"on the Dask cluster at {args.scheduler} ({threads} worker threads)"
+    if campaign.batch:
+        sensors = [unit.sensor for unit in campaign.units]
+        print(
+            f"a batch of {len(sensors)} sensors ({', '.join(sensors)}) on one tilt table, "
+            f"each its own campaign in {out_dir}/<ID>"
+        )
     print(
         f"campaign of {len(campaign.positions)} positions -> {out_dir}"
         + (f" ({done} already done)" if done else "")
@@ -303,7 +293,7 @@ def _twin_campaign(
     total = round(len(campaign.todo) * campaign.position_seconds)
     with tqdm(total=total, unit="sim s", disable=None, file=sys.stderr) as bar:
         outcome = campaign.run(jobs, progress=bar.update, on_position=report_position, cluster=cluster)
-    return _finish_campaign(outcome, out_dir)
+    return _finish_campaign(outcome, out_dir, campaign.batch)
 
 
 def report_position(record: PositionRecord) -> None:
@@ -312,7 +302,7 @@ def report_position(record: PositionRecord) -> None:
 
     from .campaign import DONE
 
-    line = f"{record.label}: {record.status}"
+    line = f"{_position_name(record)}: {record.status}"
     if record.status == DONE:
         line += f" in {record.wall_seconds:.0f} s"
     if record.error:
@@ -320,27 +310,37 @@ def report_position(record: PositionRecord) -> None:
     with ctrl_c_after_block():
         tqdm.write(line, file=sys.stdout)
         for error in record.reported_errors:
-            tqdm.write(f"{record.label}: reported {error}", file=sys.stdout)
+            tqdm.write(f"{_position_name(record)}: reported {error}", file=sys.stdout)
         sys.stdout.flush()
 
 
-def _finish_campaign(outcome: CampaignOutcome, out_dir: Path) -> int:
+def _position_name(record: PositionRecord) -> str:
+    """A position's label, after its sensor's ID where it has one."""
+    return f"{record.sensor_id} {record.label}" if record.sensor_id else record.label
+
+
+def _finish_campaign(outcome: CampaignOutcome, out_dir: Path, batch: bool = False) -> int:
     from .campaign import DONE, FAILED
 
     if outcome.interrupted:
         print("kept every finished position; add --resume to run the others")
         return interrupted()
-    failed = [record for record in outcome.records if record.status == FAILED]
+    # A batch's sensors share each position's chamber run, and so its failure.
+    failed = dict.fromkeys(
+        f"{_position_name(record)}: {record.error}" for record in outcome.records if record.status == FAILED
+    )
     if failed:
-        raise UsageError(
-            f"{len(failed)} position(s) failed: "
-            + "; ".join(f"{record.label}: {record.error}" for record in failed)
-            + "; fix it, then add --resume"
-        )
-    left = [record.label for record in outcome.records if record.status != DONE]
+        raise UsageError(f"{len(failed)} position(s) failed: " + "; ".join(failed) + "; fix it, then add --resume")
+    left = [_position_name(record) for record in outcome.records if record.status != DONE]
     if left:
         raise UsageError(f"stopped with {len(left)} position(s) to run ({', '.join(left)}); add --resume to run them")
-    print(f"all {len(outcome.records)} positions done; fit them with: thermotilt fit {out_dir} --out FIT_DIR")
+    if batch:
+        print(
+            f"all {len(outcome.records)} sensor positions done; fit them with: "
+            f"thermotilt fit {out_dir} --out FIT_DIR (a folder per sensor)"
+        )
+    else:
+        print(f"all {len(outcome.records)} positions done; fit them with: thermotilt fit {out_dir} --out FIT_DIR")
     return 0
 
 
@@ -431,11 +431,12 @@ def _fit_one(campaign_dir: Path, out_dir: Path, args: argparse.Namespace) -> dic
 
 
 def _compare(args: argparse.Namespace) -> int:
-    from .compare import compare, format_comparison, read_fit
+    from .compare import compare, fitted_sensor_id, format_comparison, read_fit
     from .dataset import CalibrationDataError
 
+    fit_dir = Path(args.fit_dir)
     try:
-        comparisons = compare(read_fit(Path(args.fit_dir)), args.reference)
+        comparisons = compare(read_fit(fit_dir), args.reference, fitted_sensor_id(fit_dir))
     except CalibrationDataError as error:
         raise UsageError(str(error)) from None
     print(format_comparison(comparisons, args.reference))
