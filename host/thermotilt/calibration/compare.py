@@ -92,9 +92,21 @@ def read_fit(fit_dir: Path) -> dict[str, FittedSurface]:
     return fits
 
 
-def reference_surfaces(reference: str) -> tuple[dict[str, Surface], dict[str, dict[str, float]] | None]:
+def fitted_sensor_id(fit_dir: Path) -> str:
+    """The sensor FIT_DIR's fit was made for ("" for none)."""
+    try:
+        sensor_id = json.loads((fit_dir / "coefficients.json").read_text()).get("sensor_id") or ""
+    except (OSError, ValueError, AttributeError):
+        return ""
+    return sensor_id if isinstance(sensor_id, str) else ""
+
+
+def reference_surfaces(
+    reference: str, sensor_id: str = ""
+) -> tuple[dict[str, Surface], dict[str, dict[str, float]] | None]:
     """Surfaces by key ("WX", ...) and, for the paper, each coefficient's
-    95 % half-width; `reference` is "paper" or a model file."""
+    95 % half-width; `reference` is "paper" or a model file, whose sensor
+    sensor_id is the reference when the file lists a batch."""
     if reference == "paper":
         surfaces, widths = {}, {}
         for (axis, set_name), published in TABLES.items():
@@ -111,14 +123,21 @@ def reference_surfaces(reference: str) -> tuple[dict[str, Surface], dict[str, di
         return surfaces, widths
     try:
         model = Model.load(reference)
+        if model.sensors:
+            if not sensor_id:
+                raise CalibrationDataError(
+                    f"{reference} lists a batch ({', '.join(model.sensor_ids)}) and the fit names no sensor"
+                )
+            model = model.for_sensor(sensor_id)
     except ModelError as error:
         raise CalibrationDataError(str(error)) from None
     table = coefficient_table_of(model.terms["drift"]["coefficients"])
     return {f"{s}{a}": table.surfaces[(s, a)] for s in ("W", "C") for a in ("X", "Y")}, None
 
 
-def compare(fits: dict[str, FittedSurface], reference: str) -> list[SurfaceComparison]:
-    surfaces, widths = reference_surfaces(reference)
+def compare(fits: dict[str, FittedSurface], reference: str, sensor_id: str = "") -> list[SurfaceComparison]:
+    """The fit of sensor_id ("" none) against the reference (reference_surfaces)."""
+    surfaces, widths = reference_surfaces(reference, sensor_id)
     comparisons = []
     for key, fit in fits.items():
         if key not in surfaces:
