@@ -4,7 +4,10 @@ same commands a user runs on a real rig.
     campaign (a subset of the paper's positions) -> fit -> compare with the
     paper and with the model -> upload into the twin's IMU through its
     pseudo-terminal -> field-warming and field-cooling runs that start with
-    the EEPROM the IMU saved -> validate, next to the paper's RMS figures.
+    the EEPROM the IMU saved -> validate, next to the paper's RMS figures;
+    then a batch of three sensors on one tilt table -> a fit and a
+    certificate each -> each fit compared with its own sensor's drift ->
+    IDs: a fit for another sensor refused by a board, its own uploaded.
 
 Every step is a `thermotilt` command, printed before it runs; what each
 prints is what a user sees. Outputs go to runs/demo/ (DEMO_DIR); at the end
@@ -24,7 +27,9 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
 from pathlib import Path
 
 # generated_page sits beside this file, which tests load by its path (for the
@@ -46,6 +51,8 @@ POSITIONS = "0,X+15,X-15,X+30,X-30,X+45,X-45,Y+30,Y-30"
 # reading settles within ~10 s of the face reaching the step, and the fit
 # then has ~200 rows per step and position.
 HOLD_SECONDS = 20
+# Sensors drawn about the model for the batch (physics/batch.py's spreads).
+BATCH_SENSORS = 3
 # The field tests' 3 h and 9 h, compressed so that the demo stays short; the
 # warming ramp is then 3x faster than the paper's, the cooling one 9x.
 FIELD_SECONDS = 3600
@@ -109,9 +116,10 @@ def stop(twin: subprocess.Popen) -> None:
         sys.exit(f"demo: the twin did not stop within {STOP_TIMEOUT_S} s of SIGINT; killed it")
 
 
-def upload_through_pty(fit: Path, board_dir: Path) -> Path:
-    """The twin's boards idle behind pseudo-terminals; `thermotilt upload`
-    talks to the IMU like to a Nano on USB. Returns the EEPROM the IMU saved."""
+@contextmanager
+def idle_twin(board_dir: Path) -> Iterator[dict[str, str]]:
+    """The twin's boards idling behind pseudo-terminals, by board name; a
+    command talks to the IMU as to a Nano on USB."""
     print("$ thermotilt simulate idle --pty ...  (in the background)", flush=True)
     # preexec_fn runs between fork and exec; no other thread is running yet.
     twin = subprocess.Popen(
@@ -122,14 +130,36 @@ def upload_through_pty(fit: Path, board_dir: Path) -> Path:
         preexec_fn=default_sigint,
     )
     try:
-        ports = ports_of(twin)
-        thermotilt("upload", str(fit), "--port", ports["imu_reader"])
+        yield ports_of(twin)
     finally:
         stop(twin)
+
+
+def upload_through_pty(fit: Path, board_dir: Path) -> Path:
+    """`thermotilt upload` into the twin's IMU. Returns the EEPROM the IMU saved."""
+    with idle_twin(board_dir) as ports:
+        thermotilt("upload", str(fit), "--port", ports["imu_reader"])
     eeprom = board_dir / "imu_reader_eeprom.bin"
     if not eeprom.is_file():
-        sys.exit(f"demo: the twin stopped (exit {twin.returncode}) without writing {eeprom}")
+        sys.exit(f"demo: the twin stopped without writing {eeprom}")
     return eeprom
+
+
+def refused_then_uploaded(batch_fit: Path, sensors: list[str], board_dir: Path) -> str:
+    """A blank twin IMU is given the first sensor's ID; the second sensor's
+    fit must be refused, the first's uploaded. Returns the refusal's line."""
+    own, other = sensors[0], sensors[1]
+    with idle_twin(board_dir) as ports:
+        port = ports["imu_reader"]
+        thermotilt("assign-id", own, "--port", port)
+        arguments = ("upload", str(batch_fit / other), "--port", port)
+        print("$ thermotilt " + " ".join(shlex.quote(a) for a in arguments), flush=True)
+        refused = subprocess.run([*THERMOTILT, *arguments], capture_output=True, text=True)
+        print(refused.stdout + refused.stderr, end="", flush=True)
+        if refused.returncode != 1 or own not in refused.stderr or other not in refused.stderr:
+            sys.exit(f"demo: upload of {other}'s fit to {own}'s board was not refused for its ID")
+        thermotilt("upload", str(batch_fit / own), "--port", port)
+    return refused.stderr.strip()
 
 
 def lsb(value: float | None) -> str:
@@ -269,7 +299,57 @@ def field_section(fit: Path, runs: dict[str, Path]) -> list[str]:
     ]
 
 
-def write_paper_comparison(out: Path, runs: dict[str, Path], started: datetime.datetime, load_at_start: str) -> None:
+def batch_section(out: Path, refusal: str) -> list[str]:
+    """Each batch sensor's fit against its own drift and the others', and its certificate."""
+    batch = json.loads((out / "batch" / "batch.json").read_text())
+    truths = str(out / "batch" / batch["model_file"])
+    rows, walls = [], []
+    for sensor in batch["sensors"]:
+        fit = out / "batch-fit" / sensor
+        fitted = read_fit(fit)
+        gaps = {truth: max(c.rms_lsb for c in compare(fitted, truths, truth)) for truth in batch["sensors"]}
+        certificate = json.loads((fit / "certificate.json").read_text())
+        rows.append(
+            (
+                sensor,
+                f"{max(surface.rmse_lsb for surface in fitted.values()):.2f}",
+                f"{gaps[sensor]:.2f}",
+                f"{min(gap for truth, gap in gaps.items() if truth != sensor):.0f}",
+                f"{certificate['tilt_u95_deg']:.4f}",
+            )
+        )
+        campaign = json.loads((out / "batch" / sensor / "campaign.json").read_text())
+        walls += [position["wall_seconds"] for position in campaign["positions"] if position["wall_seconds"]]
+    return [
+        "## A batch on one tilt table",
+        "",
+        f"`campaign --twin --sensors {len(batch['sensors'])}` on the same positions and program: sensors drawn "
+        'about the model with the unit-to-unit spreads of docs/physics-model.md ("A batch of sensors"), '
+        "each position one chamber run carrying every sensor's IMU board "
+        f"({min(walls):.0f}–{max(walls):.0f} s of wall time a position). `fit` on the batch writes a fit and "
+        "a certificate per sensor; `compare FIT/<id> --reference` the batch's model.toml measures each fit "
+        "against its own sensor's drift and the others' (RMS over the fit's domain relative to 25 °C, the "
+        "worst of its sets and X/Y).",
+        "",
+        *generated_page.table(
+            (
+                "sensor",
+                "fit RMSE, worst, LSB",
+                "against its own drift, LSB",
+                "against the nearest other sensor's, LSB",
+                "certificate U (95 %), °",
+            ),
+            rows,
+        ),
+        "",
+        f"A blank twin IMU given the ID {batch['sensors'][0]} (`assign-id`) refused the fit of "
+        f"{batch['sensors'][1]} — `{refusal}` — and took its own.",
+    ]
+
+
+def write_paper_comparison(
+    out: Path, runs: dict[str, Path], refusal: str, started: datetime.datetime, load_at_start: str
+) -> None:
     campaign = json.loads((out / "campaign" / "campaign.json").read_text())
     positions = campaign["positions"]
     program = campaign["program"]
@@ -296,6 +376,8 @@ def write_paper_comparison(out: Path, runs: dict[str, Path], started: datetime.d
             *compare_section(out / "fit"),
             "",
             *field_section(out / "fit", runs),
+            "",
+            *batch_section(out, refusal),
         ],
     )
 
@@ -362,11 +444,36 @@ def main() -> None:
     for run in runs.values():
         thermotilt("validate", str(run), "--coefficients", str(out / "fit"))
 
-    write_paper_comparison(out, runs, started, load_at_start)
+    step(f"6. a batch of {BATCH_SENSORS} sensors on one tilt table: one chamber run a position, a fit each")
+    thermotilt(
+        "campaign",
+        "--twin",
+        "--sensors",
+        str(BATCH_SENSORS),
+        "--positions",
+        POSITIONS,
+        "--hold-seconds",
+        str(HOLD_SECONDS),
+        "--rest-seconds",
+        "0",
+        "--out",
+        str(out / "batch"),
+        "--force",
+    )
+    thermotilt("fit", str(out / "batch"), "--out", str(out / "batch-fit"))
+    sensors = json.loads((out / "batch" / "batch.json").read_text())["sensors"]
+    for sensor in sensors:
+        thermotilt("compare", str(out / "batch-fit" / sensor), "--reference", str(out / "batch" / "model.toml"))
+
+    step("7. sensor IDs: a board refuses another sensor's fit and takes its own")
+    refusal = refused_then_uploaded(out / "batch-fit", sensors, out / "batch-board")
+
+    write_paper_comparison(out, runs, refusal, started, load_at_start)
     minutes = (time.monotonic() - begin) / 60.0
     step(
         f"done in {minutes:.1f} min; reports: {out}/fit/report.md, "
-        f"{out}/field-warming/validation/report.md, {out}/field-cooling/validation/report.md, {PAGE}"
+        f"{out}/field-warming/validation/report.md, {out}/field-cooling/validation/report.md, "
+        f"{out}/batch-fit/<id>/certificate.html, {PAGE}"
     )
 
 
