@@ -431,6 +431,23 @@ def test_compare_uses_the_consistent_reading_of_table_2s_misprints():
     assert widths["CX"]["p02"] == pytest.approx((-7.144e-8 - -7.563e-8) / 2)
 
 
+def test_a_batch_model_is_compared_through_the_fitted_sensor(tmp_path):
+    from thermotilt.physics import Model
+    from thermotilt.physics.document import write_model
+    from thermotilt.physics.terms.sensor import coefficient_table_of
+
+    drawn = Model.load().with_population(2, seed=2)
+    write_model(drawn, tmp_path / "batch.toml")
+    for sensor_id in drawn.sensor_ids:
+        surfaces, widths = reference_surfaces(str(tmp_path / "batch.toml"), sensor_id)
+        own = coefficient_table_of(drawn.for_sensor(sensor_id).terms["drift"]["coefficients"])
+        assert surfaces["WX"] == own.surfaces[("W", "X")] and widths is None
+    with pytest.raises(CalibrationDataError, match=r"lists a batch \(TT-01, TT-02\) and the fit names no sensor"):
+        reference_surfaces(str(tmp_path / "batch.toml"))
+    with pytest.raises(CalibrationDataError, match="no sensor 'NODE-07'"):
+        reference_surfaces(str(tmp_path / "batch.toml"), "NODE-07")
+
+
 def test_compare_refuses_what_fit_did_not_write(tmp_path):
     (tmp_path / "coefficients.json").write_text('{"fits": {"WX": {}}}')
     result = run([*THERMOTILT, "compare", str(tmp_path)], capture_output=True, text=True, timeout=60, check=False)
