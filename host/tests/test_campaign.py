@@ -315,7 +315,12 @@ def test_a_batch_is_one_chamber_run_per_position_and_a_campaign_per_sensor(tmp_p
         imu = {(out / sensor / label / "run.csv").read_bytes() for sensor in batch["sensors"]}
         # One chamber run carried both sensors; each sensor drifted its own way.
         assert len(chamber) == 1 and len(imu) == 2
-    # A resumed batch must be the same sensors.
+    # A resumed batch must be the same sensors; another seed, without
+    # --resume or --force, changes nothing of the batch there.
     assert cli.main([*arguments[:-4], "--sensors", "3", "--resume", *SHORT]) == 1
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "its batch is TT-01, TT-02" in err, err
+    kept_files = {name: (out / name).read_bytes() for name in ("batch.json", batch["model_file"])}
+    assert cli.main([*arguments[:-1], "6", *SHORT]) == 1
+    assert "exists; add --resume" in capsys.readouterr().err
+    assert {name: (out / name).read_bytes() for name in kept_files} == kept_files

@@ -36,7 +36,7 @@ import tempfile
 import time
 import uuid
 import zlib
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
@@ -233,9 +233,6 @@ class CampaignFile:
                 record.status = PENDING
         campaign.sensor_id()
         return campaign
-
-    def pending(self, positions: Iterable[Position]) -> list[Position]:
-        return [p for p in positions if self.records[p.label].status != DONE]
 
     def sensor_id(self) -> str | None:
         """The sensor ID the done positions were logged with; None if none recorded one."""
@@ -442,26 +439,31 @@ class _Campaign:
         return [file.records[p.label] for file in self.files.values() for p in self.positions]
 
 
-def write_batch(out_dir: Path, setup: TwinSetup, units: tuple[Unit, ...], resume: bool) -> None:
-    """BATCH_FILE: which sensors the folder holds, one campaign folder each;
-    a resumed batch must be the same sensors."""
-    sensors = [unit.sensor for unit in units]
-    if resume and (out_dir / BATCH_FILE).is_file():
-        try:
-            earlier = batch_of(out_dir)
-        except ValueError as error:
-            raise CampaignError(str(error)) from None
-        if list(earlier) != sensors:
-            raise CampaignError(
-                f"cannot resume {out_dir}: its batch is {', '.join(earlier)}, this command's "
-                f"{', '.join(sensors)}; give the same sensors or start again with --force"
-            )
+def check_same_batch(out_dir: Path, units: tuple[Unit, ...]) -> None:
+    """CampaignError unless the batch out_dir holds (if any) is these sensors."""
+    if not (out_dir / BATCH_FILE).is_file():
+        return
+    try:
+        earlier = batch_of(out_dir)
+    except ValueError as error:
+        raise CampaignError(str(error)) from None
+    sensors = tuple(unit.sensor for unit in units)
+    if earlier != sensors:
+        raise CampaignError(
+            f"cannot resume {out_dir}: its batch is {', '.join(earlier)}, this command's "
+            f"{', '.join(sensors)}; give the same sensors or start again with --force"
+        )
+
+
+def write_batch(out_dir: Path, setup: TwinSetup, units: tuple[Unit, ...]) -> None:
+    """BATCH_FILE, which sensors the folder holds (one campaign folder
+    each), and the batch's model as it runs."""
     from ..physics.document import write_model
 
     model = setup.chamber_model()
     document = {
         "format": FORMAT,
-        "sensors": sensors,
+        "sensors": [unit.sensor for unit in units],
         "drawn": setup.population or None,
         "seed": setup.seed,
         "model": model.source,
@@ -512,8 +514,8 @@ class TwinCampaign(_Campaign):
         except (ModelError, ScenarioError) as error:
             raise CampaignError(str(error)) from None
         self.batch = any(unit.folder for unit in self.units)
-        if self.batch:
-            write_batch(out_dir, setup, self.units, resume)
+        if self.batch and resume:
+            check_same_batch(out_dir, self.units)
         headers = {
             unit: {
                 "format": FORMAT,
@@ -529,6 +531,8 @@ class TwinCampaign(_Campaign):
         }
         self.setup = setup
         self._start(out_dir, positions, headers, resume, force)
+        if self.batch:
+            write_batch(out_dir, setup, self.units)
 
     def run(
         self,
