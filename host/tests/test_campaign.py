@@ -244,6 +244,50 @@ def test_boards_campaign_asks_for_each_position_and_logs_its_program(idle_twin, 
     assert [(entry["label"], entry["status"]) for entry in document["positions"]] == [("X+30", "done"), ("0", "failed")]
 
 
+@pytest.mark.slow
+@pytest.mark.twin
+def test_boards_campaign_logs_each_imu_on_the_table_into_its_sensors_campaign(tmp_path):
+    # Two twins' IMU readers on one table, the first twin's chamber driving the program.
+    with (
+        pty_twin(tmp_path / "a", "idle", "--incl-x", "30", "--duration", "3000") as first,
+        pty_twin(tmp_path / "b", "idle", "--incl-x", "30", "--duration", "3000") as second,
+    ):
+        imus = [first["imu_reader"], second["imu_reader"]]
+        out = tmp_path / "campaign"
+        command = [
+            *THERMOTILT,
+            "campaign",
+            *("--imu-port", imus[0], "--imu-port", imus[1]),
+            *("--chamber-port", first["thermal_chamber"], "--out", str(out)),
+            *("--heartbeat-seconds", "0", "--positions", "X+30", *SHORT),
+        ]
+        blank = run(command, input="\n", capture_output=True, text=True, timeout=180, check=False)
+        assert blank.returncode == 1 and blank.stderr.count("\n") == 1, blank.stderr
+        assert f"{imus[0]} has no sensor ID" in blank.stderr and f"assign-id ID --port {imus[0]}" in blank.stderr
+        sensors = {"NODE-02": imus[0], "NODE-01": imus[1]}
+        for sensor, port in sensors.items():
+            assert run([*THERMOTILT, "assign-id", sensor, "--port", port], capture_output=True).returncode == 0
+        result = run(command, input="\n", capture_output=True, text=True, timeout=180, check=False)
+    assert result.returncode == 0, result.stderr
+    assert "NODE-01 X+30: done" in result.stdout and "NODE-02 X+30: done" in result.stdout
+    assert "all 2 sensor positions done" in result.stdout
+    batch = json.loads((out / "batch.json").read_text())
+    assert batch["sensors"] == ["NODE-01", "NODE-02"] and batch["rig"] == "boards"
+    chamber = set()
+    for sensor, port in sensors.items():
+        document = campaign_file(out / sensor)
+        assert document["sensor"] == sensor and document["ports"]["imu_reader"] == port
+        (entry,) = document["positions"]
+        assert entry["status"] == "done" and entry["sensor_id"] == sensor
+        rows = read_run_log(str(out / sensor / "X+30" / "run.csv"))
+        assert {"W", "C"} <= {row["phase"] for row in rows}
+        summary = json.loads((out / sensor / "X+30" / "summary.json").read_text())
+        assert summary["end_reason"] == "program done" and summary["boards"]["imu_reader"]["port"] == port
+        chamber.add((out / sensor / "X+30" / "serial" / "thermal_chamber.txt").read_bytes())
+    # One chamber ran the program; each folder holds its whole capture.
+    assert len(chamber) == 1 and len(next(iter(chamber))) > 0
+
+
 def test_boards_campaign_without_a_board_is_one_line(tmp_path):
     result = run(
         [

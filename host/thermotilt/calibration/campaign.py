@@ -38,6 +38,7 @@ import uuid
 import zlib
 from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from contextlib import ExitStack
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -431,7 +432,12 @@ class _Campaign:
         return tuple(unit for unit, file in self.files.items() if file.records[position.label].status != DONE)
 
     def _finished(self, record: PositionRecord) -> None:
-        file = next(file for unit, file in self.files.items() if unit.sensor == record.sensor_id)
+        """The record saved in its sensor's campaign.json (a batch's are
+        known by their ID; one sensor's reports whatever ID its board has)."""
+        if len(self.files) == 1:
+            (file,) = self.files.values()
+        else:
+            file = next(file for unit, file in self.files.items() if unit.sensor == record.sensor_id)
         file.records[record.label] = record
         file.save()
 
@@ -448,35 +454,30 @@ def check_same_batch(out_dir: Path, units: tuple[Unit, ...]) -> None:
     except ValueError as error:
         raise CampaignError(str(error)) from None
     sensors = tuple(unit.sensor for unit in units)
-    if earlier != sensors:
+    if sorted(earlier) != sorted(sensors):
         raise CampaignError(
             f"cannot resume {out_dir}: its batch is {', '.join(earlier)}, this command's "
             f"{', '.join(sensors)}; give the same sensors or start again with --force"
         )
 
 
-def write_batch(out_dir: Path, setup: TwinSetup, units: tuple[Unit, ...]) -> None:
+def write_batch(out_dir: Path, units: tuple[Unit, ...], details: dict[str, Any], model: Any = None) -> None:
     """BATCH_FILE, which sensors the folder holds (one campaign folder
-    each), and the batch's model as it runs."""
+    each) with the details given, and in the twin the batch's model as it runs."""
     from ..physics.document import write_model
 
-    model = setup.chamber_model()
-    document = {
-        "format": FORMAT,
-        "sensors": [unit.sensor for unit in units],
-        "drawn": setup.population or None,
-        "seed": setup.seed,
-        "model": model.source,
-        "model_file": BATCH_MODEL_FILE,
-    }
+    document = {"format": FORMAT, "sensors": [unit.sensor for unit in units], **details}
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
-        write_model(
-            model,
-            out_dir / BATCH_MODEL_FILE,
-            f"The model of this batch campaign as it ran ({model.source}), each sensor's terms in [[sensors]]:\n"
-            "thermotilt compare FIT/<id> --reference this file compares a sensor's fit with its own drift.",
-        )
+        if model is not None:
+            document.update(model=model.source, model_file=BATCH_MODEL_FILE)
+            write_model(
+                model,
+                out_dir / BATCH_MODEL_FILE,
+                f"The model of this batch campaign as it ran ({model.source}), each sensor's terms in "
+                "[[sensors]]:\nthermotilt compare FIT/<id> --reference this file compares a sensor's fit with "
+                "its own drift.",
+            )
         (out_dir / BATCH_FILE).write_text(json.dumps(document, indent=2) + "\n")
     except OSError as error:
         raise CampaignError(f"cannot write {error.filename or out_dir}: {error.strerror or error}") from None
@@ -532,7 +533,12 @@ class TwinCampaign(_Campaign):
         self.setup = setup
         self._start(out_dir, positions, headers, resume, force)
         if self.batch:
-            write_batch(out_dir, setup, self.units)
+            write_batch(
+                out_dir,
+                self.units,
+                {"rig": "twin", "drawn": setup.population or None, "seed": setup.seed},
+                setup.chamber_model(),
+            )
 
     def run(
         self,
@@ -817,11 +823,13 @@ DEFAULT_HEARTBEAT_S = 60
 
 @dataclass(frozen=True)
 class BoardsSetup:
-    """Real boards: the IMU reader and the chamber on their serial ports; the
-    tilt table is moved by hand, so ``confirm`` asks the user at each position
-    (False stops the campaign, keeping what is done)."""
+    """Real boards: the IMU readers the tilt table carries and the chamber,
+    on their serial ports; the table is moved by hand, so ``confirm`` asks
+    the user at each position (False stops the campaign, keeping what is
+    done). Several IMU readers are a batch: each must have its own sensor
+    ID (``assign-id``), which names its campaign folder."""
 
-    imu_port: str
+    imu_ports: tuple[str, ...]
     chamber_port: str
     options: ScenarioOptions
     confirm: Callable[[Position], bool]
@@ -835,31 +843,78 @@ class BoardsCampaign(_Campaign):
     def __init__(
         self, out_dir: Path, positions: list[Position], setup: BoardsSetup, resume: bool = False, force: bool = False
     ):
-        header = {
-            "format": FORMAT,
-            "rig": "boards",
-            "created_utc": _utc_now(),
-            "program": program_settings(setup.options),
-            "ports": {"imu_reader": setup.imu_port, "thermal_chamber": setup.chamber_port},
-        }
         self.setup = setup
-        self._start(out_dir, positions, {Unit(None, ""): header}, resume, force)
-        (self.file,) = self.files.values()
+        # The port each unit's IMU reader is on.
+        self.ports = {Unit(None, ""): setup.imu_ports[0]}
+        if len(setup.imu_ports) > 1:
+            ids = identify_sensors(setup.imu_ports, setup.baud)
+            self.ports = {Unit(sensor_id, sensor_id): port for sensor_id, port in sorted(ids.items())}
+        self.batch = len(self.ports) > 1
+        if self.batch and resume:
+            check_same_batch(out_dir, tuple(self.ports))
+        headers = {
+            unit: {
+                "format": FORMAT,
+                "rig": "boards",
+                "created_utc": _utc_now(),
+                "program": program_settings(setup.options),
+                "ports": {"imu_reader": port, "thermal_chamber": setup.chamber_port},
+                **({"sensor": unit.sensor} if unit.sensor else {}),
+            }
+            for unit, port in self.ports.items()
+        }
+        self._start(out_dir, positions, headers, resume, force)
+        if self.batch:
+            write_batch(out_dir, tuple(self.ports), {"rig": "boards"})
 
     def run(self, on_position: Callable[[PositionRecord], None] | None = None) -> CampaignOutcome:
         for position in self.todo:
             if not self.setup.confirm(position):
                 return CampaignOutcome(self.records(), False)
-            record = run_boards_position(self.setup, position, self.out_dir, self.file.sensor_id())
-            self.file.records[record.label] = record
-            self.file.save()
-            if on_position is not None:
-                on_position(record)
-            if record.status != DONE:
+            imus = [
+                (unit, self.ports[unit], unit.sensor if self.batch else self.files[unit].sensor_id())
+                for unit in self.pending_units(position)
+            ]
+            records = run_boards_position(self.setup, position, self.out_dir, imus)
+            for record in records:
+                self._finished(record)
+                if on_position is not None:
+                    on_position(record)
+            if any(record.status != DONE for record in records):
                 # With hardware a failure needs a person: the next position waits for --resume.
-                return CampaignOutcome(self.records(), record.status == INTERRUPTED)
-        shutil.rmtree(self.out_dir / PARTIAL_DIR, ignore_errors=True)
+                return CampaignOutcome(self.records(), any(record.status == INTERRUPTED for record in records))
+        for unit in self.files:
+            shutil.rmtree(self.out_dir / unit.folder / PARTIAL_DIR, ignore_errors=True)
         return CampaignOutcome(self.records(), False)
+
+
+def identify_sensors(ports: tuple[str, ...], baud: int) -> dict[str, str]:
+    """The sensor ID of the IMU reader on each port, by ID; CampaignError
+    for a board without one or two with the same."""
+    import serial
+
+    from ..wire.client import CommandClient, CommandError
+
+    ids: dict[str, str] = {}
+    for port in ports:
+        try:
+            with serial.serial_for_url(port, baudrate=baud, timeout=0.05) as imu:
+                client = CommandClient(imu)
+                _board_version(client, port)
+                sensor_id = _board_sensor_id(client, port)
+        except (serial.SerialException, OSError) as error:
+            raise CampaignError(f"serial port {port}: {error}") from None
+        except CommandError as error:
+            raise CampaignError(f"{port}: {error}") from None
+        if not sensor_id:
+            raise CampaignError(
+                f"the IMU reader on {port} has no sensor ID; a batch needs one per board: "
+                f"thermotilt assign-id ID --port {port}"
+            )
+        if sensor_id in ids:
+            raise CampaignError(f"the IMU readers on {ids[sensor_id]} and {port} are both sensor {sensor_id}")
+        ids[sensor_id] = port
+    return ids
 
 
 def _board_version(client: Any, port: str) -> str:
@@ -893,41 +948,57 @@ def _board_sensor_id(client: Any, port: str) -> str:
 
 
 def run_boards_position(
-    setup: BoardsSetup, position: Position, out_dir: Path, campaign_sensor_id: str | None = None
-) -> PositionRecord:
-    """The table is set: check that the IMU is the sensor the campaign's
-    earlier positions were logged with (campaign_sensor_id, None: no
-    earlier position), restart its filters, run the chamber's program and
-    log both boards until it ends."""
+    setup: BoardsSetup, position: Position, out_dir: Path, imus: list[tuple[Unit, str, str | None]]
+) -> list[PositionRecord]:
+    """The table is set: for each unit, its IMU reader's port and the sensor
+    ID it must report (None: any, the campaign's first position), check
+    each IMU, restart its filters, run the chamber's program and log every
+    board until it ends, each IMU into its unit's campaign folder."""
     import serial
 
     from ..twin.scenarios import chamber_program
     from ..wire.client import CommandClient, CommandError
-    from ..wire.logger import LogError, ProgramWatch, Rig, log_boards
+    from ..wire.logger import LogError, ProgramWatch, Rig, log_imus
     from ..wire.protocol import SequenceCounter
 
-    record = PositionRecord(position.label, position.incl_x_deg, position.incl_y_deg, started_utc=_utc_now())
-    partial = _fresh_partial(out_dir, position.label)
+    records = [
+        # Until its board reports one: the ID of the batch sensor the unit is.
+        PositionRecord(
+            position.label, position.incl_x_deg, position.incl_y_deg, started_utc=_utc_now(), sensor_id=unit.sensor
+        )
+        for unit, _, _ in imus
+    ]
+    partials = [_fresh_partial(out_dir / unit.folder, position.label) for unit, _, _ in imus]
     begin = time.monotonic()
     chamber = None
+
+    def failed(status: str, error: str | None = None) -> list[PositionRecord]:
+        for record in records:
+            record.status, record.error = status, error
+        return records
+
     try:
-        with (
-            serial.serial_for_url(setup.imu_port, baudrate=setup.baud, timeout=0.05) as imu,
-            serial.serial_for_url(setup.chamber_port, baudrate=setup.baud, timeout=0.05) as chamber,
-        ):
+        with ExitStack() as ports:
+            chamber = ports.enter_context(serial.serial_for_url(setup.chamber_port, baudrate=setup.baud, timeout=0.05))
             chamber_seq = SequenceCounter()
-            imu_client, chamber_client = CommandClient(imu), CommandClient(chamber, seq=chamber_seq)
-            record.firmware = {
-                "imu_reader": _board_version(imu_client, setup.imu_port),
-                "thermal_chamber": _board_version(chamber_client, setup.chamber_port),
-            }
-            record.sensor_id = _board_sensor_id(imu_client, setup.imu_port)
-            if campaign_sensor_id is not None and record.sensor_id != campaign_sensor_id:
-                raise CampaignError(
-                    f"the IMU reader on {setup.imu_port} is sensor {record.sensor_id or '(no ID)'}, "
-                    f"this campaign's positions so far were logged with {campaign_sensor_id or '(no ID)'}"
-                )
-            imu_client.command("RESEED")
+            chamber_client = CommandClient(chamber, seq=chamber_seq)
+            chamber_version = _board_version(chamber_client, setup.chamber_port)
+            logs = []
+            for (_, port, expected_id), record, partial in zip(imus, records, partials):
+                imu = ports.enter_context(serial.serial_for_url(port, baudrate=setup.baud, timeout=0.05))
+                imu_client = CommandClient(imu)
+                record.firmware = {
+                    "imu_reader": _board_version(imu_client, port),
+                    "thermal_chamber": chamber_version,
+                }
+                record.sensor_id = _board_sensor_id(imu_client, port)
+                if expected_id is not None and record.sensor_id != expected_id:
+                    raise CampaignError(
+                        f"the IMU reader on {port} is sensor {record.sensor_id or '(no ID)'}, "
+                        f"this campaign's positions so far were logged with {expected_id or '(no ID)'}"
+                    )
+                imu_client.command("RESEED")
+                logs.append((imu, partial, record.firmware))
             for command in chamber_program(CALIBRATION_MIN_C, CALIBRATION_MAX_C, setup.options, 1):
                 chamber_client.command(command.frame_type, command.values)
             chamber_client.command("SETHB", (setup.heartbeat_s,))
@@ -935,42 +1006,38 @@ def run_boards_position(
             rig = Rig(setup.options.ambient_c, position.incl_x_deg, position.incl_y_deg, position.label)
             watch = ProgramWatch(setup.heartbeat_s / 4 if setup.heartbeat_s else None, chamber_seq)
             options = replace(setup.options, incl_x_deg=position.incl_x_deg, incl_y_deg=position.incl_y_deg)
-            summary = log_boards(
-                imu,
-                partial,
+            summaries = log_imus(
+                logs,
                 chamber,
                 rig=rig,
                 program=watch,
-                firmware=record.firmware,
                 description=f"campaign position {position.label} on real boards",
                 scenario="cycle",
                 options=asdict(options),
             )
-            if summary.end_reason != PROGRAM_DONE:
+            if summaries[0].end_reason != PROGRAM_DONE:
                 _stop_chamber(chamber)
     except (serial.SerialException, OSError) as error:
-        record.status, record.error = FAILED, f"serial port: {error}"
-        return record
+        return failed(FAILED, f"serial port: {error}")
     except (CampaignError, CommandError, LogError) as error:
-        record.status, record.error = FAILED, str(error)
         _stop_chamber(chamber)
-        return record
+        return failed(FAILED, str(error))
     except KeyboardInterrupt:
-        record.status = INTERRUPTED
         _stop_chamber(chamber)
-        return record
-    record.wall_seconds = round(time.monotonic() - begin, 3)
-    record.reported_errors = [
-        f"{board}: {error}" for board, report in summary.boards.items() for error in report.reported_errors
-    ]
-    if summary.end_reason == RUN_INTERRUPTED:
-        record.status = INTERRUPTED
-    elif summary.end_reason != PROGRAM_DONE:
-        record.status, record.error = FAILED, f"the log ended early: {summary.end_reason}"
-    else:
-        _move_into_place(out_dir, position.label)
-        record.status = DONE
-    return record
+        return failed(INTERRUPTED)
+    for (unit, _, _), record, summary in zip(imus, records, summaries):
+        record.wall_seconds = round(time.monotonic() - begin, 3)
+        record.reported_errors = [
+            f"{board}: {error}" for board, report in summary.boards.items() for error in report.reported_errors
+        ]
+        if summary.end_reason == RUN_INTERRUPTED:
+            record.status = INTERRUPTED
+        elif summary.end_reason != PROGRAM_DONE:
+            record.status, record.error = FAILED, f"the log ended early: {summary.end_reason}"
+        else:
+            _move_into_place(out_dir / unit.folder, position.label)
+            record.status = DONE
+    return records
 
 
 def _stop_chamber(chamber: Any) -> None:

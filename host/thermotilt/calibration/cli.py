@@ -57,7 +57,12 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         "a model with [[sensors]] runs its batch without this",
     )
     campaign.add_argument("--sensor", metavar="ID", help="twin: run only this sensor of the model's [[sensors]]")
-    campaign.add_argument("--imu-port", help="real boards: the IMU reader's serial port")
+    campaign.add_argument(
+        "--imu-port",
+        action="append",
+        help="real boards: an IMU reader's serial port; repeat it for each board the tilt table carries "
+        "(a batch: each board needs its own sensor ID, see assign-id)",
+    )
     campaign.add_argument("--chamber-port", help="real boards: the thermal chamber's serial port")
     campaign.add_argument("--baud", type=int, default=115200, help="real boards' line speed (default 115200)")
     campaign.add_argument(
@@ -227,7 +232,7 @@ def _campaign(args: argparse.Namespace) -> int:
                     out_dir,
                     positions,
                     BoardsSetup(
-                        args.imu_port,
+                        tuple(args.imu_port),
                         args.chamber_port,
                         program,
                         confirm,
@@ -238,14 +243,20 @@ def _campaign(args: argparse.Namespace) -> int:
                     force=args.force,
                 )
                 done = len(campaign.positions) - len(campaign.todo)
+                if campaign.batch:
+                    print(
+                        f"a batch of {len(campaign.ports)} sensors on one tilt table, each its own campaign in "
+                        f"{out_dir}/<ID>: "
+                        + ", ".join(f"{unit.sensor} on {port}" for unit, port in campaign.ports.items())
+                    )
                 print(
-                    f"campaign of {len(campaign.positions)} positions on {args.imu_port} and "
+                    f"campaign of {len(campaign.positions)} positions on {', '.join(args.imu_port)} and "
                     f"{args.chamber_port} -> {out_dir}"
                     + (f" ({done} already done)" if done else "")
                     + f": {len(campaign.todo)} to run",
                     flush=True,
                 )
-                return _finish_campaign(campaign.run(on_position=report_position), out_dir)
+                return _finish_campaign(campaign.run(on_position=report_position), out_dir, campaign.batch)
             setup = TwinSetup(
                 program,
                 seed=args.seed,

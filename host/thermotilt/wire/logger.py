@@ -14,7 +14,7 @@ from __future__ import annotations
 import os
 import sys
 import time
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from contextlib import ExitStack, contextmanager, suppress
 from dataclasses import dataclass
 from pathlib import Path
@@ -127,93 +127,169 @@ def log_boards(
     ``firmware``: each board's VER as the caller asked it, for boards that
     sent theirs before the log began; ``description``, ``scenario`` and
     ``options`` go to the summary as they are."""
-    folder = RunFolder.at(out_dir)
-    # os.path answers False where pathlib raises (a parent that cannot be
-    # searched); creating the folder then says why.
-    if os.path.exists(folder.log) and not force:
-        raise LogError(f"{folder.log} exists; choose another --out or add --force")
+    return log_imus(
+        [(imu_port, out_dir, firmware)],
+        chamber_port,
+        baud,
+        duration_s,
+        max_rows,
+        rig,
+        force,
+        program,
+        description,
+        scenario,
+        options,
+    )[0]
+
+
+# One IMU reader of a log: its port, the run folder its rows go to, and the
+# boards' VER as the caller asked them (log_boards' firmware).
+ImuLog = tuple[str | serial.Serial, Path, Mapping[str, str] | None]
+
+
+def log_imus(
+    imus: Sequence[ImuLog],
+    chamber_port: str | serial.Serial | None = None,
+    baud: int = 115200,
+    duration_s: float | None = None,
+    max_rows: int | None = None,
+    rig: Rig = Rig(),
+    force: bool = False,
+    program: ProgramWatch | None = None,
+    description: str = "thermotilt log",
+    scenario: str | None = None,
+    options: Mapping[str, Any] | None = None,
+) -> list[RunSummary]:
+    """log_boards for several IMU readers on one tilt table, each into its
+    own run folder; the chamber's frames go to every folder. The log ends
+    for all when it ends for one (its duration or row count, its port
+    closing)."""
+    folders = [RunFolder.at(out_dir) for _, out_dir, _ in imus]
+    for folder in folders:
+        # os.path answers False where pathlib raises (a parent that cannot be
+        # searched); creating the folder then says why.
+        if os.path.exists(folder.log) and not force:
+            raise LogError(f"{folder.log} exists; choose another --out or add --force")
     started = time.monotonic()
 
     def clock() -> float:
         return time.monotonic() - started
 
-    first_ms: int | None = None
     end_reason = ""
-    warned = False
     with ExitStack() as stack:
-        imu = _opened(stack, imu_port, baud)
+        logs = [_ImuLog(_opened(stack, port, baud), port) for port, _, _ in imus]
         chamber = _opened(stack, chamber_port, baud) if chamber_port is not None else None
-        for made in (folder.path, folder.serial_dir):
-            try:
-                made.mkdir(parents=True, exist_ok=True)
-            except OSError as error:
-                raise LogError(f"cannot create folder {made}: {error.strerror or error}") from None
-        imu_stream = BoardStream(IMU_BOARD, _open_output(stack, folder.capture(IMU_BOARD), "wb"), clock, flush=True)
+        for folder in folders:
+            for made in (folder.path, folder.serial_dir):
+                try:
+                    made.mkdir(parents=True, exist_ok=True)
+                except OSError as error:
+                    raise LogError(f"cannot create folder {made}: {error.strerror or error}") from None
+        for log, folder in zip(logs, folders):
+            log.stream = BoardStream(IMU_BOARD, _open_output(stack, folder.capture(IMU_BOARD), "wb"), clock, flush=True)
+            log.recorder = FrameRecorder(
+                RunLogWriter(_open_output(stack, folder.log, "w", newline=""), with_truth=False),
+                watch_program=program is not None,
+            )
+            log.recorder.set_ambient(rig.ambient_c)
+            log.recorder.move_table(rig.incl_x_deg, rig.incl_y_deg, first_frame=rig.position is not None)
         chamber_stream = None
         if chamber is not None:
-            chamber_stream = BoardStream(
-                CHAMBER_BOARD, _open_output(stack, folder.capture(CHAMBER_BOARD), "wb"), clock, flush=True
-            )
-        recorder = FrameRecorder(
-            RunLogWriter(_open_output(stack, folder.log, "w", newline=""), with_truth=False),
-            watch_program=program is not None,
-        )
-        recorder.set_ambient(rig.ambient_c)
-        recorder.move_table(rig.incl_x_deg, rig.incl_y_deg, first_frame=rig.position is not None)
+            captures = [_open_output(stack, folder.capture(CHAMBER_BOARD), "wb") for folder in folders]
+            chamber_stream = BoardStream(CHAMBER_BOARD, _Copies(captures), clock, flush=True)
         try:
-            while True:
+            while not end_reason:
                 if chamber is not None:
-                    recorder.record_chamber(chamber_stream.feed(_read_available(chamber, wait=False)))
+                    frames = chamber_stream.feed(_read_available(chamber, wait=False))
+                    for log in logs:
+                        log.recorder.record_chamber(frames)
                     if program is not None:
                         program.keep_alive(chamber)
-                stop = recorder.end_reason
-                for frame in imu_stream.feed(_read_available(imu, wait=True)):
-                    if frame.type != "IMU":
-                        continue
-                    first_ms = frame["t_ms"] if first_ms is None else first_ms
-                    if duration_s is not None and (frame["t_ms"] - first_ms) / 1000.0 > duration_s:
-                        stop = f"{duration_s:g} s of board time"
-                        break
-                    recorder.record_imu(frame)
-                    if max_rows is not None and recorder.rows >= max_rows:
-                        stop = f"{max_rows} rows"
-                        break
-                if stop:
-                    end_reason = stop
-                    break
-                if not warned and recorder.rows == 0 and clock() > SILENCE_WARNING_S:
-                    warned = True
-                    print(
-                        f"thermotilt: no IMU frames from {imu_port} yet "
-                        f"({imu_stream.reader.malformed} malformed; is the baud rate {baud}?)",
-                        file=sys.stderr,
-                    )
+                stop = logs[0].recorder.end_reason
+                for number, log in enumerate(logs):
+                    # The first port's read waits, so an idle loop does not spin.
+                    stop = log.record(_read_available(log.port, wait=number == 0), duration_s, max_rows) or stop
+                    log.warn_if_silent(clock(), baud)
+                end_reason = stop
         except EOFError:
             end_reason = "port closed"
         except KeyboardInterrupt:
             end_reason = INTERRUPTED
-    streams = [(imu_stream, imu)] + ([(chamber_stream, chamber)] if chamber is not None else [])
-    summary = RunSummary(
-        source=BOARDS,
-        scenario=scenario,
-        description=description,
-        options=dict(options) if options is not None else None,
-        end_reason=end_reason,
-        realtime=True,
-        wall_seconds=round(clock(), 3),
-        rows=recorder.rows,
-        positions=rig.positions(),
-        boards={stream.name: _board_report(stream, port, firmware) for stream, port in streams},
-    )
-    try:
-        summary.write(folder.path)
-    except OSError as error:
-        raise LogError(f"cannot write {folder.summary_path}: {error.strerror or error}") from None
-    if recorder.rows == 0 and end_reason != INTERRUPTED:
-        raise LogError(
-            f"no IMU frames received from {imu_port} ({end_reason}); {imu_stream.reader.malformed} malformed lines"
+    summaries = []
+    for (_, _, firmware), log, folder in zip(imus, logs, folders):
+        streams = [(log.stream, log.port)] + ([(chamber_stream, chamber)] if chamber is not None else [])
+        summary = RunSummary(
+            source=BOARDS,
+            scenario=scenario,
+            description=description,
+            options=dict(options) if options is not None else None,
+            end_reason=end_reason,
+            realtime=True,
+            wall_seconds=round(clock(), 3),
+            rows=log.recorder.rows,
+            positions=rig.positions(),
+            boards={stream.name: _board_report(stream, port, firmware) for stream, port in streams},
         )
-    return summary
+        try:
+            summary.write(folder.path)
+        except OSError as error:
+            raise LogError(f"cannot write {folder.summary_path}: {error.strerror or error}") from None
+        summaries.append(summary)
+    for log in logs:
+        if log.recorder.rows == 0 and end_reason != INTERRUPTED:
+            raise LogError(
+                f"no IMU frames received from {log.name} ({end_reason}); {log.stream.reader.malformed} malformed lines"
+            )
+    return summaries
+
+
+class _ImuLog:
+    """One IMU reader's port, the stream of what it sends and its run.csv."""
+
+    def __init__(self, port: serial.Serial, name: str | serial.Serial) -> None:
+        self.port = port
+        self.name = name if isinstance(name, str) else port.port
+        self.stream: BoardStream
+        self.recorder: FrameRecorder
+        self.first_ms: int | None = None
+        self.warned = False
+
+    def record(self, data: bytes, duration_s: float | None, max_rows: int | None) -> str:
+        """Rows from the IMU frames in data; why the log must stop, or ""."""
+        for frame in self.stream.feed(data):
+            if frame.type != "IMU":
+                continue
+            self.first_ms = frame["t_ms"] if self.first_ms is None else self.first_ms
+            if duration_s is not None and (frame["t_ms"] - self.first_ms) / 1000.0 > duration_s:
+                return f"{duration_s:g} s of board time"
+            self.recorder.record_imu(frame)
+            if max_rows is not None and self.recorder.rows >= max_rows:
+                return f"{max_rows} rows"
+        return ""
+
+    def warn_if_silent(self, seconds: float, baud: int) -> None:
+        if not self.warned and self.recorder.rows == 0 and seconds > SILENCE_WARNING_S:
+            self.warned = True
+            print(
+                f"thermotilt: no IMU frames from {self.name} yet "
+                f"({self.stream.reader.malformed} malformed; is the baud rate {baud}?)",
+                file=sys.stderr,
+            )
+
+
+class _Copies:
+    """A capture written to several files at once (the chamber's, into each IMU's run folder)."""
+
+    def __init__(self, files: Sequence[_OutputFile]) -> None:
+        self._files = files
+
+    def write(self, data: bytes) -> None:
+        for file in self._files:
+            file.write(data)
+
+    def flush(self) -> None:
+        for file in self._files:
+            file.flush()
 
 
 def _board_report(stream: BoardStream, port: serial.Serial, firmware: Mapping[str, str] | None) -> BoardReport:
