@@ -412,19 +412,8 @@ def main() -> None:
     started, load_at_start = generated_page.now(), generated_page.load_average()
 
     step(f"1. calibration campaign in the twin: {POSITIONS}, each -10 -> 45 -> -10 degC")
-    thermotilt(
-        "campaign",
-        "--twin",
-        "--positions",
-        POSITIONS,
-        "--hold-seconds",
-        str(HOLD_SECONDS),
-        "--rest-seconds",
-        "0",
-        "--out",
-        str(out / "campaign"),
-        "--force",
-    )
+    program = ("--positions", POSITIONS, "--hold-seconds", str(HOLD_SECONDS), "--rest-seconds", "0")
+    thermotilt("campaign", "--twin", *program, "--out", str(out / "campaign"), "--force")
 
     step("2. fit the paper's surfaces (Tables 2-3), with statistics and the model-family comparison")
     thermotilt("fit", str(out / "campaign"), "--out", str(out / "fit"), "--compare-families")
@@ -443,21 +432,7 @@ def main() -> None:
         thermotilt("validate", str(run), "--coefficients", str(out / "fit"))
 
     step(f"6. a batch of {BATCH_SENSORS} sensors on one tilt table: one chamber run a position, a fit each")
-    thermotilt(
-        "campaign",
-        "--twin",
-        "--sensors",
-        str(BATCH_SENSORS),
-        "--positions",
-        POSITIONS,
-        "--hold-seconds",
-        str(HOLD_SECONDS),
-        "--rest-seconds",
-        "0",
-        "--out",
-        str(out / "batch"),
-        "--force",
-    )
+    thermotilt("campaign", "--twin", "--sensors", str(BATCH_SENSORS), *program, "--out", str(out / "batch"), "--force")
     thermotilt("fit", str(out / "batch"), "--out", str(out / "batch-fit"))
     sensors = json.loads((out / "batch" / "batch.json").read_text())["sensors"]
     for sensor in sensors:

@@ -110,36 +110,15 @@ def log_boards(
     imu_port: str | serial.Serial,
     out_dir: Path,
     chamber_port: str | serial.Serial | None = None,
-    baud: int = 115200,
-    duration_s: float | None = None,
-    max_rows: int | None = None,
-    rig: Rig = Rig(),
-    force: bool = False,
-    program: ProgramWatch | None = None,
     firmware: Mapping[str, str] | None = None,
-    description: str = "thermotilt log",
-    scenario: str | None = None,
-    options: Mapping[str, Any] | None = None,
+    **settings: Any,
 ) -> RunSummary:
     """Logs into the run folder out_dir until the duration, the row count,
     a closed port, Ctrl-C or, with ``program``, the chamber's program
-    ending (done, or a fault: ProgramEnd). A port given open stays open.
-    ``firmware``: each board's VER as the caller asked it, for boards that
-    sent theirs before the log began; ``description``, ``scenario`` and
-    ``options`` go to the summary as they are."""
-    return log_imus(
-        [(imu_port, out_dir, firmware)],
-        chamber_port,
-        baud,
-        duration_s,
-        max_rows,
-        rig,
-        force,
-        program,
-        description,
-        scenario,
-        options,
-    )[0]
+    ending (done, or a fault: ProgramEnd); the settings are log_imus'. A
+    port given open stays open. ``firmware``: each board's VER as the
+    caller asked it, for boards that sent theirs before the log began."""
+    return log_imus([(imu_port, out_dir, firmware)], chamber_port, **settings)[0]
 
 
 # One IMU reader of a log: its port, the run folder its rows go to, and the
@@ -163,7 +142,8 @@ def log_imus(
     """log_boards for several IMU readers on one tilt table, each into its
     own run folder; the chamber's frames go to every folder. The log ends
     for all when it ends for one (its duration or row count, its port
-    closing)."""
+    closing). ``description``, ``scenario`` and ``options`` go to the
+    summary as they are."""
     folders = [RunFolder.at(out_dir) for _, out_dir, _ in imus]
     for folder in folders:
         # os.path answers False where pathlib raises (a parent that cannot be
