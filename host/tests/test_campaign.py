@@ -6,6 +6,7 @@ import json
 import signal
 import subprocess
 import zlib
+from pathlib import Path
 
 import pytest
 from child_process import THERMOTILT, popen, run
@@ -368,3 +369,45 @@ def test_a_batch_is_one_chamber_run_per_position_and_a_campaign_per_sensor(tmp_p
     assert cli.main([*arguments[:-1], "6", *SHORT]) == 1
     assert "exists; add --resume" in capsys.readouterr().err
     assert {name: (out / name).read_bytes() for name in kept_files} == kept_files
+
+
+def children_of(pid):
+    children = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[1]) == pid:
+            children.append(int(stat.parent.name))
+    return children
+
+
+@pytest.mark.slow
+@pytest.mark.twin
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads the process table from /proc")
+def test_workers_stop_when_their_campaign_is_killed(tmp_path):
+    out = tmp_path / "campaign"
+    longer = ["--hold-seconds", "3", *SHORT[2:]]
+    process = popen(
+        [*THERMOTILT, "campaign", "--twin", "--out", str(out), "--positions", "0,X+30", "--jobs", "2", *longer],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    wait_for(lambda: len(list((out / ".partial").glob("*"))) == 2, "both positions running", timeout_s=120)
+    workers = children_of(process.pid)
+    assert workers
+    process.kill()
+    process.wait(timeout=10)
+
+    def running(pid):
+        try:
+            return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+        except OSError:
+            return False
+
+    def gone():
+        return not any(running(pid) for pid in workers)
+
+    # A worker looks for its parent once a second (campaign.ORPHAN_POLL_S).
+    wait_for(gone, "the workers to stop", timeout_s=30)

@@ -33,6 +33,7 @@ import queue
 import shutil
 import signal
 import tempfile
+import threading
 import time
 import uuid
 import zlib
@@ -63,6 +64,8 @@ SEED_MODULUS = 2**64
 DONE, PENDING, INTERRUPTED, FAILED = "done", "pending", "interrupted", "failed"
 # A running position on a Dask worker asks the scheduler this often whether to stop.
 STOP_POLL_S = 1.0
+# A worker process looks this often whether its campaign is still there.
+ORPHAN_POLL_S = 1.0
 
 
 class CampaignError(RuntimeError):
@@ -313,6 +316,17 @@ def _start_worker(progress_queue: Any, stop_event: Any) -> None:
     # Ctrl-C reaches the whole process group; the parent decides, and tells
     # the workers through the stop event so each one still writes its summary.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    threading.Thread(target=_exit_when_orphaned, args=(os.getppid(),), daemon=True).start()
+
+
+def _exit_when_orphaned(parent: int) -> None:
+    """A worker whose campaign died without telling it (killed, its terminal
+    closed) stops: nobody would take its position, and at exit it would
+    wait forever on the progress it could not send. The position stays in
+    .partial/ for --resume to run again."""
+    while os.getppid() == parent:
+        time.sleep(ORPHAN_POLL_S)
+    os._exit(1)
 
 
 def _run_in_worker(
