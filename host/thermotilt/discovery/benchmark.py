@@ -19,6 +19,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import uuid
 import zlib
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
@@ -399,10 +400,14 @@ def run_benchmark(
     progress = Progress(len(tasks) - len(todo), len(todo), [])
     if todo:
         made = make_bases(sorted({task.cell.base for task in todo}), bases_folder, say, bases)
-        shipped = {name: client.scatter(data, broadcast=True) for name, data in made.items()}
+        # Keys of this start's own (hash=False, the uuid): a key an earlier
+        # start released may still be being forgotten by the scheduler, which
+        # then loses the data a new task of the same key needs.
+        shipped = {name: client.scatter(data, broadcast=True, hash=False) for name, data in made.items()}
+        start = uuid.uuid4().hex
         record.parent.mkdir(parents=True, exist_ok=True)
         futures = {
-            client.submit(run_task, task, shipped[task.cell.base], key=f"bench-{task.key}", pure=False): task
+            client.submit(run_task, task, shipped[task.cell.base], key=f"bench-{task.key}-{start}", pure=False): task
             for task in todo
         }
         try:
