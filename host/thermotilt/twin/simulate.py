@@ -3,8 +3,10 @@ of simulated time to the physics model (``thermotilt.physics``).
 
 Per step: the chamber physics advances with the drive the L298N observer saw
 during the last step, the thermistor voltages and the LSM9DS0 registers are
-set from the new physical state, both boards run to the end of the step, and
-every byte they sent is saved, parsed and logged. The host side is the same
+set from the new physical state, the boards run to the end of the step, and
+every byte they sent is saved, parsed and logged. A run may carry several
+IMU boards, as a tilt table carries a batch of sensors (``run_sensors``),
+each with its own sensor physics and run folder. The host side is the same
 code path as with real boards: commands go out as frames, and run.csv rows
 come from IMU frames and the chamber's latest CHS frame through the recorder
 ``thermotilt log`` uses (``thermotilt.run.recorder``), which also says when

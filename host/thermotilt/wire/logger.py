@@ -1,7 +1,8 @@
 """``thermotilt log``: real boards (or the twin's pseudo-terminals) to a
 run folder: run.csv, serial/ and summary.json (docs/run-log.md).
 
-The IMU reader's frames make the rows; the chamber's CHS frames, when its
+The IMU reader's frames make the rows (several readers on one table each
+into their own run folder: ``log_imus``); the chamber's CHS frames, when its
 port is given, fill the chamber columns; both go through the recorder the
 twin uses (``thermotilt.run.recorder``). Each row, and each chunk of raw
 bytes, is flushed as it is written, so stopping with Ctrl-C, the board going
