@@ -124,11 +124,11 @@ def log_boards(
 
 # One IMU reader of a log: its port, the run folder its rows go to, and the
 # boards' VER as the caller asked them (log_boards' firmware).
-ImuLog = tuple[str | serial.Serial, Path, Mapping[str, str] | None]
+ImuReader = tuple[str | serial.Serial, Path, Mapping[str, str] | None]
 
 
 def log_imus(
-    imus: Sequence[ImuLog],
+    imus: Sequence[ImuReader],
     chamber_port: str | serial.Serial | None = None,
     baud: int = 115200,
     duration_s: float | None = None,
@@ -158,7 +158,7 @@ def log_imus(
 
     end_reason = ""
     with ExitStack() as stack:
-        logs = [_ImuLog(_opened(stack, port, baud), port) for port, _, _ in imus]
+        logs = [_LoggedReader(_opened(stack, port, baud), port) for port, _, _ in imus]
         chamber = _opened(stack, chamber_port, baud) if chamber_port is not None else None
         for folder in folders:
             for made in (folder.path, folder.serial_dir):
@@ -224,7 +224,7 @@ def log_imus(
     return summaries
 
 
-class _ImuLog:
+class _LoggedReader:
     """One IMU reader's port, the stream of what it sends and its run.csv."""
 
     def __init__(self, port: serial.Serial, name: str | serial.Serial) -> None:
