@@ -68,11 +68,11 @@ def step(title: str) -> None:
     print(f"\n=== {title}", flush=True)
 
 
-def thermotilt(*arguments: str, **options) -> subprocess.CompletedProcess:
+def thermotilt(*arguments: str, expect_exit: int = 0, **options) -> subprocess.CompletedProcess:
     print("$ thermotilt " + " ".join(shlex.quote(a) for a in arguments), flush=True)
     result = subprocess.run([*THERMOTILT, *arguments], text=True, **options)
-    if result.returncode != 0:
-        sys.exit(f"demo: thermotilt {arguments[0]} failed (exit {result.returncode})")
+    if result.returncode != expect_exit:
+        sys.exit(f"demo: thermotilt {arguments[0]} exited {result.returncode}, not {expect_exit}")
     return result
 
 
@@ -152,11 +152,9 @@ def refused_then_uploaded(batch_fit: Path, sensors: list[str], board_dir: Path) 
     with idle_twin(board_dir) as ports:
         port = ports["imu_reader"]
         thermotilt("assign-id", own, "--port", port)
-        arguments = ("upload", str(batch_fit / other), "--port", port)
-        print("$ thermotilt " + " ".join(shlex.quote(a) for a in arguments), flush=True)
-        refused = subprocess.run([*THERMOTILT, *arguments], capture_output=True, text=True)
+        refused = thermotilt("upload", str(batch_fit / other), "--port", port, expect_exit=1, capture_output=True)
         print(refused.stdout + refused.stderr, end="", flush=True)
-        if refused.returncode != 1 or own not in refused.stderr or other not in refused.stderr:
+        if own not in refused.stderr or other not in refused.stderr:
             sys.exit(f"demo: upload of {other}'s fit to {own}'s board was not refused for its ID")
         thermotilt("upload", str(batch_fit / own), "--port", port)
     return refused.stderr.strip()
