@@ -37,7 +37,7 @@ import threading
 import time
 import uuid
 import zlib
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from contextlib import ExitStack
 from dataclasses import asdict, dataclass, field, replace
@@ -107,18 +107,17 @@ class TwinSetup:
         changes = {name: True for name in self.enable} | {name: False for name in self.disable}
         return self.batch_model().with_terms(changes)
 
-    def model(self, sensor: str | None = None) -> Any:
-        """The model of one sensor of the batch: ``sensor``, else the
-        setup's; the model itself for neither."""
-        sensor = sensor or self.sensor
-        model = self.chamber_model()
-        return model.for_sensor(sensor) if sensor else model
+    def models(self, units: Sequence[Unit]) -> tuple[Any, dict[Unit, Any]]:
+        """The chamber's model and each unit's sensor model (the model
+        itself for a unit without an ID), from one load of the model file."""
+        chamber = self.chamber_model()
+        return chamber, {unit: chamber.for_sensor(unit.sensor) if unit.sensor else chamber for unit in units}
 
     def units(self) -> tuple[Unit, ...]:
         """The sensors a campaign with this setup calibrates: a batch's
         (each its campaign in DIR/<id>/), or one in DIR."""
         if self.sensor:
-            self.model()
+            self.chamber_model().for_sensor(self.sensor)
             return (Unit(self.sensor, ""),)
         return tuple(Unit(sensor_id, sensor_id) for sensor_id in self.batch_model().sensor_ids) or (Unit(None, ""),)
 
@@ -374,12 +373,12 @@ def run_twin_position(
             raise KeyboardInterrupt
 
     scenario = position_scenario(setup.options, position)
+    chamber_model, models = setup.models(units)
     imus = [
-        simulate.ImuRun(setup.model(unit.sensor), partial, record.seed)
-        for unit, partial, record in zip(units, partials, records)
+        simulate.ImuRun(models[unit], partial, record.seed) for unit, partial, record in zip(units, partials, records)
     ]
     try:
-        summaries = [result.summary for result in simulate.run_sensors(scenario, setup.chamber_model(), imus, progress)]
+        summaries = [result.summary for result in simulate.run_sensors(scenario, chamber_model, imus, progress)]
     except (TwinError, simulate.SimulationError, OSError) as error:
         for record in records:
             record.status, record.error = FAILED, str(error)
@@ -524,7 +523,7 @@ class TwinCampaign(_Campaign):
 
         try:
             self.units = setup.units()
-            models = {unit: setup.model(unit.sensor) for unit in self.units}
+            chamber_model, models = setup.models(self.units)
             self.position_seconds = position_scenario(setup.options, positions[0]).duration_s
         except (ModelError, ScenarioError) as error:
             raise CampaignError(str(error)) from None
@@ -551,7 +550,7 @@ class TwinCampaign(_Campaign):
                 out_dir,
                 self.units,
                 {"rig": "twin", "drawn": setup.population or None, "seed": setup.seed},
-                setup.chamber_model(),
+                chamber_model,
             )
 
     def run(
