@@ -13,10 +13,22 @@ import pytest
 from firmware_helpers import of_type
 
 from thermotilt.calibration.upload import FitToUpload, upload_table
+from thermotilt.physics import Model
+from thermotilt.run.folder import RunFolder
 from thermotilt.surfaces import PAPER_DEFAULTS
+from thermotilt.twin import simulate
 from thermotilt.twin.boards import Board
+from thermotilt.twin.scenarios import ScenarioOptions, build
 from thermotilt.wire.client import CommandClient
-from thermotilt.wire.coefficients import BLOCK_SIZE, SetDomain, crc16_xmodem, decode_block
+from thermotilt.wire.coefficients import (
+    BLOCK_SIZE,
+    SENSOR_ID_RECORD_ADDRESS,
+    SetDomain,
+    crc16_xmodem,
+    decode_block,
+    encode_block,
+    encode_sensor_id_record,
+)
 from thermotilt.wire.protocol import FrameReader, checksum
 
 pytestmark = pytest.mark.twin
@@ -25,7 +37,7 @@ pytestmark = pytest.mark.twin
 SENSOR = (-1700, -400, 16000, 32)
 # raw (T - 21 degC) * 8: 50 degC, above the domain's 45.
 HOT_RAW = (50 - 21) * 8
-ID_RECORD_ADDRESS = 512
+ID_RECORD_ADDRESS = 512  # firmware/imu_reader/main.cpp
 # Python: b"INODE-07\0" and binascii.crc_hqx of it, 0xAB20, low byte first.
 NODE_07_RECORD = b"INODE-07\x00\x20\xab"
 DOMAIN = {
@@ -80,6 +92,7 @@ def test_setid_writes_the_id_record_alone(imu):
     assert host.status()["sensor_id"] == ""
     host.command("SETID", ["NODE-07"])
     assert imu.read_eeprom(ID_RECORD_ADDRESS, len(NODE_07_RECORD)) == NODE_07_RECORD
+    assert (SENSOR_ID_RECORD_ADDRESS, encode_sensor_id_record("NODE-07")) == (ID_RECORD_ADDRESS, NODE_07_RECORD)
     assert imu.read_eeprom(0, BLOCK_SIZE) == BLANK_BLOCK
     config = host.status()
     assert (config["sensor_id"], config["coef_source"]) == ("NODE-07", "D")
@@ -199,3 +212,17 @@ def test_the_imu_frame_says_when_the_temperature_leaves_the_calibrated_range(imu
     assert {f["temp_domain"] for f in host.imu_frames()} == {"I"}
     host.command("DEFCOE")
     assert {f["temp_domain"] for f in host.imu_frames()} == {"U"}
+
+
+@pytest.mark.parametrize(("board_id", "reported"), [("TT-02", []), ("TT-01", ["EEPROM_SENSOR DEFAULTS"])])
+def test_a_twin_run_of_a_batch_sensor_boots_holding_its_id(tmp_path, board_id, reported):
+    """simulate --sensor and a batch campaign give the IMU its sensor's ID
+    as assign-id would: a block fitted for TT-02 loads on TT-02's board
+    alone, another board reports it and keeps the defaults (docs/protocol.md)."""
+    block = encode_block(PAPER_DEFAULTS.to_float32(), "TT-02", DOMAIN)
+    scenario = build("field-warming", ScenarioOptions(duration_s=2))
+    result = simulate.run(scenario, Model.load(), tmp_path, eeprom=block, sensor_id=board_id)
+    saved = RunFolder.at(tmp_path).imu_eeprom.read_bytes()
+    assert saved[ID_RECORD_ADDRESS : ID_RECORD_ADDRESS + len(NODE_07_RECORD)] == encode_sensor_id_record(board_id)
+    errors = result.summary.boards["imu_reader"].reported_errors
+    assert [error.split(" at ")[0] for error in errors] == reported

@@ -356,7 +356,7 @@ def run_twin_position(
             position.incl_y_deg,
             seed=setup.position_seed(position, unit.sensor),
             started_utc=_utc_now(),
-            # The twin's sensor is the batch's one the unit names.
+            # The twin's board holds the ID of the batch's sensor the unit names.
             sensor_id=unit.sensor,
         )
         for unit in units
@@ -375,7 +375,8 @@ def run_twin_position(
     scenario = position_scenario(setup.options, position)
     chamber_model, models = setup.models(units)
     imus = [
-        simulate.ImuRun(models[unit], partial, record.seed) for unit, partial, record in zip(units, partials, records)
+        simulate.ImuRun(models[unit], partial, record.seed, sensor_id=unit.sensor or "")
+        for unit, partial, record in zip(units, partials, records)
     ]
     try:
         summaries = [result.summary for result in simulate.run_sensors(scenario, chamber_model, imus, progress)]

@@ -66,7 +66,11 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
         metavar="FILE",
         help="start the IMU with this coefficient block in its EEPROM (coefficients.bin from thermotilt fit)",
     )
-    simulate.add_argument("--sensor", metavar="ID", help="simulate this sensor of the model's [[sensors]] batch")
+    simulate.add_argument(
+        "--sensor",
+        metavar="ID",
+        help="simulate this sensor of the model's [[sensors]] batch; its IMU board holds the ID",
+    )
     simulate.set_defaults(run=_simulate)
 
 
@@ -158,6 +162,7 @@ def _simulate(args: argparse.Namespace) -> int:
                 progress=lambda t: bar.update(round(t) - bar.n),
                 eeprom=eeprom,
                 realtime=realtime,
+                sensor_id=args.sensor or "",
             )
         except (TwinError, simulate.SimulationError) as error:
             raise UsageError(str(error)) from None

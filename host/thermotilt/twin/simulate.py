@@ -32,6 +32,7 @@ from ..run.folder import CHAMBER_BOARD, IMU_BOARD, RunFolder
 from ..run.log import RunLogWriter, format_number
 from ..run.recorder import BoardStream, FrameRecorder
 from ..run.summary import INTERRUPTED, TWIN, BoardReport, RunSummary
+from ..wire.coefficients import SENSOR_ID_RECORD_ADDRESS, encode_sensor_id_record
 from ..wire.protocol import Frame, SequenceCounter, build_frame
 from .boards import Board, Drive
 from .faults import FAULTS, INNER_THERMISTOR_CHANNEL, OUTER_THERMISTOR_CHANNEL
@@ -203,14 +204,16 @@ def _truth(sample: SensorSample, chamber: Chamber | None, drive: Drive | None) -
 @dataclass(frozen=True)
 class ImuRun:
     """One IMU board of a run: its sensor's model, the folder its run.csv,
-    serial/ and summary.json go to, its noise seed, and the bytes its EEPROM
+    serial/ and summary.json go to, its noise seed, the bytes its EEPROM
     holds from address 0 when it starts (e.g. the coefficient block of
-    `thermotilt fit`, coefficients.bin)."""
+    `thermotilt fit`, coefficients.bin), and the sensor ID its EEPROM holds
+    ("" none), as `thermotilt assign-id` leaves it on a real board."""
 
     model: Model
     out_dir: Path
     seed: int = 1
     eeprom: bytes | None = None
+    sensor_id: str = ""
 
 
 def run(
@@ -224,12 +227,14 @@ def run(
     eeprom: bytes | None = None,
     realtime: bool = False,
     timing: StepTiming | None = None,
+    sensor_id: str = "",
 ) -> RunResult:
     """Plays a scenario; writes run.csv, serial/ and summary.json in out_dir.
-    eeprom: what the IMU's EEPROM holds when it starts (ImuRun).
+    eeprom, sensor_id: what the IMU's EEPROM holds when it starts (ImuRun).
     realtime: no step ends before its simulated time has passed on the wall
     clock, as on a board. timing: where the steps' wall time goes."""
-    return _play(scenario, model, [ImuRun(model, out_dir, seed, eeprom)], pty, on_pty, progress, realtime, timing)[0]
+    imu = ImuRun(model, out_dir, seed, eeprom, sensor_id)
+    return _play(scenario, model, [imu], pty, on_pty, progress, realtime, timing)[0]
 
 
 def run_sensors(
@@ -279,6 +284,8 @@ def _play(
                 units.append(ImuUnit(link, Sensor(imu.model, imu.seed, scenario.ambient_c(0.0)), recorder))
                 if imu.eeprom is not None:
                     _preload_eeprom(link.board, imu.eeprom)
+                if imu.sensor_id:
+                    link.board.write_eeprom(encode_sensor_id_record(imu.sensor_id), SENSOR_ID_RECORD_ADDRESS)
             if scenario.uses_chamber:
                 chamber_link = BoardLink.open(CHAMBER, Board.thermal_chamber(), open(folders[0].capture(CHAMBER), "wb"))
             lockstep = Lockstep(scenario, chamber_model, imus[0].seed, units, chamber_link)

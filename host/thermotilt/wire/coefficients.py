@@ -76,6 +76,22 @@ def sensor_id_problem(text: str) -> str | None:
     return f"sensor ID {text!r} may hold only letters, digits, '_' and '-'"
 
 
+# The imu_reader's ID record (lib/Compensation/SensorId.h) and where its
+# EEPROM keeps it (firmware/imu_reader/main.cpp); test_sensor_identity
+# compares both with what the firmware's SETID writes.
+SENSOR_ID_RECORD_ADDRESS = 512
+_SENSOR_ID_RECORD_MAGIC = b"I"
+
+
+def encode_sensor_id_record(sensor_id: str) -> bytes:
+    """The 11-byte EEPROM record of a board whose ID is sensor_id."""
+    problem = sensor_id_problem(sensor_id)
+    if problem:
+        raise ValueError(problem)
+    body = _SENSOR_ID_RECORD_MAGIC + _SENSOR_ID_FIELD.pack(sensor_id.encode("ascii"))
+    return body + _CRC.pack(crc16_xmodem(body))
+
+
 Range = tuple[int, int]
 
 
