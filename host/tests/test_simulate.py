@@ -59,6 +59,8 @@ def test_fig8_writes_the_documented_outputs(fig8_run):
     out, stdout = fig8_run
     rows = read_run_log(str(out / "run.csv"))
     assert list(rows[0]) == list(ALL_COLUMNS)
+    # The IMU frame's temp_domain: the paper's defaults know no range (docs/protocol.md).
+    assert {row["temp_domain"] for row in rows} == {"U"}
     summary = json.loads((out / "summary.json").read_text())
     duration_s = build("fig8", ScenarioOptions()).duration_s
     assert summary["sim_seconds"] == pytest.approx(duration_s)

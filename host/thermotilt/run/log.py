@@ -42,6 +42,7 @@ COLUMNS: tuple[str, ...] = (
     "az_comp",
     "comp_set",
     "coef_source",
+    "temp_domain",
     "imu_seq",
 )
 
@@ -65,6 +66,16 @@ TRUE_COLUMNS: tuple[str, ...] = (
 )
 
 ALL_COLUMNS: tuple[str, ...] = COLUMNS + TRUE_COLUMNS
+
+# Logs written before the IMU frame carried temp_domain read as they are,
+# without that column.
+_BEFORE_TEMP_DOMAIN = tuple(column for column in COLUMNS if column != "temp_domain")
+HEADERS: tuple[tuple[str, ...], ...] = (
+    COLUMNS,
+    ALL_COLUMNS,
+    _BEFORE_TEMP_DOMAIN,
+    _BEFORE_TEMP_DOMAIN + TRUE_COLUMNS,
+)
 
 
 def format_numbers(values: Iterable[float | None], decimals: int) -> list[str]:
@@ -114,7 +125,7 @@ class RunLogError(ValueError):
 
 def read_run_log(path: str) -> list[dict[str, str]]:
     """Rows of a run.csv as text cells (for tools and tests): the header must
-    be the twin's or the logger's and every row must have all its cells."""
+    be the twin's or the logger's (HEADERS) and every row must have all its cells."""
     try:
         with open(path, newline="", encoding="utf-8") as stream:
             records = [cells for cells in csv.reader(stream) if cells]
@@ -124,7 +135,7 @@ def read_run_log(path: str) -> list[dict[str, str]]:
         raise RunLogError(f"{path}: not UTF-8 text (byte {error.start})") from None
     except csv.Error as error:
         raise RunLogError(f"{path}: not CSV: {error}") from None
-    if not records or tuple(records[0]) not in (COLUMNS, ALL_COLUMNS):
+    if not records or tuple(records[0]) not in HEADERS:
         raise RunLogError(f"{path}: the header is not run.csv's (docs/run-log.md)")
     header = records[0]
     for number, cells in enumerate(records[1:], start=1):
@@ -133,7 +144,9 @@ def read_run_log(path: str) -> list[dict[str, str]]:
     return [dict(zip(header, cells)) for cells in records[1:]]
 
 
-TEXT_COLUMNS = frozenset({"direction", "phase", "chamber_fault", "comp_set", "coef_source", "true_drift_set"})
+TEXT_COLUMNS = frozenset(
+    {"direction", "phase", "chamber_fault", "comp_set", "coef_source", "temp_domain", "true_drift_set"}
+)
 
 
 @dataclass(frozen=True)
@@ -202,7 +215,7 @@ def _header(path: str) -> tuple[str, ...]:
             first = tuple(next(csv.reader(stream), ()))
     except (OSError, UnicodeDecodeError, csv.Error):
         first = ()
-    if first not in (COLUMNS, ALL_COLUMNS):
+    if first not in HEADERS:
         read_run_log(path)
     return first
 

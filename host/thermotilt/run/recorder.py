@@ -34,6 +34,7 @@ _IMU_FIELDS = (
     ("az_comp", "az_comp"),
     ("comp_set", "comp_set"),
     ("coef_source", "coef_source"),
+    ("temp_domain", "temp_domain"),
 )
 
 _CHS_FIELDS = (
