@@ -10,7 +10,15 @@ import pytest
 from child_process import THERMOTILT, run
 
 from thermotilt import cli
-from thermotilt.calibration.validate import AxisResult, Validation, format_validation, load_coefficients, validate
+from thermotilt.calibration.validate import (
+    BOARD_DOMAIN,
+    AxisResult,
+    Validation,
+    format_validation,
+    load_coefficients,
+    range_warnings,
+    validate,
+)
 from thermotilt.run.log import COLUMNS, read_run_log
 from thermotilt.surfaces import PAPER_DEFAULTS
 
@@ -18,23 +26,27 @@ WARMING_X = PAPER_DEFAULTS.surface("W", "X")
 OFFSET_X, OFFSET_Y = -1823.0, -143.0
 
 
-def write_field_log(path, temperatures, set_name="W", compensated=True, blank_every=0):
+def write_field_log(
+    path, temperatures, set_name="W", compensated=True, blank_every=0, source="D", flag=None, columns=COLUMNS
+):
     """A horizontal sensor whose X drifts as Table 2's warming surface and
     whose Y drifts linearly by -10 LSB/degC; ax_comp as the firmware would
-    give it with the paper's coefficients."""
+    give it with the paper's coefficients. flag: the board's temp_domain of
+    a temperature (None: none written)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     with open(path, "w", newline="") as stream:
-        writer = csv.DictWriter(stream, fieldnames=COLUMNS, lineterminator="\n")
+        writer = csv.DictWriter(stream, fieldnames=columns, lineterminator="\n", extrasaction="ignore")
         writer.writeheader()
         for index, temperature in enumerate(temperatures):
             ax = OFFSET_X + WARMING_X.evaluate(temperature, OFFSET_X) - WARMING_X.evaluate(25.0, OFFSET_X)
             ay = OFFSET_Y - 10.0 * (temperature - 25.0)
-            row = {column: "" for column in COLUMNS}
+            row = {column: "" for column in columns}
             row.update(
                 time_s=f"{index / 10:.3f}",
                 imu_temp_c=f"{temperature:.3f}",
                 comp_set=set_name,
-                coef_source="D",
+                coef_source=source,
+                temp_domain=flag(temperature) if flag else "",
                 incl_x_deg="0.00",
                 incl_y_deg="0.00",
                 ax_filt=f"{ax:.1f}",
@@ -65,6 +77,31 @@ def test_rms_is_taken_about_the_25c_reading(tmp_path):
     assert y.rms_after_lsb == pytest.approx(0.0, abs=0.05)
     # Table 2's surface fits -10..45 degC: 9..48 degC leaves 3 / 39 of the rows above it.
     assert x.outside_rows == pytest.approx(2000 * 3 / 39, abs=2)
+
+
+def test_coefficients_from_eeprom_are_checked_against_the_boards_own_range(tmp_path):
+    """The host knows no range for a block the board loaded; the board flags
+    each row (temp_domain, docs/protocol.md), and those flags are counted."""
+    temperatures = np.linspace(9.0, 48.0, 2000)
+    write_field_log(tmp_path / "run.csv", temperatures, source="E", flag=lambda t: "O" if t > 40.0 else "I")
+    validation = validate(tmp_path)
+    outside = int(np.count_nonzero(temperatures > 40.0))
+    assert validation.domain_source == BOARD_DOMAIN
+    assert [result.outside_rows for result in validation.results] == [outside, outside]
+    assert f"{outside} of 2000 warming rows" in range_warnings(validation)[0]
+
+
+@pytest.mark.parametrize("log", ["flags unknown", "log from before temp_domain"])
+def test_without_the_boards_flags_the_range_of_eeprom_coefficients_is_unknown(tmp_path, log):
+    temperatures = np.linspace(9.0, 48.0, 200)
+    if log == "flags unknown":
+        write_field_log(tmp_path / "run.csv", temperatures, source="E", flag=lambda t: "U")
+    else:
+        before = tuple(column for column in COLUMNS if column != "temp_domain")
+        write_field_log(tmp_path / "run.csv", temperatures, source="E", columns=before)
+    validation = validate(tmp_path)
+    assert validation.domain_source is None
+    assert "fitted range is unknown" in range_warnings(validation)[0]
 
 
 def test_the_tilt_error_is_in_degrees_about_the_25c_tilt(tmp_path, capsys):

@@ -20,7 +20,10 @@ those surfaces, which is the paper's post-processing of raw field data.
 
 The coefficients cover a temperature and acceleration range (a fit's, or
 the paper's -10..45 degC and +-45 deg); rows outside it are counted and
-reported, because a surface is not known there.
+reported, because a surface is not known there. Coefficients the board
+loaded from its EEPROM carry their own temperature range, which the host
+does not know: then the board's flag on each row (``temp_domain``, the
+IMU frame's) counts the rows outside it.
 """
 
 from __future__ import annotations
@@ -44,6 +47,10 @@ LSB_PER_G = 1000.0 / MG_PER_LSB
 TILT_PERCENTILE = 95.0
 PAPER_ACCELERATION_LSB = LSB_PER_G * math.sin(math.radians(CALIBRATED_INCLINATION_DEG))
 SET_NAMES = {"W": "warming", "C": "cooling"}
+# temp_domain (docs/protocol.md, IMU): inside or outside the block's range.
+DOMAIN_FLAGS = ("I", "O")
+OUTSIDE_FLAG = "O"
+BOARD_DOMAIN = "the board's calibrated temperature range (run.csv's temp_domain)"
 _NEEDED = (
     "time_s",
     "imu_temp_c",
@@ -192,9 +199,15 @@ def validate(run: Path, coefficients: Coefficients | None = None) -> Validation:
     firmware = {axis: numbers[f"a{axis.lower()}_comp"][usable] for axis in FIT_AXES}
     usable_rows = int(np.count_nonzero(usable))
     sources = sorted(set(texts["coef_source"][usable].tolist()))
+    # The board's own word on each row's temperature (temp_domain), where
+    # the host knows no range for the coefficients it ran.
+    board_outside = None
     if coefficients is None:
         after_from = f"the firmware's output (coef_source {'/'.join(sources)})"
         domain = paper_domain() if sources == ["D"] else None
+        flags = texts.get("temp_domain")
+        if domain is None and flags is not None and np.isin(flags[usable], DOMAIN_FLAGS).any():
+            board_outside = flags[usable] == OUTSIDE_FLAG
     else:
         after_from = f"compensated here with {coefficients.source}"
         domain = coefficients.domain
@@ -225,7 +238,9 @@ def validate(run: Path, coefficients: Coefficients | None = None) -> Validation:
                     int(in_set.sum()),
                     rms_before,
                     rms_after,
-                    _outside(domain, set_name, axis, t, before),
+                    int(board_outside[in_set].sum())
+                    if board_outside is not None
+                    else _outside(domain, set_name, axis, t, before),
                     _percentile_of_size(tilt_before),
                     _percentile_of_size(tilt_after),
                 )
@@ -240,7 +255,7 @@ def validate(run: Path, coefficients: Coefficients | None = None) -> Validation:
         (float(temperature.min()), float(temperature.max())),
         after_from,
         f"coef_source {'/'.join(sources)}",
-        domain.source if domain else None,
+        domain.source if domain else BOARD_DOMAIN if board_outside is not None else None,
         results,
         difference,
         series,
