@@ -59,6 +59,32 @@ def calibrated_domain(fit: FittedSurface) -> tuple[float, float]:
     return max(CALIBRATED_C[0], low), min(CALIBRATED_C[1], high)
 
 
+def expected_mounting_miss_lsb(
+    sigma_lsb_per_c: float, temperature_range_c: tuple[float, float], accelerations_lsb: list[float]
+) -> float:
+    """The RMS by which a fit misses its sensor's drift, as compare measures
+    it (relative to 25 degC, over the temperature range and the positions'
+    span of acceleration), from the drift's slope changing with each
+    mounting alone (the model's drift_repeatability: δ ~ N(0, sigma) per
+    position, adding δ·(T - 25 degC)). The surface's T and T·a terms take
+    the positions' slopes as a line in a, so the line through N points
+    misses by sigma²·(1/N + (a - ā)²/Σ(a_m - ā)²) in variance at a; over
+    T and a uniform in the domain that is expected
+    sigma·R·sqrt(1/N + <(a - ā)²>/Σ(a_m - ā)²), R the RMS of T - 25 degC.
+    Assumes the positions' rows alike in temperature (one program each)
+    and so weighted alike; ``test_compare.py`` checks it on simulated fits."""
+    accelerations = np.asarray(accelerations_lsb, dtype=float)
+    low_c, high_c = temperature_range_c
+    low_a, high_a = accelerations.min(), accelerations.max()
+    centre = accelerations.mean()
+    spread = float(np.sum((accelerations - centre) ** 2))
+    mean_c = (low_c + high_c) / 2.0 - REFERENCE_C
+    temperature_ms = (high_c - low_c) ** 2 / 12.0 + mean_c**2
+    off_centre_ms = (high_a - low_a) ** 2 / 12.0 + ((low_a + high_a) / 2.0 - centre) ** 2
+    line_variance = 1.0 / accelerations.size + (off_centre_ms / spread if spread > 0 else 0.0)
+    return float(sigma_lsb_per_c * np.sqrt(temperature_ms * line_variance))
+
+
 def _relative(surface: Surface, temperature: np.ndarray, acceleration: np.ndarray) -> np.ndarray:
     return surface.evaluate(temperature, acceleration) - surface.evaluate(REFERENCE_C, acceleration)
 
