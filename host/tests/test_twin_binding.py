@@ -423,6 +423,11 @@ def test_bad_images_and_missing_builds_are_explained(tmp_path, monkeypatch):
         firmware_elf("imu_reader")
     with pytest.raises(TwinError, match="run `make build` first"):
         Board(garbage, "atmega328p")
+    # A library the loader refuses (here not a shared object at all) is one line too.
+    (tmp_path / "native").mkdir()
+    (tmp_path / "native" / "libthermotilt_twin.so").write_bytes(b"not a library")
+    with pytest.raises(TwinError, match="cannot load .*libthermotilt_twin.so: .*run `make build` again"):
+        Board(garbage, "atmega328p")
 
 
 # ---- EEPROM --------------------------------------------------------------

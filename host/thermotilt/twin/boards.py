@@ -79,7 +79,11 @@ def _existing(path: Path) -> Path:
 
 @cache
 def _load_library(path: Path) -> ctypes.CDLL:
-    library = ctypes.CDLL(str(path), use_errno=True)
+    try:
+        library = ctypes.CDLL(str(path), use_errno=True)
+    except OSError as error:
+        # The loader's reason, e.g. a libsimavr without a symbol the build linked against.
+        raise TwinError(f"cannot load {path}: {error}; run `make build` again") from None
     handle = ctypes.c_void_p
     prototypes: dict[str, tuple[type | None, list[type]]] = {
         "twin_create": (
