@@ -50,7 +50,7 @@ SET_NAMES = {"W": "warming", "C": "cooling"}
 # temp_domain (docs/protocol.md, IMU): inside or outside the block's range.
 DOMAIN_FLAGS = ("I", "O")
 OUTSIDE_FLAG = "O"
-BOARD_DOMAIN = "the board's calibrated temperature range (run.csv's temp_domain)"
+BOARD_DOMAIN = "the block the board loaded (run.csv's temp_domain)"
 _NEEDED = (
     "time_s",
     "imu_temp_c",
