@@ -5,7 +5,7 @@ and the model with it added (docs/discovery.md).
 replay (the model open loop on the run's inputs, through the firmware's own
 processing) -> candidates (registered physics terms) -> search (GLS on
 block means with the model's own noise structure, HAC errors,
-Benjamini-Hochberg across candidates, ambiguity and excitation checks) ->
+Benjamini-Yekutieli across candidates, ambiguity and excitation checks) ->
 report (discovery.json, model.toml, report.md, residuals.png); hide
 generates runs with a known effect hidden in them.
 """

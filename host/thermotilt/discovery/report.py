@@ -256,7 +256,7 @@ def _markdown(result: dict[str, Any]) -> str:
     lines += [
         "![residuals before and after](residuals.png)",
         "",
-        f"Found means: Benjamini–Hochberg adjusted p below {result['rules']['fdr']} across every "
+        f"Found means: Benjamini–Yekutieli adjusted p below {result['rules']['fdr']} across every "
         f"candidate and channel of a round, and at least "
         f"{100 * result['rules']['min_gap_reduction']:.0f} % off the channel's RMS residual "
         "(docs/discovery.md).",
