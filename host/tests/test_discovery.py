@@ -17,8 +17,8 @@ from thermotilt.discovery.hide import (
     ADC_CONVERSIONS_PER_READING,
     ADC_NOISE_CODES,
     hide_effect,
-    ramp_inputs,
     staircase_inputs,
+    wave_inputs,
 )
 from thermotilt.discovery.replay import Replay, load_measured
 from thermotilt.discovery.search import Search
@@ -149,10 +149,9 @@ def test_null_runs_give_none(inputs: Path, tmp_path: Path, noise: str) -> None:
 
 @pytest.mark.slow
 @pytest.mark.twin
-def test_sensor_lag_and_rate_sensitivity_on_one_ramp_rate_are_ambiguous(tmp_path: Path) -> None:
-    # A wider range or holds tell them apart: the SNR 4 case.
-    ramps = ramp_inputs(tmp_path / "inputs" / "run.csv")
-    hide_effect(ramps, tmp_path / "hidden", "sensor_lag", seed=7, snr=4.0, channel="X")
+def test_sensor_lag_and_rate_sensitivity_on_a_slow_wave_are_ambiguous(tmp_path: Path) -> None:
+    wave = wave_inputs(tmp_path / "inputs" / "run.csv")
+    hide_effect(wave, tmp_path / "hidden", "sensor_lag", seed=7, snr=4.0, channel="X")
     outcome = _discover(tmp_path / "hidden" / "run.csv")
     assert outcome.verdict == "ambiguous"
     assert {"sensor_lag", "rate_sensitivity"} <= set(outcome.ambiguous[0].names)

@@ -103,10 +103,10 @@ def _staircase(folder: Path) -> None:
     staircase_inputs(folder / "run.csv")
 
 
-def _ramp(folder: Path) -> None:
-    from .hide import ramp_inputs
+def _wave(folder: Path) -> None:
+    from .hide import wave_inputs
 
-    ramp_inputs(folder / "run.csv")
+    wave_inputs(folder / "run.csv")
 
 
 def _twin(scenario: str, *options: str) -> Callable[[Path], None]:
@@ -129,7 +129,7 @@ BASES = {
         Base(
             "staircase", "0..40 degC in 5 degC steps held 40 s at X +30, X -30 and Y +30 deg (inputs only)", _staircase
         ),
-        Base("ramp", "one ramp 20..30..20 degC at 0.01 degC/s at X +30 deg (inputs only)", _ramp),
+        Base("wave", "a temperature wave 20..30 degC, period 2000 s, 1.5 periods at X +30 deg (inputs only)", _wave),
         Base(
             "cycle",
             "the twin's calibration cycle, -10..45 degC (simulate cycle --rest-seconds 60)",
@@ -187,7 +187,7 @@ def default_cells(null_runs: int = 40, effect_runs: int = 50, collinear_runs: in
         base = "cycle" if set(candidate.channels) <= set(CHAMBER_CHANNELS) else "staircase"
         cells += [Cell(EFFECT, candidate.name, snr, "model", base, effect_runs) for snr in SNRS]
     cells += [
-        Cell(COLLINEAR, "sensor_lag", 4.0, "model", "ramp", collinear_runs, pair=("rate_sensitivity", "sensor_lag")),
+        Cell(COLLINEAR, "sensor_lag", 4.0, "model", "wave", collinear_runs, pair=("rate_sensitivity", "sensor_lag")),
         Cell(
             COLLINEAR,
             "thermistor_offset",

@@ -522,6 +522,12 @@ def staircase_inputs(
                 face_c += (driven_c - face_c) * lag
                 rows.append((time_s, level, face_c, incl_x, incl_y, time_s - moved))
                 time_s += period_s
+    return _write_inputs(path, rows)
+
+
+def _write_inputs(path: Path, rows: list[tuple[float, float, float, float, float, float]]) -> Path:
+    """An inputs-only run.csv of rows (time, setpoint, chamber, incl_x,
+    incl_y, since_move)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     with open(path, "w", newline="", encoding="utf-8") as stream:
         writer = RunLogWriter(stream, with_truth=False, flush_each_row=False)
@@ -539,10 +545,25 @@ def staircase_inputs(
     return path
 
 
-def ramp_inputs(path: Path) -> Path:
-    """One slow ramp up and down over 20..30 degC at 0.01 degC/s, no holds,
-    at X +30 deg: the drift's slope hardly changes over it, so a lag of the
-    drift (sensor_lag) and a rate term (rate_sensitivity) look alike."""
-    return staircase_inputs(
-        path, positions=((30.0, 0.0),), low_c=20.0, high_c=30.0, step_c=10.0, hold_s=0.0, ramp_c_per_s=0.01
-    )
+def wave_inputs(
+    path: Path,
+    middle_c: float = 25.0,
+    amplitude_c: float = 5.0,
+    period_s: float = 2000.0,
+    cycles: float = 1.5,
+    settle_s: float = SETTLE_S,
+    incl_x_deg: float = 30.0,
+) -> Path:
+    """A slow temperature wave, middle -/+ amplitude, at one inclination
+    (inputs only): its rate changes smoothly, so a lag of the drift
+    (sensor_lag, the drift at T - tau dT/dt to first order) and a rate term
+    (rate_sensitivity, k dT/dt) differ only by tau's second order, tau/period
+    of the effect, and the drift's slope hardly changes over it."""
+    frame_s = DECIMATION * SAMPLE_PERIOD_S
+    rows = []
+    for index in range(int(round((settle_s + cycles * period_s) / frame_s))):
+        time_s = index * frame_s
+        phase = 2.0 * math.pi * max(time_s - settle_s, 0.0) / period_s
+        chamber_c = middle_c - amplitude_c * math.cos(phase)
+        rows.append((time_s, chamber_c, chamber_c, incl_x_deg, 0.0, time_s))
+    return _write_inputs(path, rows)
