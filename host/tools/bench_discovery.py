@@ -65,11 +65,11 @@ def main() -> int:
     parser.add_argument(
         "--bases", type=Path, default=ROOT / "build" / "bench-discovery", help="where base runs are kept"
     )
-    parser.add_argument("--null-runs", type=int, default=40, help="per noise family and base")
-    parser.add_argument("--effect-runs", type=int, default=50, help="per candidate and SNR")
-    parser.add_argument("--collinear-runs", type=int, default=50, help="per designed pair")
+    parser.add_argument("--null-runs", type=int, help="per noise family and base (default: the design's)")
+    parser.add_argument("--effect-runs", type=int, help="per candidate and SNR (default: the design's)")
+    parser.add_argument("--collinear-runs", type=int, help="per designed pair (default: the design's)")
     parser.add_argument("--kind", action="append", choices=("null", "effect", "collinear"), help="only these runs")
-    parser.add_argument("--base", action="append", help="only the runs on these bases (staircase, cycle, ramp, fig8)")
+    parser.add_argument("--base", action="append", help="only the runs on these bases (staircase, cycle, wave, fig8)")
     parser.add_argument("--report-only", action="store_true", help="only write the tables and figure from the record")
     parser.add_argument("--no-speed", action="store_true", help="skip timing one discovery on a 100 000-row run")
     args = parser.parse_args()
@@ -80,9 +80,10 @@ def main() -> int:
     from thermotilt.discovery import rates
     from thermotilt.discovery.benchmark import cell_summary, default_cells, read_record, run_benchmark
 
+    sizes = {"null_runs": args.null_runs, "effect_runs": args.effect_runs, "collinear_runs": args.collinear_runs}
     cells = [
         cell
-        for cell in default_cells(args.null_runs, args.effect_runs, args.collinear_runs)
+        for cell in default_cells(**{name: runs for name, runs in sizes.items() if runs is not None})
         if (not args.kind or cell.kind in args.kind) and (not args.base or cell.base in args.base)
     ]
     if not args.report_only:
