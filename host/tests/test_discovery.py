@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from child_process import THERMOTILT, run
+from conftest import SCATTER_OFF
 from scipy import stats
 
 from thermotilt.discovery.candidates import BY_NAME
@@ -156,6 +157,21 @@ def test_sensor_lag_and_rate_sensitivity_on_a_slow_wave_are_ambiguous(tmp_path: 
     assert outcome.verdict == "ambiguous"
     assert {"sensor_lag", "rate_sensitivity"} <= set(outcome.ambiguous[0].names)
     assert "ramp" in outcome.ambiguous[0].experiment or "hold" in outcome.ambiguous[0].experiment
+
+
+@pytest.mark.slow
+@pytest.mark.twin
+def test_a_temperature_offset_on_a_short_run_is_ambiguous_with_the_inner_thermistor(tmp_path: Path) -> None:
+    # Figure 8's 342 s cannot show the inner reading's own offset against
+    # the chamber's unknown start; the thermistor's shifts the sensor's
+    # temperature as the sensor's own offset does.
+    made = _cli("simulate", "fig8", *SCATTER_OFF, "--out", str(tmp_path / "fig8"))
+    assert made.returncode == 0, made.stderr
+    hide_effect(tmp_path / "fig8", tmp_path / "hidden", "temperature_offset", seed=1, snr=4.0)
+    outcome = _discover(tmp_path / "hidden" / "run.csv")
+    assert outcome.verdict == "ambiguous"
+    assert set(outcome.ambiguous[0].names) == {"temperature_offset", "thermistor_offset"}
+    assert "from rest" in outcome.ambiguous[0].experiment
 
 
 @pytest.mark.slow

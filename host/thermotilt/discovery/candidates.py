@@ -141,6 +141,12 @@ _EXPERIMENTS: Mapping[frozenset[str], str] = {
         "holds near the room's temperature (small duties) and far from it (large duties): a "
         "dead zone takes the same share off every duty, Joule heating matters at large ones"
     ),
+    frozenset({"temperature_offset", "thermistor_offset"}): (
+        "a long run from rest through large temperature changes with both faces logged "
+        "(`simulate cycle`): the inner reading's own offset then shows against the chamber's "
+        "dynamics, which a temperature offset of the sensor leaves alone; or a reference "
+        "thermometer on the sensor's face"
+    ),
     frozenset({"drive_dead_zone", "heatsink"}): (
         "holds near the room's temperature (small duties) and far from it: a dead zone acts "
         "at small duties, the heatsink where the outer face is far from the room"

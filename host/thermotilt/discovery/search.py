@@ -284,6 +284,17 @@ class UndeclaredFlicker:
         return np.linalg.cholesky(self.covariance(theta, scale))
 
 
+def _probe_step(candidate: Candidate, value: float) -> float:
+    """The candidate's probe from value, turned back where it would leave
+    the parameter's bounds."""
+    low, high = candidate.bounds
+    return candidate.probe if low <= value + candidate.probe <= high else -candidate.probe
+
+
+def _correlation(a: np.ndarray, b: np.ndarray) -> float:
+    return abs(float(a @ b)) / float(np.linalg.norm(a) * np.linalg.norm(b))
+
+
 def _left_by(design: np.ndarray, values: np.ndarray) -> np.ndarray:
     """What a least-squares fit of the design's columns leaves of values."""
     return values - design @ np.linalg.lstsq(design, values, rcond=None)[0]
@@ -474,6 +485,7 @@ class Search:
             if not accepted:
                 break
             best, rivals = self._settled(accepted, channels, regressors)
+            rivals += self._rivals_elsewhere(best, tests, model, base, channels, regressors)
             if rivals:
                 names = tuple(sorted({best.candidate, *rivals}))
                 outcome.ambiguous.append(Ambiguity(names, best.channel, experiment(frozenset(names))))
@@ -514,17 +526,16 @@ class Search:
 
     def _regressors(self, candidate: Candidate, model: Model, base: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
         """Per channel, the replayed effect of one unit of the parameter
-        (rows), from a replay with the parameter moved by `probe`."""
+        (rows), from a replay with the parameter moved by `probe`; on the
+        channels it is not tested on, what the same replay changes there
+        (all of its values moved at once)."""
         channels = [c for c in candidate.channels if c in self.measured.channels]
         if not channels:
             return {}
-        low, high = candidate.bounds
-        steps = {
-            c: candidate.probe if low <= candidate.value(model, c) + candidate.probe <= high else -candidate.probe
-            for c in channels
-        }
+        steps = {c: _probe_step(candidate, candidate.value(model, c)) for c in channels}
         moved = self.predict(candidate.changed(model, {c: candidate.value(model, c) + steps[c] for c in channels}))
-        return {c: (moved[c] - base[c]) / steps[c] for c in channels}
+        step = steps[channels[0]]
+        return {c: (moved[c] - base[c]) / steps.get(c, step) for c in self.measured.channels}
 
     def _tests(
         self,
@@ -540,7 +551,7 @@ class Search:
         tests: list[Test] = []
         for candidate in CANDIDATES:
             for channel_name, regressor_rows in regressors[candidate.name].items():
-                if (candidate.name, channel_name) in done:
+                if channel_name not in candidate.channels or (candidate.name, channel_name) in done:
                     continue
                 test, effect_rows = self._test(candidate, channels[channel_name], regressor_rows, model, base)
                 if effect_rows is not None and not (candidate.additive and candidate.linear):
@@ -661,9 +672,7 @@ class Search:
                 if other.candidate == best.candidate:
                     continue
                 g_other = effect(other)
-                w_other = beyond(g_other)
-                correlation = abs(float(w_best @ w_other)) / float(np.linalg.norm(w_best) * np.linalg.norm(w_other))
-                if correlation >= COLLINEAR:
+                if _correlation(w_best, beyond(g_other)) >= COLLINEAR:
                     rivals.append(other.candidate)
                     continue
                 best_p, other_p = channel.fit(np.column_stack([g_best, g_other])).pvalues
@@ -675,21 +684,86 @@ class Search:
                 return best, rivals
             best = stronger
 
+    def _rivals_elsewhere(
+        self,
+        best: Test,
+        tests: list[Test],
+        model: Model,
+        base: Mapping[str, np.ndarray],
+        channels: Mapping[str, Channel],
+        regressors: Mapping[str, Mapping[str, np.ndarray]],
+    ) -> list[str]:
+        """Candidates tested on other channels that change the best's
+        channel as well. One is a rival when, at the value that explains the
+        best's channel, its change there is collinear with the best's effect
+        (or, fitted together with it, leaves neither significant), the value
+        is within its bounds and no other channel's data (its own included)
+        reject it: an inner thermistor reading warm moves the face the
+        sensor's replay is driven by, so it shifts the sensor's temperature
+        as a temperature offset does, and on a run too short for the inner
+        reading to show its own offset against the chamber's unknown start
+        nothing tells the two apart. The effects are compared as replayed at
+        those values, not per unit: the sensor's temperature is rounded to
+        its register's step, so a shift up and one down differ per unit.
+        Only candidates linear in their parameter, whose value the fit on
+        the best's channel gives."""
+        channel = channels[best.channel]
+
+        def change_at(candidate: Candidate, on: str, value: float) -> np.ndarray:
+            moved = self.predict(candidate.changed(model, {on: value}))[best.channel]
+            return channel.blocks((moved - base[best.channel])[channel.rows])
+
+        g_best = change_at(BY_NAME[best.candidate], best.channel, best.value)
+        w_best = channel.beyond_nuisance(channel.whiten(g_best))
+        rivals = []
+        for test in tests:
+            candidate = BY_NAME[test.candidate]
+            if (
+                not test.testable
+                or test.candidate == best.candidate
+                or best.channel in candidate.channels
+                or not (candidate.additive and candidate.linear)
+                or not np.any(regressors[test.candidate][best.channel])
+            ):
+                continue
+            value = candidate.value(model, test.channel)
+            step = _probe_step(candidate, value)
+            per_unit = change_at(candidate, test.channel, value + step) / step
+            if not np.any(per_unit) or not channel.testable(per_unit):
+                continue
+            rival = replace(test, value=value + float(channel.fit(per_unit[:, None]).params[0]))
+            if not self._within_bounds(rival):
+                continue
+            g_rival = change_at(candidate, test.channel, rival.value)
+            if _correlation(w_best, channel.beyond_nuisance(channel.whiten(g_rival))) < COLLINEAR:
+                if min(channel.fit(np.column_stack([g_best, g_rival])).pvalues) < ALPHA:
+                    continue
+            if not self._contradicted_elsewhere(rival, model, base, channels, agreed=best.channel):
+                rivals.append(test.candidate)
+        return rivals
+
     def _contradicted_elsewhere(
-        self, test: Test, model: Model, base: Mapping[str, np.ndarray], channels: Mapping[str, Channel]
+        self,
+        test: Test,
+        model: Model,
+        base: Mapping[str, np.ndarray],
+        channels: Mapping[str, Channel],
+        agreed: str | None = None,
     ) -> bool:
-        """Another channel's data reject the change the effect makes there
-        (a thermistor offset that the sensor's own temperature contradicts
-        is not the missing effect). Each other channel's residual is fitted
-        on that change with its own whitening, so a change its declared
-        noise could make (a drift slope per mounting) contradicts nothing:
-        contradicted when the data take less than half of the change and
-        reject all of it, one-sided at ALPHA over the channels checked."""
+        """A channel's data other than the one the effect was fitted on
+        (`agreed`, by default the test's own) reject the change the effect
+        makes there (a thermistor offset that the sensor's own temperature
+        contradicts is not the missing effect). Each other channel's
+        residual is fitted on that change with its own whitening, so a change
+        its declared noise could make (a drift slope per mounting)
+        contradicts nothing: contradicted when the data take less than half
+        of the change and reject all of it, one-sided at ALPHA over the
+        channels checked."""
         candidate = BY_NAME[test.candidate]
         predicted = self.predict(candidate.changed(model, {test.channel: test.value}))
         changes = {}
         for name, other in channels.items():
-            if name == test.channel:
+            if name == (agreed or test.channel):
                 continue
             change = other.blocks((predicted[name] - base[name])[other.rows])
             if np.any(change) and other.testable(change):
