@@ -196,12 +196,11 @@ def default_cells(null_runs: int = NULL_RUNS, effect_runs: int = 50, collinear_r
         Cell(COLLINEAR, "sensor_lag", 4.0, "model", "wave", collinear_runs, pair=("rate_sensitivity", "sensor_lag")),
         Cell(
             COLLINEAR,
-            "thermistor_offset",
+            "temperature_offset",
             4.0,
             "model",
             "fig8",
             collinear_runs,
-            channel="inner",
             pair=("temperature_offset", "thermistor_offset"),
         ),
     ]
