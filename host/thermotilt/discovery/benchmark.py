@@ -129,7 +129,7 @@ BASES = {
         Base(
             "staircase", "0..40 degC in 5 degC steps held 40 s at X +30, X -30 and Y +30 deg (inputs only)", _staircase
         ),
-        Base("wave", "a temperature wave 20..30 degC, period 2000 s, 1.5 periods at X +30 deg (inputs only)", _wave),
+        Base("wave", "a temperature wave 15..35 degC, period 2000 s, 1.5 periods at X +30 deg (inputs only)", _wave),
         Base(
             "cycle",
             "the twin's calibration cycle, -10..45 degC (simulate cycle --rest-seconds 60)",
