@@ -125,11 +125,11 @@ def test_the_rates_carry_wilson_intervals_and_say_which_targets_are_missed(tmp_p
     ]
     text = rates.report(rows)
     # 0 of 400: the Wilson upper bound is z^2 / (n + z^2) = 0.95 %.
-    assert "| white | 400 | 0/400 = 0% (0%–1%) | – | 0/400 = 0% (0%–1%) | met |" in text
+    assert "| white | 400 | 0/400 = 0% (0%–1.0%) | – | 0/400 = 0% (0%–1.0%) | met |" in text
     # 40 of 400: 10 %, 7.5-13.3 % (Wilson).
-    assert "| ar1-0.999 | 400 | 40/400 = 10% (7%–13%) | – | 40/400 = 10% (7%–13%) | **missed** |" in text
+    assert "| ar1-0.999 | 400 | 40/400 = 10% (7.4%–13%) | – | 40/400 = 10% (7.4%–13%) | **missed** |" in text
     # Both families: 40 of 800, 5 %, 3.7-6.7 % (Wilson).
-    assert "| all | 800 | 40/800 = 5% (4%–7%) | – | 40/800 = 5% (4%–7%) | **missed** |" in text
+    assert "| all | 800 | 40/800 = 5.0% (3.7%–6.7%) | – | 40/800 = 5.0% (3.7%–6.7%) | **missed** |" in text
     assert "| `hysteresis` | – | – | 49/50 = 98% (90%–100%) | – |" in text
     document = tmp_path / "discovery.md"
     document.write_text(f"before\n{rates.BEGIN}\nold\n{rates.END}\nafter\n")

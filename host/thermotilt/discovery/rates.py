@@ -53,7 +53,12 @@ class Rate:
         if not self.runs:
             return "–"
         low, high = self.interval
-        return f"{self.count}/{self.runs} = {self.share:.0%} ({low:.0%}–{high:.0%})"
+        return f"{self.count}/{self.runs} = {_percent(self.share)} ({_percent(low)}–{_percent(high)})"
+
+
+def _percent(share: float) -> str:
+    """Whole percent, with a decimal below 10 %: 1 run of 200 is 0.5 %, not 0 %."""
+    return f"{share:.1%}" if 0.0 < share < 0.1 else f"{share:.0%}"
 
 
 def rate(rows: list[Row], hit: Callable[[Row], bool]) -> Rate:
