@@ -58,7 +58,7 @@ class Rate:
 
 def _percent(share: float) -> str:
     """Whole percent, with a decimal below 10 %: 1 run of 200 is 0.5 %, not 0 %."""
-    return f"{share:.1%}" if 0.0 < share < 0.1 else f"{share:.0%}"
+    return f"{share:.1%}" if 0.0005 <= share < 0.1 else f"{share:.0%}"
 
 
 def rate(rows: list[Row], hit: Callable[[Row], bool]) -> Rate:
