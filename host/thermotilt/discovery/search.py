@@ -402,6 +402,17 @@ class Channel:
             return whitened
         return _left_by(self.nuisance_w, whitened)
 
+    def joint_p_values(self, first: np.ndarray, second: np.ndarray) -> tuple[float, float]:
+        """The p-values of two effects (block means) fitted together; both 1
+        where their whitened effects beyond the nuisance correlate at
+        COLLINEAR or more, which this run cannot tell apart whatever a fit
+        says."""
+        beyond = [self.beyond_nuisance(self.whiten(g)) for g in (first, second)]
+        if _correlation(*beyond) >= COLLINEAR:
+            return 1.0, 1.0
+        first_p, second_p = self.fit(np.column_stack([first, second])).pvalues
+        return float(first_p), float(second_p)
+
     def testable(self, regressor: np.ndarray) -> bool:
         g = self.whiten(regressor)
         total = float(g @ g)
@@ -659,23 +670,15 @@ class Search:
         def effect(test: Test) -> np.ndarray:
             return channel.blocks(regressors[test.candidate][test.channel][channel.rows])
 
-        def beyond(g: np.ndarray) -> np.ndarray:
-            return channel.beyond_nuisance(channel.whiten(g))
-
         tried = set()
         while True:
             tried.add(best.candidate)
             g_best = effect(best)
-            w_best = beyond(g_best)
             rivals, stronger = [], None
             for other in same:
                 if other.candidate == best.candidate:
                     continue
-                g_other = effect(other)
-                if _correlation(w_best, beyond(g_other)) >= COLLINEAR:
-                    rivals.append(other.candidate)
-                    continue
-                best_p, other_p = channel.fit(np.column_stack([g_best, g_other])).pvalues
+                best_p, other_p = channel.joint_p_values(g_best, effect(other))
                 if best_p >= ALPHA and other_p >= ALPHA:
                     rivals.append(other.candidate)
                 elif best_p >= ALPHA and stronger is None and other.candidate not in tried:
@@ -714,7 +717,6 @@ class Search:
             return channel.blocks((moved - base[best.channel])[channel.rows])
 
         g_best = change_at(BY_NAME[best.candidate], best.channel, best.value)
-        w_best = channel.beyond_nuisance(channel.whiten(g_best))
         rivals = []
         for test in tests:
             candidate = BY_NAME[test.candidate]
@@ -734,10 +736,8 @@ class Search:
             rival = replace(test, value=value + float(channel.fit(per_unit[:, None]).params[0]))
             if not self._within_bounds(rival):
                 continue
-            g_rival = change_at(candidate, test.channel, rival.value)
-            if _correlation(w_best, channel.beyond_nuisance(channel.whiten(g_rival))) < COLLINEAR:
-                if min(channel.fit(np.column_stack([g_best, g_rival])).pvalues) < ALPHA:
-                    continue
+            if min(channel.joint_p_values(g_best, change_at(candidate, test.channel, rival.value))) < ALPHA:
+                continue
             if not self._contradicted_elsewhere(rival, model, base, channels, agreed=best.channel):
                 rivals.append(test.candidate)
         return rivals
