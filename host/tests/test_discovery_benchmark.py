@@ -123,6 +123,24 @@ def test_the_rates_carry_wilson_intervals_and_say_which_targets_are_missed(tmp_p
         )
         for i in range(50)
     ]
+    # At SNR 1, 34 of 50 named right (68 %, below the 70 % target); of the
+    # 16 misses, 10 said none and 6 named another effect.
+    rows += [
+        _row(
+            kind="effect",
+            effect="cross_axis",
+            channel="X",
+            snr="1.0",
+            key=f"c{i}",
+            verdict="found" if i < 34 or i >= 44 else "none",
+            named="cross_axis" if i < 34 else "hysteresis" if i >= 44 else "",
+            named_channel="X" if i < 34 or i >= 44 else "",
+            low="-1",
+            high="1",
+            truth="2" if i < 17 else "0",
+        )
+        for i in range(50)
+    ]
     text = rates.report(rows)
     # 0 of 400: the Wilson upper bound is z^2 / (n + z^2) = 0.95 %.
     assert "| white | 400 | 0/400 = 0% (0%–1.0%) | – | 0/400 = 0% (0%–1.0%) | met |" in text
@@ -130,12 +148,29 @@ def test_the_rates_carry_wilson_intervals_and_say_which_targets_are_missed(tmp_p
     assert "| ar1-0.999 | 400 | 40/400 = 10% (7.4%–13%) | – | 40/400 = 10% (7.4%–13%) | **missed** |" in text
     # Both families: 40 of 800, 5 %, 3.7-6.7 % (Wilson).
     assert "| all | 800 | 40/800 = 5.0% (3.7%–6.7%) | – | 40/800 = 5.0% (3.7%–6.7%) | **missed** |" in text
-    assert "| `hysteresis` | – | – | 49/50 = 98% (90%–100%) | – |" in text
+    assert "| `hysteresis` | – | – | 49/50 = 98% (90%–100%) | – | 0 | 49/49 = 100% (93%–100%) |" in text
+    # 17 of the 34 named right have their truth outside the interval.
+    assert "| `cross_axis` | – | **34/50 = 68% (54%–79%)** | – | – | 0 | 17/34 = 50% (34%–66%) |" in text
+    assert "Cells at their target: 1 of 2." in text
+    assert "| candidate | none | another effect | the effect on another channel |" in text
+    assert "| `hysteresis` | 0 | 0 | 1 |" in text and "| `cross_axis` | 10 | 6 | 0 |" in text
+    assert "The whole design's cost is not known: no collinear on fig8, collinear on wave, effect on cycle" in text
     document = tmp_path / "discovery.md"
     document.write_text(f"before\n{rates.BEGIN}\nold\n{rates.END}\nafter\n")
     rates.write_into(document, text)
     written = document.read_text()
-    assert written.startswith("before\n") and written.endswith("after\n") and "old" not in written
+    assert written.startswith("before\n") and written.endswith("after\n") and "\nold\n" not in written
     assert "49/50" in written
     rates.figure(rows, tmp_path / "rates.png")
     assert (tmp_path / "rates.png").stat().st_size > 10_000
+
+
+def test_the_whole_designs_cost_comes_from_the_mean_run_of_each_kind_and_base():
+    cells = default_cells()
+    # A second of CPU a run on every base but the cycle's, where runs take
+    # 1 s and 3 s: the cycle's cells cost 2 s a run.
+    rows = [_row(kind=c.kind, base=c.base, snr=str(c.snr or ""), seconds="1.0") for c in cells]
+    rows += [_row(kind=c.kind, base=c.base, snr=str(c.snr or ""), seconds="3.0") for c in cells if c.base == "cycle"]
+    runs = sum(c.runs for c in cells)
+    cpu_hours = sum(c.runs * (2.0 if c.base == "cycle" else 1.0) for c in cells) / 3600
+    assert f"The whole design, {runs} runs, takes {cpu_hours:.1f} CPU hours" in rates.report(rows)

@@ -5,6 +5,7 @@ here is computed from the record's rows; nothing is typed in."""
 
 from __future__ import annotations
 
+import os
 import re
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -13,7 +14,18 @@ from pathlib import Path
 import numpy as np
 from statsmodels.stats.proportion import proportion_confint
 
-from .benchmark import AMBIGUOUS, COLLINEAR, EFFECT, FOUND, NONE, NOT_TESTABLE, NULL, SNRS, named_right
+from .benchmark import (
+    AMBIGUOUS,
+    COLLINEAR,
+    EFFECT,
+    FOUND,
+    NONE,
+    NOT_TESTABLE,
+    NULL,
+    SNRS,
+    default_cells,
+    named_right,
+)
 from .candidates import CANDIDATES
 from .noise_families import NOISE_FAMILIES
 from .replay import CHAMBER_CHANNELS
@@ -27,6 +39,8 @@ MIN_RIGHT_AT_2 = 0.95
 MIN_RIGHT_AT_1 = 0.70
 MIN_AMBIGUOUS = 0.90
 COVERAGE_RANGE = (0.90, 0.98)
+ANOTHER_EFFECT = "another effect"
+ANOTHER_CHANNEL = "the effect on another channel"
 BEGIN = "<!-- bench-discovery: make bench-discovery writes from here on, from docs/benchmarks/discovery-runs.csv -->"
 END = "<!-- /bench-discovery -->"
 
@@ -74,6 +88,18 @@ def _pair_ambiguous(row: Row) -> bool:
     return row["verdict"] == AMBIGUOUS and any(pair <= set(group.split("+")) for group in row["ambiguous"].split(";"))
 
 
+def _right_target(snr: float) -> float | None:
+    """The share of runs a cell at this SNR should name right, if any."""
+    return MIN_RIGHT_AT_2 if snr >= 2.0 else MIN_RIGHT_AT_1 if snr >= 1.0 else None
+
+
+def _missed_by(row: Row) -> str:
+    """What a run that did not name its hidden effect said instead."""
+    if row["verdict"] == FOUND:
+        return ANOTHER_EFFECT if row["named"] != row["effect"] else ANOTHER_CHANNEL
+    return row["verdict"]
+
+
 def _met(measured: Rate, ok: bool) -> str:
     if not measured.runs:
         return "–"
@@ -112,24 +138,53 @@ def report(rows: list[Row]) -> str:
         lines += [
             "",
             "**Hidden effects**: the share of runs whose first effect found is the hidden one (on its channel), "
-            "with the model's noise.",
+            f"with the model's noise; in bold a cell below its target ({MIN_RIGHT_AT_1:.0%} at SNR 1, "
+            f"{MIN_RIGHT_AT_2:.0%} at SNR 2 and 4). Covered: the true value inside the reported 95 % interval, "
+            "of the candidate's runs named right.",
             "",
-            "| candidate | " + " | ".join(f"SNR {snr:g}" for snr in SNRS) + " | not testable |",
-            "|---|" + "---|" * (len(SNRS) + 1),
+            "| candidate | " + " | ".join(f"SNR {snr:g}" for snr in SNRS) + " | not testable | covered |",
+            "|---|" + "---|" * (len(SNRS) + 2),
         ]
+        short = targeted = 0
         for candidate in CANDIDATES:
             mine = [r for r in effect if r["effect"] == candidate.name]
             if not mine:
                 continue
-            cells = [str(rate([r for r in mine if float(r["snr"]) == snr], named_right)) for snr in SNRS]
+            cells = []
+            for snr in SNRS:
+                measured = rate([r for r in mine if float(r["snr"]) == snr], named_right)
+                target = _right_target(snr)
+                missed = target is not None and measured.runs > 0 and measured.share < target
+                targeted += target is not None and measured.runs > 0
+                short += missed
+                cells.append(f"**{measured}**" if missed else str(measured))
             untestable = sum(r["verdict"] == NOT_TESTABLE for r in mine)
-            lines.append(f"| `{candidate.name}` | " + " | ".join(cells) + f" | {untestable} |")
+            covered = rate([r for r in mine if named_right(r)], _covered)
+            lines.append(f"| `{candidate.name}` | " + " | ".join(cells) + f" | {untestable} | {covered} |")
         at_2 = rate([r for r in effect if float(r["snr"]) >= 2.0], named_right)
         at_1 = rate([r for r in effect if float(r["snr"]) == 1.0], named_right)
         lines += [
             f"| all | at SNR ≥ 2: {at_2} | target ≥ {MIN_RIGHT_AT_2:.0%}: {_met(at_2, at_2.share >= MIN_RIGHT_AT_2)} | "
-            f"at SNR 1: {at_1} | target ≥ {MIN_RIGHT_AT_1:.0%}: {_met(at_1, at_1.share >= MIN_RIGHT_AT_1)} | |",
+            f"at SNR 1: {at_1} | target ≥ {MIN_RIGHT_AT_1:.0%}: {_met(at_1, at_1.share >= MIN_RIGHT_AT_1)} | | |",
+            "",
+            f"Cells at their target: {targeted - short} of {targeted}.",
         ]
+        missed_rows = [r for r in effect if float(r["snr"]) >= 1.0 and not named_right(r)]
+        if missed_rows:
+            answers = {_missed_by(r) for r in missed_rows}
+            said = [a for a in (NONE, AMBIGUOUS, NOT_TESTABLE, ANOTHER_EFFECT, ANOTHER_CHANNEL) if a in answers]
+            lines += [
+                "",
+                "What the runs at SNR ≥ 1 that missed their effect said instead:",
+                "",
+                "| candidate | " + " | ".join(said) + " |",
+                "|---|" + "---|" * len(said),
+            ]
+            for candidate in CANDIDATES:
+                mine = [r for r in missed_rows if r["effect"] == candidate.name]
+                if mine:
+                    counts = [sum(_missed_by(r) == answer for r in mine) for answer in said]
+                    lines.append(f"| `{candidate.name}` | " + " | ".join(map(str, counts)) + " |")
     if collinear:
         lines += [
             "",
@@ -176,9 +231,28 @@ def report(rows: list[Row]) -> str:
             "",
             f"Cost: {seconds.sum() / 3600:.1f} CPU hours in all; a run (hiding and discovery) takes a median of "
             + ", ".join(f"{value:.1f} s on {base}" for base, value in by_base.items())
-            + ".",
+            + f". {_design_cost(rows)}",
         ]
     return "\n".join(lines) + "\n"
+
+
+def _design_cost(rows: list[Row]) -> str:
+    """The whole default design's CPU time at the record's mean seconds per
+    kind and base (a run's cost depends on both: an effect found means
+    another round of replays)."""
+    mean: dict[tuple[str, str], float] = {}
+    for key in dict.fromkeys((r["kind"], r["base"]) for r in rows):
+        mean[key] = float(np.mean([float(r["seconds"]) for r in rows if (r["kind"], r["base"]) == key]))
+    cells = default_cells()
+    unknown = sorted({f"{c.kind} on {c.base}" for c in cells if (c.kind, c.base) not in mean})
+    if unknown:
+        return f"The whole design's cost is not known: no {', '.join(unknown)} runs in the record."
+    cpu_s = sum(c.runs * mean[c.kind, c.base] for c in cells)
+    cores = os.cpu_count() or 1
+    return (
+        f"The whole design, {sum(c.runs for c in cells)} runs, takes {cpu_s / 3600:.1f} CPU hours at the record's "
+        f"mean per kind and base: {cpu_s / 3600 / cores:.1f} h on the {cores} cores of the machine that wrote this."
+    )
 
 
 def figure(rows: list[Row], path: Path) -> None:
