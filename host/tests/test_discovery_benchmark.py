@@ -117,6 +117,7 @@ def test_the_rates_carry_wilson_intervals_and_say_which_targets_are_missed(tmp_p
             verdict="found",
             named="hysteresis",
             named_channel="X" if i < 49 else "Y",
+            value="0",
             low="-1",
             high="1",
             truth="0.5",
@@ -135,6 +136,7 @@ def test_the_rates_carry_wilson_intervals_and_say_which_targets_are_missed(tmp_p
             verdict="found" if i < 34 or i >= 44 else "none",
             named="cross_axis" if i < 34 else "hysteresis" if i >= 44 else "",
             named_channel="X" if i < 34 or i >= 44 else "",
+            value="0",
             low="-1",
             high="1",
             truth="2" if i < 17 else "0",
@@ -148,9 +150,11 @@ def test_the_rates_carry_wilson_intervals_and_say_which_targets_are_missed(tmp_p
     assert "| ar1-0.999 | 400 | 40/400 = 10% (7.4%–13%) | – | 40/400 = 10% (7.4%–13%) | **missed** |" in text
     # Both families: 40 of 800, 5 %, 3.7-6.7 % (Wilson).
     assert "| all | 800 | 40/800 = 5.0% (3.7%–6.7%) | – | 40/800 = 5.0% (3.7%–6.7%) | **missed** |" in text
-    assert "| `hysteresis` | – | – | 49/50 = 98% (90%–100%) | – | 0 | 49/49 = 100% (93%–100%) |" in text
-    # 17 of the 34 named right have their truth outside the interval.
-    assert "| `cross_axis` | – | **34/50 = 68% (54%–79%)** | – | – | 0 | 17/34 = 50% (34%–66%) |" in text
+    # Interval -1..1 (SE 1/1.96) about 0 with the truth at 0.5: 0.98 SE low each.
+    assert "| `hysteresis` | – | – | 49/50 = 98% (90%–100%) | – | 0 | 49/49 = 100% (93%–100%) | -0.98 ± 0.00 |" in text
+    # 17 of the 34 named right have their truth outside the interval
+    # (truth 2: 3.92 SE low), 17 inside (truth 0): mean -1.96, SD 1.99.
+    assert "| `cross_axis` | – | **34/50 = 68% (54%–79%)** | – | – | 0 | 17/34 = 50% (34%–66%) | -1.96 ± 1.99 |" in text
     assert "Cells at their target: 1 of 2." in text
     assert "| candidate | none | another effect | the effect on another channel |" in text
     assert "| `hysteresis` | 0 | 0 | 1 |" in text and "| `cross_axis` | 10 | 6 | 0 |" in text

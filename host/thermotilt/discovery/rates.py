@@ -83,6 +83,20 @@ def _covered(row: Row) -> bool:
     return float(row["low"]) <= float(row["truth"]) <= float(row["high"])
 
 
+def _error_in_standard_errors(rows: list[Row]) -> str:
+    """Mean and spread of (value - truth) / SE over runs named right, the SE
+    read back from the 95 % interval (search.py's are +-1.96 SE): intervals
+    of the right width give a spread of 1 about a mean of 0."""
+    errors = []
+    for row in rows:
+        standard_error = (float(row["high"]) - float(row["low"])) / (2.0 * 1.96)
+        if standard_error > 0.0:
+            errors.append((float(row["value"]) - float(row["truth"])) / standard_error)
+    if len(errors) < 2:
+        return "–"
+    return f"{np.mean(errors):+.2f} ± {np.std(errors, ddof=1):.2f}"
+
+
 def _pair_ambiguous(row: Row) -> bool:
     pair = set(row["expected_pair"].split("+"))
     return row["verdict"] == AMBIGUOUS and any(pair <= set(group.split("+")) for group in row["ambiguous"].split(";"))
@@ -140,10 +154,12 @@ def report(rows: list[Row]) -> str:
             "**Hidden effects**: the share of runs whose first effect found is the hidden one (on its channel), "
             f"with the model's noise; in bold a cell below its target ({MIN_RIGHT_AT_1:.0%} at SNR 1, "
             f"{MIN_RIGHT_AT_2:.0%} at SNR 2 and 4). Covered: the true value inside the reported 95 % interval, "
-            "of the candidate's runs named right.",
+            "of the candidate's runs named right; value − truth: its mean ± SD in standard errors.",
             "",
-            "| candidate | " + " | ".join(f"SNR {snr:g}" for snr in SNRS) + " | not testable | covered |",
-            "|---|" + "---|" * (len(SNRS) + 2),
+            "| candidate | "
+            + " | ".join(f"SNR {snr:g}" for snr in SNRS)
+            + " | not testable | covered | value − truth |",
+            "|---|" + "---|" * (len(SNRS) + 3),
         ]
         short = targeted = 0
         for candidate in CANDIDATES:
@@ -159,13 +175,18 @@ def report(rows: list[Row]) -> str:
                 short += missed
                 cells.append(f"**{measured}**" if missed else str(measured))
             untestable = sum(r["verdict"] == NOT_TESTABLE for r in mine)
-            covered = rate([r for r in mine if named_right(r)], _covered)
-            lines.append(f"| `{candidate.name}` | " + " | ".join(cells) + f" | {untestable} | {covered} |")
+            right = [r for r in mine if named_right(r)]
+            covered = rate(right, _covered)
+            lines.append(
+                f"| `{candidate.name}` | "
+                + " | ".join(cells)
+                + f" | {untestable} | {covered} | {_error_in_standard_errors(right)} |"
+            )
         at_2 = rate([r for r in effect if float(r["snr"]) >= 2.0], named_right)
         at_1 = rate([r for r in effect if float(r["snr"]) == 1.0], named_right)
         lines += [
             f"| all | at SNR ≥ 2: {at_2} | target ≥ {MIN_RIGHT_AT_2:.0%}: {_met(at_2, at_2.share >= MIN_RIGHT_AT_2)} | "
-            f"at SNR 1: {at_1} | target ≥ {MIN_RIGHT_AT_1:.0%}: {_met(at_1, at_1.share >= MIN_RIGHT_AT_1)} | | |",
+            f"at SNR 1: {at_1} | target ≥ {MIN_RIGHT_AT_1:.0%}: {_met(at_1, at_1.share >= MIN_RIGHT_AT_1)} | | | |",
             "",
             f"Cells at their target: {targeted - short} of {targeted}.",
         ]
