@@ -10,13 +10,22 @@
 namespace {
 
 bool validArguments(size_t count, const void* accel, const void* temperature, unsigned decimation, float hysteresisC,
-                    const float* filtered, const float* temperatureC, const uint8_t* set, const float* compensated,
-                    const uint8_t* frameDue)
+                    const size_t* at, size_t atCount, const float* filtered, const float* temperatureC,
+                    const uint8_t* set, const float* compensated, const uint8_t* frameDue)
 {
     if (decimation < 1 || decimation > 255 || !isfinite(hysteresisC)) {
         return false;
     }
-    return count == 0 || (accel && temperature && filtered && temperatureC && set && compensated && frameDue);
+    if (at) {
+        for (size_t k = 0; k < atCount; ++k) {
+            if (at[k] >= count || (k > 0 && at[k] < at[k - 1])) {
+                return false;
+            }
+        }
+    }
+    size_t written = at ? atCount : count;
+    return (count == 0 || (accel && temperature)) &&
+           (written == 0 || (filtered && temperatureC && set && compensated && frameDue));
 }
 
 void loadCoefficients(const float* values, Coefficients& out)
@@ -35,30 +44,40 @@ void loadCoefficients(const float* values, Coefficients& out)
 }
 
 // Runs the series; Update(processing, i, coefficients, out) feeds sample i.
+// Outputs go to row k for sample at[k] (every sample when at is NULL), so a
+// caller that keeps a few samples neither compensates nor copies the others.
 template <typename Update>
 int run(size_t count, const uint8_t* reset, unsigned decimation, float hysteresisC, const float* coefficientValues,
-        float* filtered, float* temperatureC, uint8_t* set, float* compensated, uint8_t* frameDue, Update update)
+        const size_t* at, size_t atCount, float* filtered, float* temperatureC, uint8_t* set, float* compensated,
+        uint8_t* frameDue, Update update)
 {
     Coefficients coefficients;
     loadCoefficients(coefficientValues, coefficients);
     ImuProcessing processing((uint8_t)decimation, hysteresisC);
+    size_t row = 0;
     for (size_t i = 0; i < count; ++i) {
         if (reset && reset[i]) {
             processing.reset();
         }
         ImuOutput out;
         bool due = update(processing, i, coefficients, out);
+        if (at && (row == atCount || at[row] != i)) {
+            continue;
+        }
         if (!due) {
             processing.readFiltered(out);
             ImuProcessing::compensate(coefficients, out);
         }
-        for (uint8_t axis = 0; axis < IMU_AXES; ++axis) {
-            filtered[IMU_AXES * i + axis] = out.filtered[axis];
-            compensated[IMU_AXES * i + axis] = out.compensated[axis];
-        }
-        temperatureC[i] = out.temperatureC;
-        set[i] = (uint8_t)out.set;
-        frameDue[i] = due ? 1 : 0;
+        do {
+            for (uint8_t axis = 0; axis < IMU_AXES; ++axis) {
+                filtered[IMU_AXES * row + axis] = out.filtered[axis];
+                compensated[IMU_AXES * row + axis] = out.compensated[axis];
+            }
+            temperatureC[row] = out.temperatureC;
+            set[row] = (uint8_t)out.set;
+            frameDue[row] = due ? 1 : 0;
+            ++row;
+        } while (at && row < atCount && at[row] == i);
     }
     return 0;
 }
@@ -72,30 +91,31 @@ extern "C" int thermotilt_host_abi_version(void)
 
 extern "C" int thermotilt_imu_process(size_t count, const int16_t* accel, const int16_t* temperatureRaw,
                                       const uint8_t* reset, unsigned decimation, float hysteresisC,
-                                      const float* coefficients, float* filtered, float* temperatureC, uint8_t* set,
-                                      float* compensated, uint8_t* frameDue)
+                                      const float* coefficients, const size_t* at, size_t atCount, float* filtered,
+                                      float* temperatureC, uint8_t* set, float* compensated, uint8_t* frameDue)
 {
-    if (!validArguments(count, accel, temperatureRaw, decimation, hysteresisC, filtered, temperatureC, set, compensated,
-                        frameDue)) {
+    if (!validArguments(count, accel, temperatureRaw, decimation, hysteresisC, at, atCount, filtered, temperatureC, set,
+                        compensated, frameDue)) {
         return THERMOTILT_HOST_BAD_ARGUMENT;
     }
-    return run(count, reset, decimation, hysteresisC, coefficients, filtered, temperatureC, set, compensated, frameDue,
-               [&](ImuProcessing& processing, size_t i, const Coefficients& c, ImuOutput& out) {
+    return run(count, reset, decimation, hysteresisC, coefficients, at, atCount, filtered, temperatureC, set,
+               compensated, frameDue, [&](ImuProcessing& processing, size_t i, const Coefficients& c, ImuOutput& out) {
                    return processing.update(accel + IMU_AXES * i, temperatureRaw[i], c, out);
                });
 }
 
 extern "C" int thermotilt_imu_process_unrounded(size_t count, const float* accel, const float* temperatureCIn,
                                                 const uint8_t* reset, unsigned decimation, float hysteresisC,
-                                                const float* coefficients, float* filtered, float* temperatureC,
-                                                uint8_t* set, float* compensated, uint8_t* frameDue)
+                                                const float* coefficients, const size_t* at, size_t atCount,
+                                                float* filtered, float* temperatureC, uint8_t* set, float* compensated,
+                                                uint8_t* frameDue)
 {
-    if (!validArguments(count, accel, temperatureCIn, decimation, hysteresisC, filtered, temperatureC, set, compensated,
-                        frameDue)) {
+    if (!validArguments(count, accel, temperatureCIn, decimation, hysteresisC, at, atCount, filtered, temperatureC, set,
+                        compensated, frameDue)) {
         return THERMOTILT_HOST_BAD_ARGUMENT;
     }
-    return run(count, reset, decimation, hysteresisC, coefficients, filtered, temperatureC, set, compensated, frameDue,
-               [&](ImuProcessing& processing, size_t i, const Coefficients& c, ImuOutput& out) {
+    return run(count, reset, decimation, hysteresisC, coefficients, at, atCount, filtered, temperatureC, set,
+               compensated, frameDue, [&](ImuProcessing& processing, size_t i, const Coefficients& c, ImuOutput& out) {
                    return processing.updateUnrounded(accel + IMU_AXES * i, temperatureCIn[i], c, out);
                });
 }

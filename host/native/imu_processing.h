@@ -16,9 +16,12 @@
  * p01, p20, p11, p02), or NULL for the firmware's defaults. compensated is
  * written for every sample with the set in force then; the firmware computes
  * it only where frame_due[i] is 1, with the same function and inputs.
- * set[i]: 0 warming, 1 cooling. Returns 0, or THERMOTILT_HOST_BAD_ARGUMENT
+ * set[i]: 0 warming, 1 cooling. at: NULL, or at_count sample indices in
+ * order (repeats allowed); then only those samples are written, sample at[k]
+ * to output row k (the outputs hold at_count rows), every sample still
+ * processed. Returns 0, or THERMOTILT_HOST_BAD_ARGUMENT
  * (a NULL array with count > 0, decimation outside 1..255, hysteresis not
- * finite) and writes nothing then. */
+ * finite, at out of order or beyond count) and writes nothing then. */
 #ifndef THERMOTILT_HOST_IMU_PROCESSING_H
 #define THERMOTILT_HOST_IMU_PROCESSING_H
 
@@ -29,7 +32,7 @@
 extern "C" {
 #endif
 
-#define THERMOTILT_HOST_ABI_VERSION 4
+#define THERMOTILT_HOST_ABI_VERSION 5
 #define THERMOTILT_HOST_BAD_ARGUMENT (-1)
 
 int thermotilt_host_abi_version(void);
@@ -37,8 +40,9 @@ int thermotilt_host_abi_version(void);
 /* The firmware's path: raw LSB as the LSM9DS0's registers hold them and
  * OUT_TEMP_XM raw (8 LSB/degC; the firmware adds 21 degC). */
 int thermotilt_imu_process(size_t count, const int16_t *accel, const int16_t *temperature_raw, const uint8_t *reset,
-                           unsigned decimation, float hysteresis_c, const float *coefficients, float *filtered,
-                           float *temperature_c, uint8_t *set, float *compensated, uint8_t *frame_due);
+                           unsigned decimation, float hysteresis_c, const float *coefficients, const size_t *at,
+                           size_t at_count, float *filtered, float *temperature_c, uint8_t *set, float *compensated,
+                           uint8_t *frame_due);
 
 /* The same processing from unquantised inputs: acceleration in LSB and the
  * sensor's temperature in degC (what temperatureRawToC would give, before
@@ -46,8 +50,8 @@ int thermotilt_imu_process(size_t count, const int16_t *accel, const int16_t *te
  * gives exactly what thermotilt_imu_process gives. */
 int thermotilt_imu_process_unrounded(size_t count, const float *accel, const float *temperature_c_in,
                                      const uint8_t *reset, unsigned decimation, float hysteresis_c,
-                                     const float *coefficients, float *filtered, float *temperature_c, uint8_t *set,
-                                     float *compensated, uint8_t *frame_due);
+                                     const float *coefficients, const size_t *at, size_t at_count, float *filtered,
+                                     float *temperature_c, uint8_t *set, float *compensated, uint8_t *frame_due);
 
 #ifdef __cplusplus
 }

@@ -295,6 +295,24 @@ def test_unrounded_takes_fractions():
 
 
 @pytest.mark.twin
+def test_outputs_at_chosen_samples_are_those_of_the_whole_series():
+    """at: only those samples' outputs (a repeat twice), every sample still
+    processed, so each row is the whole series' at its sample."""
+    samples = synthetic_samples(6000, seed=3)
+    columns = samples[:, 0], samples[:, 1], samples[:, 2], samples[:, 3]
+    reset = np.zeros(6000, dtype=bool)
+    reset[[0, 2500]] = True
+    at = np.array([0, 7, 7, 2499, 2500, 2501, 5999])
+    whole = native.imu_process(*columns, reset)
+    chosen = native.imu_process(*columns, reset, at=at)
+    unrounded = native.imu_process_unrounded(*columns[:3], samples[:, 3] / 8.0 + 21.0, reset, at=at)
+    for name in native.OUTPUTS:
+        np.testing.assert_array_equal(chosen[name], whole[name][at], err_msg=name)
+        np.testing.assert_array_equal(unrounded[name], whole[name][at], err_msg=name)
+    assert all(native.imu_process(*columns, at=[])[name].size == 0 for name in native.OUTPUTS)
+
+
+@pytest.mark.twin
 def test_empty_series():
     result = native.imu_process([], [], [], [])
     assert all(result[name].size == 0 for name in native.OUTPUTS)
@@ -313,6 +331,9 @@ def test_empty_series():
         (lambda: native.imu_process([0], [0], [0], [0], coefficients=[0.0] * 35), "need 36 coefficients"),
         (lambda: native.imu_process_unrounded([math.inf], [0], [0], [0]), "ax must be finite"),
         (lambda: native.imu_process_unrounded([[0.0]], [0], [0], [0]), "ax must be a one-dimensional series"),
+        (lambda: native.imu_process([0, 0], [0, 0], [0, 0], [0, 0], at=[1, 0]), r"at must hold sample indices 0\.\.1"),
+        (lambda: native.imu_process([0], [0], [0], [0], at=[1]), r"at must hold sample indices 0\.\.0 in order"),
+        (lambda: native.imu_process([0], [0], [0], [0], at=[0.0]), "at must hold sample indices, not float64"),
     ],
 )
 def test_bad_input_is_one_readable_error(call, message):

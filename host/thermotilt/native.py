@@ -19,7 +19,8 @@ modelled). To replay a firmware run, start the series at the first sample
 the firmware kept: once it has found the sensor it drops 40 ms of samples
 (TEMPERATURE_SETTLE_MS in firmware/imu_reader/main.cpp) before filtering any.
 
-Both functions return a dict of numpy arrays, one value per sample; the
+Both functions return a dict of numpy arrays, one value per sample (or per
+sample `at` chooses: the discovery replay keeps only its rows); the
 names follow run.csv (docs/run-log.md), which has them for the frame rows:
 
 - ``ax_filt``, ``ay_filt``, ``az_filt`` (float32, LSB): Kalman-filtered;
@@ -70,7 +71,7 @@ COEFFICIENT_COUNT = 36
 DECIMATION_RANGE = range(1, 256)  # SETDEC's
 OUTPUTS = ("ax_filt", "ay_filt", "az_filt", "temp_c", "set", "ax_comp", "ay_comp", "az_comp", "frame_due")
 
-_ABI_VERSION = 4  # THERMOTILT_HOST_ABI_VERSION
+_ABI_VERSION = 5  # THERMOTILT_HOST_ABI_VERSION
 _OK = 0
 
 
@@ -98,6 +99,8 @@ def _load_library(path: Path) -> ctypes.CDLL:
         ctypes.c_uint,
         single,
         pointer,
+        pointer,
+        size,
         pointer,
         pointer,
         pointer,
@@ -192,6 +195,18 @@ def _flags(values: Any, count: int) -> np.ndarray:
     return np.ascontiguousarray(array != 0, dtype=np.uint8)
 
 
+def _samples_at(at: Any, count: int) -> np.ndarray | None:
+    """at as size_t sample indices in order, or None for every sample."""
+    if at is None:
+        return None
+    array = _series(at, "at")
+    if array.size and array.dtype.kind not in "iu":
+        raise ValueError(f"at must hold sample indices, not {array.dtype}")
+    if array.size and (array.min() < 0 or array.max() >= count or np.any(np.diff(array) < 0)):
+        raise ValueError(f"at must hold sample indices 0..{count - 1} in order")
+    return np.ascontiguousarray(array, dtype=np.uintp)
+
+
 def _coefficients(coefficients: CoefficientTable | Iterable[float] | None) -> np.ndarray | None:
     """36 float32 in block order, as the firmware holds them; None: its defaults."""
     if coefficients is None:
@@ -226,6 +241,7 @@ def _run(
     decimation: int,
     hysteresis_c: float,
     coefficients: Any,
+    at: Any,
 ) -> dict[str, np.ndarray]:
     count = temperature.size
     for name, axis in zip(("ax", "ay", "az"), axes, strict=True):
@@ -234,13 +250,15 @@ def _run(
     factor, hysteresis = _settings(decimation, hysteresis_c)
     flags = _flags(reset, count)
     table = _coefficients(coefficients)
+    samples = _samples_at(at, count)
+    rows = count if samples is None else samples.size
     loaded = library()
     accel = np.ascontiguousarray(np.stack(axes, axis=1))
-    filtered = np.zeros((count, 3), np.float32)
-    compensated = np.zeros((count, 3), np.float32)
-    temperature_c = np.zeros(count, np.float32)
-    sets = np.zeros(count, np.uint8)
-    due = np.zeros(count, np.uint8)
+    filtered = np.zeros((rows, 3), np.float32)
+    compensated = np.zeros((rows, 3), np.float32)
+    temperature_c = np.zeros(rows, np.float32)
+    sets = np.zeros(rows, np.uint8)
+    due = np.zeros(rows, np.uint8)
 
     def address(array: np.ndarray | None) -> int | None:
         return None if array is None else array.ctypes.data
@@ -253,6 +271,8 @@ def _run(
         factor,
         hysteresis,
         address(table),
+        address(samples),
+        rows,
         address(filtered),
         address(temperature_c),
         address(sets),
@@ -283,6 +303,7 @@ def imu_process(
     decimation: int = DEFAULT_DECIMATION,
     hysteresis_c: float = DEFAULT_HYSTERESIS_C,
     coefficients: CoefficientTable | Iterable[float] | None = None,
+    at: Any = None,
 ) -> dict[str, np.ndarray]:
     """The firmware's processing of a series of 100 Hz samples as the LSM9DS0
     gives them: ax, ay, az raw LSB (int16) and temperature_raw OUT_TEMP_XM
@@ -292,10 +313,11 @@ def imu_process(
     36 numbers in block order (set W, C x axis X, Y, Z x p00, p10, p01, p20,
     p11, p02), rounded to float32 as the firmware holds them; None for the
     firmware's defaults (the paper's, Z uncorrected). Returns the arrays the
-    module docstring lists."""
+    module docstring lists, for every sample or, given at (sample indices in
+    order), for those samples only."""
     temperature = _integers(temperature_raw, TEMPERATURE_RAW_RANGE, "temperature_raw")
     axes = tuple(_integers(values, INT16_RANGE, name) for name, values in (("ax", ax), ("ay", ay), ("az", az)))
-    return _run("thermotilt_imu_process", axes, temperature, reset, decimation, hysteresis_c, coefficients)
+    return _run("thermotilt_imu_process", axes, temperature, reset, decimation, hysteresis_c, coefficients, at)
 
 
 def imu_process_unrounded(
@@ -307,6 +329,7 @@ def imu_process_unrounded(
     decimation: int = DEFAULT_DECIMATION,
     hysteresis_c: float = DEFAULT_HYSTERESIS_C,
     coefficients: CoefficientTable | Iterable[float] | None = None,
+    at: Any = None,
 ) -> dict[str, np.ndarray]:
     """imu_process from inputs the sensor never quantised, e.g. a model's
     predictions: ax, ay, az in LSB and temperature_c the sensor's temperature
@@ -320,7 +343,9 @@ def imu_process_unrounded(
     imu_process returns."""
     temperature = _floats(temperature_c, "temperature_c")
     axes = tuple(_floats(values, name) for name, values in (("ax", ax), ("ay", ay), ("az", az)))
-    return _run("thermotilt_imu_process_unrounded", axes, temperature, reset, decimation, hysteresis_c, coefficients)
+    return _run(
+        "thermotilt_imu_process_unrounded", axes, temperature, reset, decimation, hysteresis_c, coefficients, at
+    )
 
 
 DRIVE_OFF, DRIVE_HEAT, DRIVE_COOL = 0, 1, 2  # lib/ChamberControl's Direction

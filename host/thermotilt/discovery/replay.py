@@ -353,8 +353,10 @@ def _sensor_replay(measured: Measured, model: Model, grid: SampleGrid) -> dict[s
     # The register's 1/8 degC steps are part of the model, not noise: at a
     # hold they put the firmware's temperature on a step for good.
     temperature_c = registered_temperature_c(model, samples[0])
-    filtered = native.imu_process_unrounded(samples[1], samples[2], samples[3], temperature_c, grid.reset)
-    return {channel: filtered[output][grid.row_index].astype(float) for channel, output in FIRMWARE_OUTPUTS.items()}
+    filtered = native.imu_process_unrounded(
+        samples[1], samples[2], samples[3], temperature_c, grid.reset, at=grid.row_index
+    )
+    return {channel: filtered[output].astype(float) for channel, output in FIRMWARE_OUTPUTS.items()}
 
 
 def _sensor_key(model: Model) -> str:
@@ -445,17 +447,18 @@ class Replay:
             )
         )
         if self._chamber_wanted:
-            predicted.update(
-                _PARTS.get(("chamber", self._inputs, _chamber_key(model)), lambda: chamber_replay(self.measured, model))
-            )
+            predicted.update(self._chamber(model))
         return predicted
+
+    def _chamber(self, model: Model) -> dict[str, np.ndarray]:
+        return _PARTS.get(("chamber", self._inputs, _chamber_key(model)), lambda: chamber_replay(self.measured, model))
 
     def chamber_start_response(self, model: Model) -> dict[str, np.ndarray]:
         """Per chamber channel, how its replay moves for 1 degC more on each
         face at the start (rows x 2: inner, outer): the start is not known
         better than the readings' offsets, so discovery takes these as
         nuisance columns."""
-        base = chamber_replay(self.measured, model)
+        base = self._chamber(model)
         moved = [chamber_replay(self.measured, model, shift) for shift in ((1.0, 0.0), (0.0, 1.0))]
         return {channel: np.column_stack([m[channel] - base[channel] for m in moved]) for channel in CHAMBER_CHANNELS}
 
