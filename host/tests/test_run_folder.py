@@ -2,6 +2,7 @@
 row-by-row one it stands in for, the staircase rule against its loop form,
 and what a folder or a log names."""
 
+import io
 import math
 
 import numpy as np
@@ -12,7 +13,15 @@ from hypothesis import strategies as st
 from thermotilt.program import REACHED_BAND_C
 from thermotilt.run import positions
 from thermotilt.run.folder import RunFolder, RunFolderError
-from thermotilt.run.log import COLUMNS, RunLogError, _columns_of_rows, read_run_columns, read_run_log
+from thermotilt.run.log import (
+    COLUMNS,
+    RunLogError,
+    RunLogWriter,
+    _columns_of_rows,
+    format_numbers,
+    read_run_columns,
+    read_run_log,
+)
 
 numeric_cells = st.one_of(
     st.just(""),
@@ -54,6 +63,32 @@ def test_the_columnar_reader_reads_what_the_row_reader_reads(tmp_path_factory, r
         np.testing.assert_array_equal(columns.numbers[column], values, err_msg=column)
     for column, values in reference.texts.items():
         assert list(columns.texts[column]) == list(values), column
+
+
+@settings(max_examples=30, deadline=None)
+@given(rows=log_rows(), dropped=st.sets(st.sampled_from(COLUMNS)))
+def test_writing_by_columns_writes_the_bytes_of_writing_by_rows(rows, dropped):
+    kept = [column for column in COLUMNS if column not in dropped]
+    by_rows, by_columns = io.StringIO(), io.StringIO()
+    writer = RunLogWriter(by_rows, with_truth=False, flush_each_row=False)
+    for row in rows:
+        writer.write_row({column: cell for column, cell in zip(COLUMNS, row) if column in kept})
+    columns = RunLogWriter(by_columns, with_truth=False, flush_each_row=False)
+    columns.write_columns({column: [row[COLUMNS.index(column)] for row in rows] for column in kept})
+    assert by_columns.getvalue() == by_rows.getvalue()
+    assert columns.rows == writer.rows == len(rows)
+
+
+@given(st.lists(st.one_of(st.none(), st.floats(width=32)), max_size=20), st.integers(0, 4))
+def test_numbers_are_written_with_fixed_decimals_unknown_empty_and_zero_unsigned(values, decimals):
+    texts = format_numbers(values, decimals)
+    for value, text in zip(values, texts, strict=True):
+        if value is None or math.isnan(value):
+            assert text == ""
+        elif text.strip("-0.") == "":
+            assert text == f"{0.0:.{decimals}f}"
+        else:
+            assert text == f"{value:.{decimals}f}"
 
 
 def test_a_short_row_is_named_by_the_columnar_reader_too(tmp_path):

@@ -482,11 +482,8 @@ def _write_run(
         coef_source=["D"] * len(frames),
         imu_seq=[str(index % 65536) for index in range(len(frames))],
     )
-    names = list(cells)
     with open(path, "w", newline="", encoding="utf-8") as stream:
-        writer = RunLogWriter(stream, with_truth=False, flush_each_row=False)
-        for row in zip(*cells.values()):
-            writer.write_row(dict(zip(names, row)))
+        RunLogWriter(stream, with_truth=False, flush_each_row=False).write_columns(cells)
 
 
 def staircase_inputs(

@@ -13,7 +13,7 @@ from __future__ import annotations
 import csv
 import io
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import IO, Any
 
@@ -81,15 +81,16 @@ HEADERS: tuple[tuple[str, ...], ...] = (
 def format_numbers(values: Iterable[float | None], decimals: int) -> list[str]:
     """Fixed decimals, so the same run always writes the same bytes; NaN and
     None (unknown) are empty cells."""
-    pattern = f"{{:.{decimals}f}}".format
-    texts = []
-    for value in values:
-        if value is None or math.isnan(value):
-            texts.append("")
-            continue
-        text = pattern(value)
-        # "-0.000" and "0.000" are the same number; write it one way.
-        texts.append(text[1:] if text[0] == "-" and not text.strip("-0.") else text)
+    import numpy as np
+
+    numbers = np.array(list(values), dtype=float)
+    texts = list(map(f"{{:.{decimals}f}}".format, numbers.tolist()))
+    for index in np.flatnonzero(np.isnan(numbers)).tolist():
+        texts[index] = ""
+    # "-0.000" and "0.000" are the same number; write it one way.
+    for index in np.flatnonzero((numbers <= 0.0) & (numbers > -1.0)).tolist():
+        if not texts[index].strip("-0."):
+            texts[index] = texts[index].lstrip("-")
     return texts
 
 
@@ -117,6 +118,16 @@ class RunLogWriter:
         if self._flush_each_row:
             self._stream.flush()
         self.rows += 1
+
+    def write_columns(self, cells: Mapping[str, Sequence[str]]) -> None:
+        """Rows from text cells by column, all of one length; a column left
+        out is empty."""
+        count = len(next(iter(cells.values()), ()))
+        empty = ("",) * count
+        self._writer.writer.writerows(zip(*(cells.get(column, empty) for column in self.columns)))
+        if self._flush_each_row:
+            self._stream.flush()
+        self.rows += count
 
 
 class RunLogError(ValueError):
