@@ -81,16 +81,15 @@ HEADERS: tuple[tuple[str, ...], ...] = (
 def format_numbers(values: Iterable[float | None], decimals: int) -> list[str]:
     """Fixed decimals, so the same run always writes the same bytes; NaN and
     None (unknown) are empty cells."""
-    import numpy as np
-
-    numbers = np.array(list(values), dtype=float)
-    texts = list(map(f"{{:.{decimals}f}}".format, numbers.tolist()))
-    for index in np.flatnonzero(np.isnan(numbers)).tolist():
-        texts[index] = ""
-    # "-0.000" and "0.000" are the same number; write it one way.
-    for index in np.flatnonzero((numbers <= 0.0) & (numbers > -1.0)).tolist():
-        if not texts[index].strip("-0."):
-            texts[index] = texts[index].lstrip("-")
+    pattern = f"{{:.{decimals}f}}".format
+    texts = []
+    for value in values:
+        if value is None or math.isnan(value):
+            texts.append("")
+            continue
+        text = pattern(value)
+        # "-0.000" and "0.000" are the same number; write it one way.
+        texts.append(text[1:] if text[0] == "-" and not text.strip("-0.") else text)
     return texts
 
 
