@@ -8,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from thermotilt import native
 from thermotilt.physics import (
@@ -22,6 +24,7 @@ from thermotilt.physics import (
     docs,
     parse_fault,
 )
+from thermotilt.physics.sensor import Trend, drift_sets
 from thermotilt.physics.terms import REGISTRY
 from thermotilt.surfaces import PAPER_DEFAULTS
 
@@ -622,3 +625,17 @@ def test_registers_saturate(model):
     assert cold.ax == -32768 and cold.temperature_raw == -2048
     hot = Sensor(drift_only, seed=1, environment_c=1000.0).step(0.01, 1000.0, 0.0, 0.0)
     assert hot.temperature_raw == 2047
+
+
+@given(
+    band_c=st.sampled_from([0.0, 0.25, 0.5, 1.0]),
+    start_c=st.floats(-40.0, 85.0),
+    moves=st.lists(st.sampled_from([-0.5, -0.25, -0.125, 0.0, 0.125, 0.25, 0.5, math.nan]), max_size=120),
+)
+def test_drift_sets_are_the_trend_updated_step_by_step(band_c, start_c, moves):
+    """Walks in register steps (so excursions land on the band exactly),
+    with unknown (NaN) temperatures the trend must step over."""
+    die_c = start_c + np.nancumsum(moves)
+    die_c[np.isnan(moves)] = math.nan
+    trend = Trend(band_c, start_c)
+    assert drift_sets(band_c, start_c, die_c).tolist() == [trend.update(value) for value in die_c.tolist()]

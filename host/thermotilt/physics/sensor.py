@@ -154,6 +154,32 @@ class Trend:
         return self.drift_set
 
 
+def drift_sets(band_c: float, start_c: float, die_c: np.ndarray) -> np.ndarray:
+    """Trend(band_c, start_c) updated with each die temperature in turn, as
+    an array of set letters: between two changes of set the extreme is the
+    running maximum (warming) or minimum (cooling), so each stretch is
+    found at once. The same comparisons of the same floats as Trend.update
+    (test_physics: drift sets)."""
+    sets = np.empty(len(die_c), dtype="<U1")
+    drift_set, extreme, index = "W", float(start_c), 0
+    while index < len(die_c):
+        rest = die_c[index:]
+        running = (np.fmax if drift_set == "W" else np.fmin).accumulate(np.concatenate([[extreme], rest]))[:-1]
+        if drift_set == "W":
+            change = np.flatnonzero(~(rest > running) & (running - rest > band_c))
+        else:
+            change = np.flatnonzero(~(rest < running) & (rest - running > band_c))
+        if not len(change):
+            sets[index:] = drift_set
+            break
+        first = int(change[0])
+        sets[index : index + first] = drift_set
+        drift_set, extreme = ("C" if drift_set == "W" else "W"), float(rest[first])
+        sets[index + first] = drift_set
+        index += first + 1
+    return sets
+
+
 class Sensor:
     """The LSM9DS0 accelerometer and temperature sensor on the tilt table."""
 
@@ -345,8 +371,7 @@ def sensor_series(
 
     die = _lagged(stages["die"], float(start_c), environment_c, dt_s)
     rate = np.diff(die, prepend=float(start_c)) / dt_s
-    trend = Trend(model.terms["drift"]["schmitt_band_c"], float(start_c))
-    drift_set = np.array([trend.update(value) for value in die.tolist()])
+    drift_set = drift_sets(model.terms["drift"]["schmitt_band_c"], float(start_c), die)
     reported, structure_start = die, float(start_c)
     for offset in stages["reported"]:
         reported = offset(reported)
