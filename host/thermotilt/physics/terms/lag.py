@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import hashlib
 import math
+from collections import OrderedDict
 from collections.abc import Callable
 
 import numpy as np
@@ -38,11 +40,44 @@ def first_order(tau_s: float) -> Callable[[float, float, float], float]:
     return follow
 
 
+class _SeriesMemo:
+    """The last series first_order_series computed, by their inputs: the
+    die follows the same chamber in every replay of a run, whatever else
+    the model changes, and the loop is the step's own arithmetic, one float
+    at a time, so its value is worth keeping rather than recomputing."""
+
+    SIZE = 8
+
+    def __init__(self) -> None:
+        self._series: OrderedDict[bytes, np.ndarray] = OrderedDict()
+
+    def get(
+        self, tau_s: float, start: float, targets: np.ndarray, dt_s: np.ndarray, make: Callable[[], np.ndarray]
+    ) -> np.ndarray:
+        digest = hashlib.blake2b(digest_size=16)
+        digest.update(np.array([tau_s, start], dtype=float).tobytes())
+        for values in (targets, dt_s):
+            digest.update(np.ascontiguousarray(values, dtype=float).tobytes())
+        key = digest.digest()
+        if key in self._series:
+            self._series.move_to_end(key)
+        else:
+            self._series[key] = make()
+            self._series[key].flags.writeable = False
+            if len(self._series) > self.SIZE:
+                self._series.popitem(last=False)
+        return self._series[key]
+
+
+_MEMO = _SeriesMemo()
+
+
 def first_order_series(tau_s: float) -> Callable[[float, np.ndarray, np.ndarray], np.ndarray]:
     """(start, targets, dt s) -> the values first_order's steps reach from
-    start, each towards its target: the same floats, in one loop."""
+    start, each towards its target: the same floats, in one loop (read
+    only: the series are kept for the same inputs, _SeriesMemo)."""
 
-    def follow(start: float, targets: np.ndarray, dt_s: np.ndarray) -> np.ndarray:
+    def series(start: float, targets: np.ndarray, dt_s: np.ndarray) -> np.ndarray:
         lengths, which = np.unique(dt_s, return_inverse=True)
         fractions = np.array([-math.expm1(-length / tau_s) for length in lengths.tolist()])[which]
         values = []
@@ -51,5 +86,8 @@ def first_order_series(tau_s: float) -> Callable[[float, np.ndarray, np.ndarray]
             value = value + fraction * (target - value)
             values.append(value)
         return np.array(values)
+
+    def follow(start: float, targets: np.ndarray, dt_s: np.ndarray) -> np.ndarray:
+        return _MEMO.get(tau_s, start, targets, dt_s, lambda: series(start, targets, dt_s))
 
     return follow
