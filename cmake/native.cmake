@@ -50,6 +50,6 @@ add_library(thermotilt_host SHARED host/native/imu_processing.cpp host/native/fi
   lib/Crc16/src/Crc16.cpp lib/LSM9DS0/src/LSM9DS0.cpp lib/Program/src/Program.cpp
   lib/ChamberControl/src/ChamberControl.cpp)
 target_include_directories(thermotilt_host PRIVATE host/native ${LIBRARY_INCLUDES})
-target_compile_options(thermotilt_host PRIVATE ${PROJECT_WARNINGS} -ffp-contract=off)
+target_compile_options(thermotilt_host PRIVATE ${PROJECT_WARNINGS} -ffp-contract=off -fno-math-errno)
 target_link_options(thermotilt_host PRIVATE -Wl,--no-undefined)
 target_link_libraries(thermotilt_host PRIVATE m)
