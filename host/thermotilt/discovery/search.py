@@ -67,12 +67,15 @@ MAX_ROUNDS = 4
 # many steps, stopping when a step is below this share of its probe.
 GAUSS_NEWTON_STEPS = 6
 GAUSS_NEWTON_TOLERANCE = 0.01
-# A candidate that is not additive is tabulated at this spacing of the
-# log of its value (65 % apart) and interpolated between: for sensor_lag on
-# the staircase the interpolant is off by 0.16 LSB at most where the effect
-# is 245 LSB and the noise 6 LSB RMS, so the minimum it gives is where the
-# exact one is, well within its interval; the value found is replayed.
-NONLINEAR_GRID_STEP = 0.5
+# A candidate that is not additive is tabulated at most this far apart in
+# the log of its value, then, about each channel's best value, at half that
+# spacing, and interpolated between: for sensor_lag on the staircase the
+# interpolant at half this spacing is off by 0.16 LSB at most where the
+# effect is 245 LSB and the noise 6 LSB RMS, so the minimum it gives is
+# where the exact one is, well within its interval; the value found is
+# replayed. The coarse points only say where to look: the minimum is
+# bracketed by the fine ones.
+NONLINEAR_GRID_STEP = 1.0
 # Longer runs get longer blocks, so the block covariance stays this small.
 MAX_BLOCKS = 2000
 # The undeclared AR(1)'s correlation from one block to the next stays
@@ -108,12 +111,18 @@ class Test:
         return self.candidate, self.channel
 
 
-@dataclass(frozen=True)
+@dataclass
 class Tabulated:
-    """A candidate's effect per channel (values x rows) at log values."""
+    """A candidate's effect per channel (rows) at log values, in order."""
 
-    log_values: np.ndarray
-    effects: Mapping[str, np.ndarray]
+    log_values: list[float]
+    effects: dict[str, list[np.ndarray]]
+
+    def add(self, log_value: float, predicted: Mapping[str, np.ndarray], base: Mapping[str, np.ndarray]) -> None:
+        at = int(np.searchsorted(self.log_values, log_value))
+        self.log_values.insert(at, log_value)
+        for channel, rows in self.effects.items():
+            rows.insert(at, predicted[channel] - base[channel])
 
 
 @dataclass(frozen=True)
@@ -841,20 +850,34 @@ class Search:
 
     def _tabulated(self, candidate: Candidate, model: Model, base: Mapping[str, np.ndarray]) -> Tabulated:
         """The candidate's effect on each of its channels (rows) at
-        NONLINEAR_GRID_STEP-spaced log values over its search range: one
-        replay a value, shared by every channel it acts on."""
+        NONLINEAR_GRID_STEP-spaced log values over its search range, and at
+        the values _refined_about added: one replay a value, shared by
+        every channel it acts on."""
         key = (candidate.name, json.dumps(plain(model.terms), sort_keys=True))
         if key not in self._tables:
             low, high = np.log(candidate.bounds[0]), np.log(candidate.bounds[1])
-            log_values = np.linspace(low, high, max(4, int(np.ceil((high - low) / NONLINEAR_GRID_STEP)) + 1))
             channels = [c for c in candidate.channels if c in self.measured.channels]
-            effects: dict[str, list[np.ndarray]] = {c: [] for c in channels}
-            for log_value in log_values:
-                predicted = self.predict(candidate.changed(model, {channels[0]: float(np.exp(log_value))}))
-                for c in channels:
-                    effects[c].append(predicted[c] - base[c])
-            self._tables[key] = Tabulated(log_values, {c: np.array(rows) for c, rows in effects.items()})
+            table = Tabulated([], {c: [] for c in channels})
+            for log_value in np.linspace(low, high, max(4, int(np.ceil((high - low) / NONLINEAR_GRID_STEP)) + 1)):
+                table.add(float(log_value), self._predicted_at(candidate, model, float(log_value)), base)
+            self._tables[key] = table
         return self._tables[key]
+
+    def _predicted_at(self, candidate: Candidate, model: Model, log_value: float) -> dict[str, np.ndarray]:
+        channels = [c for c in candidate.channels if c in self.measured.channels]
+        return self.predict(candidate.changed(model, {channels[0]: float(np.exp(log_value))}))
+
+    def _refined_about(
+        self, table: Tabulated, candidate: Candidate, model: Model, base: Mapping[str, np.ndarray], index: int
+    ) -> None:
+        """The table with the points halfway to the neighbours of its
+        index-th value, where it has none closer."""
+        values = list(table.log_values)
+        spacing = NONLINEAR_GRID_STEP / 2.0
+        for neighbour in (index - 1, index + 1):
+            if 0 <= neighbour < len(values) and abs(values[neighbour] - values[index]) > spacing * 1.01:
+                middle = 0.5 * (values[neighbour] + values[index])
+                table.add(middle, self._predicted_at(candidate, model, middle), base)
 
     def _fit_nonlinear(
         self, candidate: Candidate, channel_name: str, model: Model, base: Mapping[str, np.ndarray], channel: Channel
@@ -870,15 +893,21 @@ class Search:
             return self.predict(candidate.changed(model, {channel_name: value}))[channel_name] - base[channel_name]
 
         table = self._tabulated(candidate, model, base)
+
+        def cost_at(effect_blocks: np.ndarray) -> float:
+            left = channel.beyond_nuisance(channel.whiten(channel.y - effect_blocks))
+            return float(left @ left)
+
+        coarse = [cost_at(channel.blocks(rows[channel.rows])) for rows in table.effects[channel_name]]
+        self._refined_about(table, candidate, model, base, int(np.argmin(coarse)))
         blocks = np.array([channel.blocks(rows[channel.rows]) for rows in table.effects[channel_name]])
         interpolated = CubicSpline(table.log_values, blocks, axis=0)
 
         def cost(log_value: float) -> float:
-            left = channel.beyond_nuisance(channel.whiten(channel.y - interpolated(log_value)))
-            return float(left @ left)
+            return cost_at(interpolated(log_value))
 
-        grid = table.log_values
-        nearest = int(np.argmin([cost(log_value) for log_value in grid]))
+        grid = np.array(table.log_values)
+        nearest = int(np.argmin([cost_at(effect_blocks) for effect_blocks in blocks]))
         bracket = (grid[max(nearest - 1, 0)], grid[min(nearest + 1, len(grid) - 1)])
         best = minimize_scalar(cost, bounds=bracket, method="bounded", options={"xatol": 1e-3})
         value = float(np.exp(best.x))
