@@ -165,6 +165,12 @@ def test_the_rates_carry_wilson_intervals_and_say_which_targets_are_missed(tmp_p
     written = document.read_text()
     assert written.startswith("before\n") and written.endswith("after\n") and "\nold\n" not in written
     assert "49/50" in written
+    elsewhere = tmp_path / "new" / "rates.md"
+    rates.write_into(elsewhere, text)
+    assert elsewhere.read_text() == f"{rates.BEGIN}\n\n{text}\n{rates.END}\n"
+    document.write_text("no block\n")
+    with pytest.raises(ValueError, match="has no"):
+        rates.write_into(document, text)
     rates.figure(rows, tmp_path / "rates.png")
     assert (tmp_path / "rates.png").stat().st_size > 10_000
 

@@ -128,7 +128,11 @@ def main() -> int:
         line = f"discover on a {count}-row run: {seconds:.1f} s (target ≤ 10 s)"
         print(line)
         text += f"\nSpeed: {line}, on the machine that wrote this.\n"
-    rates.write_into(args.document, text)
+    try:
+        rates.write_into(args.document, text)
+    except ValueError as error:
+        print(f"bench-discovery: error: {error}", file=sys.stderr)
+        return 1
     rates.figure(rows, args.figure)
     print(text)
     print(f"bench-discovery: wrote {args.document} and {args.figure}")

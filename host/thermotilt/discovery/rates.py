@@ -337,9 +337,15 @@ def figure(rows: list[Row], path: Path) -> None:
 
 
 def write_into(document: Path, text: str) -> None:
-    """Replace what lies between BEGIN and END in the document."""
+    """Replace what lies between BEGIN and END in the document; a document
+    that does not exist yet is written with that block alone."""
+    block = f"{BEGIN}\n\n{text}\n{END}"
+    if not document.exists():
+        document.parent.mkdir(parents=True, exist_ok=True)
+        document.write_text(block + "\n", encoding="utf-8")
+        return
     content = document.read_text(encoding="utf-8")
     pattern = re.compile(re.escape(BEGIN) + r".*?" + re.escape(END), re.S)
     if not pattern.search(content):
         raise ValueError(f"{document} has no {BEGIN} ... {END} block")
-    document.write_text(pattern.sub(lambda _: f"{BEGIN}\n\n{text}\n{END}", content), encoding="utf-8")
+    document.write_text(pattern.sub(lambda _: block, content), encoding="utf-8")
