@@ -87,6 +87,7 @@ def main() -> int:
         if (not args.kind or cell.kind in args.kind) and (not args.base or cell.base in args.base)
     ]
     if not args.report_only:
+        import dask
         from distributed import Client, LocalCluster
 
         print(f"bench-discovery: {cell_summary(cells)} runs -> {args.record}", flush=True)
@@ -100,6 +101,12 @@ def main() -> int:
                     print(f"bench-discovery: error: {error}", file=sys.stderr)
                     return 1
             else:
+                # Dask's default MALLOC_TRIM_THRESHOLD_ also fixes glibc's mmap
+                # threshold, so every large array of a replay is mapped afresh
+                # and its pages faulted in: null runs took 1.4 times as long.
+                resources.enter_context(
+                    dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None})
+                )
                 cluster = resources.enter_context(
                     LocalCluster(n_workers=args.workers, threads_per_worker=1, dashboard_address="127.0.0.1:0")
                 )
