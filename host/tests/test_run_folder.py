@@ -66,7 +66,7 @@ def test_the_columnar_reader_reads_what_the_row_reader_reads(tmp_path_factory, r
 
 
 @settings(max_examples=30, deadline=None)
-@given(rows=log_rows(), dropped=st.sets(st.sampled_from(COLUMNS)))
+@given(rows=log_rows(), dropped=st.sets(st.sampled_from(COLUMNS), max_size=len(COLUMNS) - 1))
 def test_writing_by_columns_writes_the_bytes_of_writing_by_rows(rows, dropped):
     kept = [column for column in COLUMNS if column not in dropped]
     by_rows, by_columns = io.StringIO(), io.StringIO()
@@ -77,6 +77,12 @@ def test_writing_by_columns_writes_the_bytes_of_writing_by_rows(rows, dropped):
     columns.write_columns({column: [row[COLUMNS.index(column)] for row in rows] for column in kept})
     assert by_columns.getvalue() == by_rows.getvalue()
     assert columns.rows == writer.rows == len(rows)
+
+
+@pytest.mark.parametrize("cells", [{}, {"time_s": ["1.0"], "chamber_c": ["2.0", "3.0"]}])
+def test_writing_by_columns_needs_columns_of_one_length(cells):
+    with pytest.raises(ValueError, match="one length"):
+        RunLogWriter(io.StringIO(), with_truth=False, flush_each_row=False).write_columns(cells)
 
 
 @given(st.lists(st.one_of(st.none(), st.floats(width=32)), max_size=20), st.integers(0, 4))

@@ -120,8 +120,12 @@ class RunLogWriter:
 
     def write_columns(self, cells: Mapping[str, Sequence[str]]) -> None:
         """Rows from text cells by column, all of one length; a column left
-        out is empty."""
-        count = len(next(iter(cells.values()), ()))
+        out is empty. At least one column: none would leave the count of
+        rows unknown."""
+        lengths = {len(values) for values in cells.values()}
+        if len(lengths) != 1:
+            raise ValueError(f"write_columns needs columns of one length, not {sorted(lengths) or 'none'}")
+        (count,) = lengths
         empty = ("",) * count
         self._writer.writer.writerows(zip(*(cells.get(column, empty) for column in self.columns)))
         if self._flush_each_row:
