@@ -7,11 +7,34 @@ const float KalmanFilter::kPaperMeasurementNoise = 0.01f;
 
 namespace {
 
-// A measurement unit in the estimate's high word is FIXED_ONE = 2^15 (ldexpf
-// scales exactly, and in the AVR's library at half the cost of a
-// multiplication).
+// A measurement unit in the estimate's high word is FIXED_ONE = 2^15.
 const uint8_t HIGH_FRACTION_BITS = 15;
 static_assert(KalmanFilter::FIXED_ONE == (int32_t)1 << HIGH_FRACTION_BITS, "FIXED_ONE is the high word's unit");
+
+// value * 2^15 and value / 2^15, exact either way for the values here: a
+// measurement within an int16's range, an estimate that is a whole int32.
+// avr-libc's ldexpf scales at half the cost of a multiplication; a PC's
+// ldexpf is a library call where a multiplication is one instruction, and
+// the host runs this on every sample of a replay (thermotilt.native).
+#if defined(__AVR__)
+inline float toHighUnits(float value)
+{
+    return ldexpf(value, HIGH_FRACTION_BITS);
+}
+inline float fromHighUnits(float value)
+{
+    return ldexpf(value, -HIGH_FRACTION_BITS);
+}
+#else
+inline float toHighUnits(float value)
+{
+    return value * (float)KalmanFilter::FIXED_ONE;
+}
+inline float fromHighUnits(float value)
+{
+    return value / (float)KalmanFilter::FIXED_ONE;
+}
+#endif
 const float GAIN_TO_FRACTION = 4294967296.0f;
 const float MEASUREMENT_MIN = -32768.0f;
 const float MEASUREMENT_MAX = 32767.0f;
@@ -55,7 +78,7 @@ float KalmanFilter::update(float measurement)
     } else if (measurement > MEASUREMENT_MAX) {
         measurement = MEASUREMENT_MAX;
     }
-    updateFixed((int32_t)lrintf(ldexpf(measurement, HIGH_FRACTION_BITS)));
+    updateFixed((int32_t)lrintf(toHighUnits(measurement)));
     return estimate();
 }
 
@@ -103,7 +126,7 @@ int32_t KalmanFilter::roundedEstimate() const
 
 float KalmanFilter::estimate() const
 {
-    return ldexpf((float)roundedEstimate(), -HIGH_FRACTION_BITS);
+    return fromHighUnits((float)roundedEstimate());
 }
 
 Decimator::Decimator(uint8_t factor) : factor_(1), count_(0)
