@@ -425,13 +425,18 @@ class _FlickerBlocks:
         self._state = rng.standard_normal((3, len(self._taus))) * self._sigma[:, None]
         self._processes: list[np.ndarray] = []
         self._block = np.empty((3, 0))
-        self._sums: list[tuple[float, float, float]] = []
+        # The block as per-step tuples, made when next() first needs them:
+        # take() copies from the block, and a 4096-step list costs more
+        # than its draws.
+        self._sums: list[tuple[float, float, float]] | None = None
         self._index = 0
         self._dt_s = -1.0
 
     def next(self, dt_s: float) -> tuple[float, float, float]:
-        if dt_s != self._dt_s or self._index == len(self._sums):
+        if dt_s != self._dt_s or self._index == self._block.shape[1]:
             self._refill(dt_s)
+        if self._sums is None:
+            self._sums = list(zip(*self._block.tolist()))
         value = self._sums[self._index]
         self._index += 1
         return value
@@ -442,9 +447,9 @@ class _FlickerBlocks:
         step = 0
         while step < len(dt_s):
             length = float(dt_s[step])
-            if length != self._dt_s or self._index == len(self._sums):
+            if length != self._dt_s or self._index == self._block.shape[1]:
                 self._refill(length)
-            window = dt_s[step : step + len(self._sums) - self._index]
+            window = dt_s[step : step + self._block.shape[1] - self._index]
             other = np.flatnonzero(window != length)
             count = int(other[0]) if len(other) else len(window)
             values[:, step : step + count] = self._block[:, self._index : self._index + count]
@@ -465,7 +470,7 @@ class _FlickerBlocks:
             processes.append(values)
         self._processes = processes
         self._block = np.sum(processes, axis=0)
-        self._sums = list(zip(*self._block.tolist()))
+        self._sums = None
         self._index = 0
         self._dt_s = dt_s
 
