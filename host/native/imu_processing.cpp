@@ -6,22 +6,28 @@
 
 #include <Compensation.h>
 #include <ImuProcessing.h>
+#include <Kalman.h>
 
 namespace {
 
-bool validArguments(size_t count, const void* accel, const void* temperature, unsigned decimation, float hysteresisC,
-                    const size_t* at, size_t atCount, const float* filtered, const float* temperatureC,
-                    const uint8_t* set, const float* compensated, const uint8_t* frameDue)
+bool validSamples(size_t count, const size_t* at, size_t atCount)
 {
-    if (decimation < 1 || decimation > 255 || !isfinite(hysteresisC)) {
-        return false;
-    }
     if (at) {
         for (size_t k = 0; k < atCount; ++k) {
             if (at[k] >= count || (k > 0 && at[k] < at[k - 1])) {
                 return false;
             }
         }
+    }
+    return true;
+}
+
+bool validArguments(size_t count, const void* accel, const void* temperature, unsigned decimation, float hysteresisC,
+                    const size_t* at, size_t atCount, const float* filtered, const float* temperatureC,
+                    const uint8_t* set, const float* compensated, const uint8_t* frameDue)
+{
+    if (decimation < 1 || decimation > 255 || !isfinite(hysteresisC) || !validSamples(count, at, atCount)) {
+        return false;
     }
     size_t written = at ? atCount : count;
     return (count == 0 || (accel && temperature)) &&
@@ -118,4 +124,29 @@ extern "C" int thermotilt_imu_process_unrounded(size_t count, const float* accel
                compensated, frameDue, [&](ImuProcessing& processing, size_t i, const Coefficients& c, ImuOutput& out) {
                    return processing.updateUnrounded(accel + IMU_AXES * i, temperatureCIn[i], c, out);
                });
+}
+
+extern "C" int thermotilt_kalman_estimates(size_t count, const float* measurements, const uint8_t* reset,
+                                           const size_t* at, size_t atCount, float* estimates)
+{
+    size_t written = at ? atCount : count;
+    if (!validSamples(count, at, atCount) || (count > 0 && !measurements) || (written > 0 && !estimates)) {
+        return THERMOTILT_HOST_BAD_ARGUMENT;
+    }
+    KalmanFilter filter;
+    size_t row = 0;
+    for (size_t i = 0; i < count && row < written; ++i) {
+        if (reset && reset[i]) {
+            filter.reset();
+        }
+        filter.update(measurements[i]);
+        if (!at) {
+            estimates[row++] = filter.estimate();
+            continue;
+        }
+        while (row < atCount && at[row] == i) {
+            estimates[row++] = filter.estimate();
+        }
+    }
+    return 0;
 }

@@ -32,7 +32,7 @@
 extern "C" {
 #endif
 
-#define THERMOTILT_HOST_ABI_VERSION 5
+#define THERMOTILT_HOST_ABI_VERSION 6
 #define THERMOTILT_HOST_BAD_ARGUMENT (-1)
 
 int thermotilt_host_abi_version(void);
@@ -52,6 +52,17 @@ int thermotilt_imu_process_unrounded(size_t count, const float *accel, const flo
                                      const uint8_t *reset, unsigned decimation, float hysteresis_c,
                                      const float *coefficients, const size_t *at, size_t at_count, float *filtered,
                                      float *temperature_c, uint8_t *set, float *compensated, uint8_t *frame_due);
+
+/* One channel of thermotilt_imu_process_unrounded: the Kalman filter
+ * lib/ImuProcessing runs per axis and for the temperature, over count float32
+ * measurements, reset[i] != 0 seeding it again at sample i (reset may be
+ * NULL). estimates[k] is the filter's estimate after sample at[k] (at as
+ * there; NULL: every sample, estimates holding count values) - the same
+ * float as that function's filtered value or temperature_c for the channel.
+ * Returns 0, or THERMOTILT_HOST_BAD_ARGUMENT (a NULL array with values to
+ * read or write, at out of order or beyond count) and writes nothing then. */
+int thermotilt_kalman_estimates(size_t count, const float *measurements, const uint8_t *reset, const size_t *at,
+                                size_t at_count, float *estimates);
 
 #ifdef __cplusplus
 }

@@ -313,6 +313,23 @@ def test_outputs_at_chosen_samples_are_those_of_the_whole_series():
 
 
 @pytest.mark.twin
+@pytest.mark.parametrize("at", [None, np.array([0, 7, 7, 2499, 2500, 2501, 4000])])
+def test_one_channel_is_that_channel_of_the_whole_processing(at):
+    """kalman_estimates runs one channel's filter alone; with fractional
+    inputs and resets it gives imu_process_unrounded's floats exactly."""
+    rng = np.random.default_rng(5)
+    series = rng.standard_normal((4, 6000)).cumsum(axis=1) * 3.0 + np.array([[16000.0], [-200.0], [5.0], [25.0]])
+    reset = np.zeros(6000, dtype=bool)
+    reset[[0, 2500, 2501]] = True
+    whole = native.imu_process_unrounded(*series, reset, at=at)
+    for values, name in zip(series, ("ax_filt", "ay_filt", "az_filt", "temp_c")):
+        alone = native.kalman_estimates(values, reset, at=at)
+        assert alone.dtype == np.float32
+        np.testing.assert_array_equal(alone.view(np.uint32), whole[name].view(np.uint32), err_msg=name)
+    assert native.kalman_estimates([], at=[]).size == 0
+
+
+@pytest.mark.twin
 def test_empty_series():
     result = native.imu_process([], [], [], [])
     assert all(result[name].size == 0 for name in native.OUTPUTS)
@@ -334,6 +351,8 @@ def test_empty_series():
         (lambda: native.imu_process([0, 0], [0, 0], [0, 0], [0, 0], at=[1, 0]), r"at must hold sample indices 0\.\.1"),
         (lambda: native.imu_process([0], [0], [0], [0], at=[1]), r"at must hold sample indices 0\.\.0 in order"),
         (lambda: native.imu_process([0], [0], [0], [0], at=[0.0]), "at must hold sample indices, not float64"),
+        (lambda: native.kalman_estimates([math.nan]), "measurements must be finite"),
+        (lambda: native.kalman_estimates([0.0, 1.0], at=[2]), r"at must hold sample indices 0\.\.1 in order"),
     ],
 )
 def test_bad_input_is_one_readable_error(call, message):

@@ -71,7 +71,7 @@ COEFFICIENT_COUNT = 36
 DECIMATION_RANGE = range(1, 256)  # SETDEC's
 OUTPUTS = ("ax_filt", "ay_filt", "az_filt", "temp_c", "set", "ax_comp", "ay_comp", "az_comp", "frame_due")
 
-_ABI_VERSION = 5  # THERMOTILT_HOST_ABI_VERSION
+_ABI_VERSION = 6  # THERMOTILT_HOST_ABI_VERSION
 _OK = 0
 
 
@@ -111,6 +111,7 @@ def _load_library(path: Path) -> ctypes.CDLL:
         "thermotilt_host_abi_version": (ctypes.c_int, []),
         "thermotilt_imu_process": (ctypes.c_int, arguments),
         "thermotilt_imu_process_unrounded": (ctypes.c_int, arguments),
+        "thermotilt_kalman_estimates": (ctypes.c_int, [size, pointer, pointer, pointer, size, pointer]),
         "thermotilt_program_steps": (ctypes.c_int, [size, pointer, pointer, pointer, pointer, pointer]),
         "thermotilt_trend_sets": (ctypes.c_int, [size, pointer, single, pointer]),
         "thermotilt_surface_corrections": (ctypes.c_int, [size, pointer, pointer, pointer, pointer]),
@@ -346,6 +347,30 @@ def imu_process_unrounded(
     return _run(
         "thermotilt_imu_process_unrounded", axes, temperature, reset, decimation, hysteresis_c, coefficients, at
     )
+
+
+def kalman_estimates(measurements: Any, reset: Any = None, at: Any = None) -> np.ndarray:
+    """One channel of imu_process_unrounded: the Kalman filter lib/ImuProcessing
+    runs for each axis and for the temperature, over a series with the same
+    resets, its estimate after each sample (or each sample `at` chooses) as
+    float32 - the same values as that function's ``ax_filt``, ``ay_filt``,
+    ``az_filt`` or ``temp_c`` for the channel (test_native_processing), for
+    a caller that has changed one channel and kept the others' outputs."""
+    values = _floats(measurements, "measurements")
+    flags = _flags(reset, values.size)
+    samples = _samples_at(at, values.size)
+    estimates = np.zeros(values.size if samples is None else samples.size, np.float32)
+    status = library().thermotilt_kalman_estimates(
+        values.size,
+        values.ctypes.data,
+        flags.ctypes.data,
+        None if samples is None else samples.ctypes.data,
+        0 if samples is None else samples.size,
+        estimates.ctypes.data,
+    )
+    if status != _OK:
+        raise NativeLibraryError(f"thermotilt_kalman_estimates refused its arguments (status {status})")
+    return estimates
 
 
 DRIVE_OFF, DRIVE_HEAT, DRIVE_COOL = 0, 1, 2  # lib/ChamberControl's Direction

@@ -303,14 +303,13 @@ def method_digest() -> str:
     axes = [np.rint(level + 20.0 * rng.standard_normal(samples)) for level in (8000.0, -3000.0, 14000.0)]
     reset = np.zeros(samples, dtype=bool)
     reset[::1500] = True
-    # Both paths the runs take: hide's registers, the replay's model values.
-    registers = np.rint((ramp_c - 21.0) * 8.0)
-    for processed in (
-        native.imu_process(*axes, registers, reset),
-        native.imu_process_unrounded(*axes, ramp_c, reset),
-    ):
-        for name in native.OUTPUTS:
-            digest.update(np.ascontiguousarray(processed[name]).tobytes())
+    # Both paths the runs take: hide's registers, the replay's model values
+    # channel by channel.
+    processed = native.imu_process(*axes, np.rint((ramp_c - 21.0) * 8.0), reset)
+    outputs = [processed[name] for name in native.OUTPUTS]
+    outputs += [native.kalman_estimates(values, reset) for values in (*axes, ramp_c)]
+    for values in outputs:
+        digest.update(np.ascontiguousarray(values).tobytes())
     return digest.hexdigest()
 
 

@@ -4,9 +4,10 @@ The sensor part of the physics model (the same `Sensor` the twin steps) is
 driven by the inner face's temperature, as the logged thermistor reading
 (``chamber_c``) and the model's ``thermistor_lag`` imply, and the table
 angles, with its random terms switched off; what it would have put in the
-registers then goes through the firmware's own processing (Kalman filters,
-trend detector; ``thermotilt.native``, the firmware's C++ compiled for the
-host) on the IMU's 100 Hz sample grid, and is read at the logged rows. The
+registers then goes through the firmware's own filters (the Kalman filter
+lib/ImuProcessing runs per axis and for the temperature;
+``thermotilt.native``, the firmware's C++ compiled for the host) on the
+IMU's 100 Hz sample grid, and is read at the logged rows. The
 result predicts each channel the log measured: the IMU's filtered
 temperature and filtered acceleration per axis.
 
@@ -22,6 +23,7 @@ it acts instead of being absorbed by a controller.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 from collections import OrderedDict
@@ -38,7 +40,7 @@ from ..physics.sensor import registered_temperature_c, sensor_series
 from ..physics.terms import REGISTRY, SensorTerm
 from ..run import SETTLE_S, positions
 from ..run.folder import RunFolder, RunFolderError
-from ..run.log import RunLogError, read_run_columns
+from ..run.log import RunColumns, RunLogError, read_run_columns
 
 # Channel -> the run.csv column it is measured in.
 CHANNEL_COLUMNS: Mapping[str, str] = {
@@ -136,11 +138,20 @@ def chamber_rows(time_s: np.ndarray, status: np.ndarray) -> np.ndarray:
 def load_measured(path: Path, settle_s: float = SETTLE_S, inputs_only: bool = False) -> Measured:
     """A run's inputs and channels; inputs_only: a run that only drives a
     replay (thermotilt hide-effect's) and need not have any channel."""
+    return measured_of(read_columns(path), settle_s, inputs_only)
+
+
+def read_columns(path: Path) -> RunColumns:
+    """A run folder's run.csv as columns."""
     try:
-        csv_path = RunFolder.of(path).log
-        columns = read_run_columns(str(csv_path))
+        return read_run_columns(str(RunFolder.of(path).log))
     except (RunFolderError, RunLogError) as error:
         raise DiscoveryDataError(str(error)) from None
+
+
+def measured_of(columns: RunColumns, settle_s: float = SETTLE_S, inputs_only: bool = False) -> Measured:
+    """load_measured of a run.csv already read."""
+    csv_path = columns.path
     if columns.rows == 0:
         raise DiscoveryDataError(f"{csv_path}: no rows")
     numbers = columns.numbers
@@ -341,22 +352,39 @@ def chamber_replay(
     return {"inner": inner, "outer": outer, "face": face}
 
 
-def _sensor_replay(measured: Measured, model: Model, grid: SampleGrid) -> dict[str, np.ndarray]:
+def _sensor_replay(measured: Measured, model: Model, grid: SampleGrid, inputs: str) -> dict[str, np.ndarray]:
     """The sensor, on the inner face its thermistor's reading implies, at
-    the rows sensor_steps chooses, the firmware's processing on the 100 Hz
-    grid between them."""
+    the rows sensor_steps chooses, the firmware's filters on the 100 Hz grid
+    between them: each channel's filter runs again only on a series it has
+    not had on these inputs (a candidate on one axis leaves the others as
+    they were)."""
     steps = sensor_steps(measured)
     reading_c = measured.chamber_c - reading_offsets_c(model)[0]
     face = replace(measured, chamber_c=inner_face_c(measured.time_s, reading_c, model, measured.status))
     values = sensor_values(face, deterministic(model), steps)
-    samples = [grid.sample(measured.time_s[steps], row) for row in values]
-    # The register's 1/8 degC steps are part of the model, not noise: at a
-    # hold they put the firmware's temperature on a step for good.
-    temperature_c = registered_temperature_c(model, samples[0])
-    filtered = native.imu_process_unrounded(
-        samples[1], samples[2], samples[3], temperature_c, grid.reset, at=grid.row_index
-    )
-    return {channel: filtered[output].astype(float) for channel, output in FIRMWARE_OUTPUTS.items()}
+    knots = measured.time_s[steps]
+
+    def filtered(channel: str, series: np.ndarray) -> dict[str, np.ndarray]:
+        samples = grid.sample(knots, series)
+        if channel == "temperature":
+            # The register's 1/8 degC steps are part of the model, not noise:
+            # at a hold they put the firmware's temperature on a step for good.
+            samples = registered_temperature_c(model, samples)
+        return {channel: native.kalman_estimates(samples, grid.reset, at=grid.row_index).astype(float)}
+
+    predicted = {}
+    for channel, series in zip(FIRMWARE_OUTPUTS, values):
+        register = _register_key(model) if channel == "temperature" else ""
+        digest = hashlib.blake2b(series.tobytes(), digest_size=16).hexdigest()
+        key = ("filtered", inputs, channel, register, digest)
+        predicted[channel] = _PARTS.get(key, functools.partial(filtered, channel, series))[channel]
+    return predicted
+
+
+def _register_key(model: Model) -> str:
+    """What of the model registered_temperature_c depends on."""
+    parts = {"quantised": model.enabled("temperature_quantisation"), "sensor": model.constants["sensor"]}
+    return json.dumps(plain(parts), sort_keys=True)
 
 
 def _sensor_key(model: Model) -> str:
@@ -404,10 +432,10 @@ class _Parts:
     BUDGET_BYTES = 256 * 2**20
 
     def __init__(self) -> None:
-        self._parts: OrderedDict[tuple[str, str, str], dict[str, np.ndarray]] = OrderedDict()
+        self._parts: OrderedDict[tuple[str, ...], dict[str, np.ndarray]] = OrderedDict()
         self._bytes = 0
 
-    def get(self, key: tuple[str, str, str], make: Callable[[], dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
+    def get(self, key: tuple[str, ...], make: Callable[[], dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
         if key in self._parts:
             self._parts.move_to_end(key)
             return self._parts[key]
@@ -443,7 +471,7 @@ class Replay:
         predicted = dict(
             _PARTS.get(
                 ("sensor", self._inputs, _sensor_key(model)),
-                lambda: _sensor_replay(self.measured, model, self.grid),
+                lambda: _sensor_replay(self.measured, model, self.grid, self._inputs),
             )
         )
         if self._chamber_wanted:
