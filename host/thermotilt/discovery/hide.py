@@ -21,6 +21,8 @@ the random terms add to the firmware's output.
 
 from __future__ import annotations
 
+import functools
+import hashlib
 import json
 import math
 from collections.abc import Callable, Mapping
@@ -36,8 +38,8 @@ from ..physics.document import with_values
 from ..physics.sensor import sensor_series
 from ..physics.terms.lag import first_order
 from ..run import SETTLE_S
-from ..run.folder import RunFolder
-from ..run.log import RunLogWriter, format_numbers, read_run_columns
+from ..run.folder import RunFolder, RunFolderError
+from ..run.log import RunColumns, RunLogWriter, format_numbers
 from .candidates import BY_NAME, CANDIDATES, Candidate
 from .noise_families import NOISE_FAMILIES
 from .replay import (
@@ -51,7 +53,8 @@ from .replay import (
     chamber_replay,
     chamber_rows,
     inner_face_c,
-    load_measured,
+    measured_of,
+    read_columns,
     reading_offsets_c,
     replay,
     settled_rows,
@@ -129,6 +132,78 @@ def _wander(model: Model, noise: str, count: int, seed: int) -> np.ndarray:
     shocks = rng.standard_normal((3, count)) * math.sqrt(1.0 - phi**2)
     shocks[:, 0] = rng.standard_normal(3)
     return sd * lfilter([1.0], [1.0, -phi], shocks, axis=-1)
+
+
+class _Inputs:
+    """A run an effect is hidden in, as read once: its columns, its inputs
+    and the cells a generated run copies from it, which depend only on the
+    frames' times and table angles and so are the same for every effect
+    hidden in it (a benchmark hides hundreds in one base run)."""
+
+    def __init__(self, columns: RunColumns) -> None:
+        self.columns = columns
+        self.measured = measured_of(columns, inputs_only=True)
+        self._cells: dict[bytes, dict[str, list[str]]] = {}
+
+    def cells(self, time_s: np.ndarray, incl_x: np.ndarray, incl_y: np.ndarray) -> dict[str, list[str]]:
+        """The chamber's cells of the input's row at or before each frame, as
+        a logger holds the last CHS frame, and the frames' times and table
+        positions."""
+        digest = hashlib.blake2b(digest_size=16)
+        for values in (time_s, incl_x, incl_y):
+            digest.update(np.ascontiguousarray(values, dtype=float).tobytes())
+        key = digest.digest()
+        if key not in self._cells:
+            self._cells = {key: self._formatted(time_s, incl_x, incl_y)}
+        return self._cells[key]
+
+    def _formatted(self, time_s: np.ndarray, incl_x: np.ndarray, incl_y: np.ndarray) -> dict[str, list[str]]:
+        columns = self.columns
+        input_time = columns.numbers["time_s"]
+        known = np.isfinite(input_time)
+        input_rows = np.flatnonzero(known)
+        nearest = input_rows[
+            np.minimum(np.searchsorted(input_time[known], time_s, side="right") - 1, len(input_rows) - 1)
+        ]
+        since_move = np.zeros(len(time_s))
+        start = time_s[0]
+        last = (None, None)
+        for index, (x, y, t) in enumerate(zip(incl_x, incl_y, time_s)):
+            if (x, y) != last:
+                last, start = (x, y), t
+            since_move[index] = t - start
+        cells = {
+            column: (
+                [columns.texts[column][row] for row in nearest.tolist()]
+                if column in columns.texts
+                else format_numbers(columns.numbers[column][nearest].tolist(), 3)
+            )
+            for column in _CHAMBER_COLUMNS
+        }
+        cells.update(
+            time_s=format_numbers(time_s.tolist(), 3),
+            incl_x_deg=format_numbers(incl_x.astype(float).tolist(), 3),
+            incl_y_deg=format_numbers(incl_y.astype(float).tolist(), 3),
+            since_move_s=format_numbers(since_move.tolist(), 3),
+            coef_source=["D"] * len(time_s),
+            imu_seq=[str(index % 65536) for index in range(len(time_s))],
+        )
+        return cells
+
+
+@functools.lru_cache(maxsize=2)
+def _inputs_of(log: str, modified_ns: int, size: int) -> _Inputs:
+    return _Inputs(read_columns(Path(log)))
+
+
+def _read_inputs(path: Path) -> _Inputs:
+    """The run folder's _Inputs, read again only when its run.csv changed."""
+    try:
+        log = RunFolder.of(path).log
+        stat = log.stat()
+    except (RunFolderError, OSError):
+        return _Inputs(read_columns(path))
+    return _inputs_of(str(log), stat.st_mtime_ns, stat.st_size)
 
 
 def _generate(measured: Measured, model: Model, seed: int, noise: str = "model") -> dict[str, np.ndarray]:
@@ -352,7 +427,8 @@ def hide_effect(
         effect = CANDIDATES[int(rng.integers(len(CANDIDATES)))].name
     if effect != "none" and effect not in BY_NAME:
         raise DiscoveryDataError(f"unknown effect {effect!r}; choose none, random or one of {', '.join(BY_NAME)}")
-    inputs = load_measured(inputs_path, inputs_only=True)
+    source = _read_inputs(inputs_path)
+    inputs = source.measured
     faces = replace(inputs, chamber_c=inner_face_c(inputs.time_s, inputs.chamber_c, model, inputs.status))
     base_model = noisy(model, noise)
     say("generating the noise")
@@ -415,7 +491,7 @@ def hide_effect(
             "effect_rms": effect_rms,
         }
     out_dir.mkdir(parents=True, exist_ok=True)
-    _write_run(out_dir / "run.csv", inputs_path, processed, frames, generated.chamber_c, generated.outer_c)
+    _write_run(out_dir / "run.csv", source, processed, frames, generated.chamber_c, generated.outer_c)
     truth = Truth(effect=effect, noise_rms=noise_rms, noise=noise, seed=seed, inputs=str(inputs_path), **hidden)  # type: ignore[arg-type]
     (out_dir / "truth.json").write_text(json.dumps(vars(truth), indent=2) + "\n", encoding="utf-8")
     return truth
@@ -423,37 +499,18 @@ def hide_effect(
 
 def _write_run(
     path: Path,
-    inputs_path: Path,
+    inputs: _Inputs,
     processed: Mapping[str, np.ndarray],
     frames: np.ndarray,
     chamber_c: np.ndarray,
     outer_c: np.ndarray,
 ) -> None:
-    columns = read_run_columns(str(RunFolder.of(inputs_path).log))
-    input_time = columns.numbers["time_s"]
-    known = np.isfinite(input_time)
-    input_rows = np.flatnonzero(known)
-    time_s = processed["grid_time_s"][frames]
-    nearest = input_rows[np.minimum(np.searchsorted(input_time[known], time_s, side="right") - 1, len(input_rows) - 1)]
-    since_move = np.zeros(len(frames))
-    start = time_s[0]
-    last = (None, None)
-    for index, (x, y, t) in enumerate(zip(processed["incl_x"][frames], processed["incl_y"][frames], time_s)):
-        if (x, y) != last:
-            last, start = (x, y), t
-        since_move[index] = t - start
-
-    # chamber_c and outer_c are the generated readings (the inner one of the
-    # face the sensor saw); the other chamber cells are the input's row at or
-    # before the frame, as a logger holds the last CHS frame.
-    cells = {
-        column: (
-            [columns.texts[column][row] for row in nearest.tolist()]
-            if column in columns.texts
-            else format_numbers(columns.numbers[column][nearest].tolist(), 3)
-        )
-        for column in _CHAMBER_COLUMNS
-    }
+    """run.csv of the frames: chamber_c and outer_c the generated readings
+    (the inner one of the face the sensor saw), the other chamber cells the
+    input's (_Inputs.cells)."""
+    cells = dict(
+        inputs.cells(processed["grid_time_s"][frames], processed["incl_x"][frames], processed["incl_y"][frames])
+    )
 
     def numbers(values: np.ndarray, decimals: int) -> list[str]:
         return format_numbers(values.astype(float).tolist(), decimals)
@@ -462,13 +519,9 @@ def _write_run(
         return [str(value) for value in values.astype(np.int64).tolist()]
 
     cells.update(
-        time_s=numbers(time_s, 3),
         chamber_c=numbers(chamber_c, CHS_DECIMALS),
         outer_c=numbers(outer_c, CHS_DECIMALS),
         imu_temp_c=numbers(processed["temp_c"][frames], 3),
-        incl_x_deg=numbers(processed["incl_x"][frames], 3),
-        incl_y_deg=numbers(processed["incl_y"][frames], 3),
-        since_move_s=numbers(since_move, 3),
         ax_raw=integers(processed["raw_x"][frames]),
         ay_raw=integers(processed["raw_y"][frames]),
         az_raw=integers(processed["raw_z"][frames]),
@@ -479,8 +532,6 @@ def _write_run(
         ay_comp=numbers(processed["ay_comp"][frames], 1),
         az_comp=numbers(processed["az_comp"][frames], 1),
         comp_set=["C" if value else "W" for value in processed["set"][frames].tolist()],
-        coef_source=["D"] * len(frames),
-        imu_seq=[str(index % 65536) for index in range(len(frames))],
     )
     with open(path, "w", newline="", encoding="utf-8") as stream:
         RunLogWriter(stream, with_truth=False, flush_each_row=False).write_columns(cells)
