@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import itertools
 import math
 from collections import OrderedDict
 from collections.abc import Callable
@@ -79,12 +80,21 @@ def first_order_series(tau_s: float) -> Callable[[float, np.ndarray, np.ndarray]
 
     def series(start: float, targets: np.ndarray, dt_s: np.ndarray) -> np.ndarray:
         lengths, which = np.unique(dt_s, return_inverse=True)
-        fractions = np.array([-math.expm1(-length / tau_s) for length in lengths.tolist()])[which]
+        fractions = [-math.expm1(-length / tau_s) for length in lengths.tolist()]
+        if len(fractions) == 1:
+            # Equal steps (a 100 Hz grid): one fraction, and accumulate's
+            # loop in C calling the step is faster than a loop in Python.
+            (fraction,) = fractions
+            steps = itertools.accumulate(
+                targets.tolist(), lambda value, target: value + fraction * (target - value), initial=start
+            )
+            return np.fromiter(steps, dtype=float, count=len(targets) + 1)[1:]
         values = []
+        append = values.append
         value = start
-        for target, fraction in zip(targets.tolist(), fractions.tolist()):
+        for target, fraction in zip(targets.tolist(), np.array(fractions)[which].tolist()):
             value = value + fraction * (target - value)
-            values.append(value)
+            append(value)
         return np.array(values)
 
     def follow(start: float, targets: np.ndarray, dt_s: np.ndarray) -> np.ndarray:
