@@ -175,12 +175,15 @@ def test_the_rates_carry_wilson_intervals_and_say_which_targets_are_missed(tmp_p
     assert (tmp_path / "rates.png").stat().st_size > 10_000
 
 
-def test_the_whole_designs_cost_comes_from_the_mean_run_of_each_kind_and_base():
+def test_the_whole_designs_cost_comes_from_the_mean_run_of_each_kind_and_base(monkeypatch):
+    monkeypatch.setattr(rates.os, "cpu_count", lambda: 2)
     cells = default_cells()
     # A second of CPU a run on every base but the cycle's, where runs take
     # 1 s and 3 s: the cycle's cells cost 2 s a run.
     rows = [_row(kind=c.kind, base=c.base, snr=str(c.snr or ""), seconds="1.0") for c in cells]
     rows += [_row(kind=c.kind, base=c.base, snr=str(c.snr or ""), seconds="3.0") for c in cells if c.base == "cycle"]
     runs = sum(c.runs for c in cells)
-    cpu_hours = sum(c.runs * (2.0 if c.base == "cycle" else 1.0) for c in cells) / 3600
-    assert f"The whole design, {runs} runs, takes {cpu_hours:.1f} CPU hours" in rates.report(rows)
+    cpu_s = sum(c.runs * (2.0 if c.base == "cycle" else 1.0) for c in cells)
+    text = rates.report(rows)
+    assert f"The whole design, {runs} runs, takes {cpu_s / 3600:.1f} CPU hours" in text
+    assert f"{cpu_s / 120:.0f} min on the 2 cores" in text

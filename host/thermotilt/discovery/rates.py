@@ -272,7 +272,7 @@ def _design_cost(rows: list[Row]) -> str:
     cores = os.cpu_count() or 1
     return (
         f"The whole design, {sum(c.runs for c in cells)} runs, takes {cpu_s / 3600:.1f} CPU hours at the record's "
-        f"mean per kind and base: {cpu_s / 3600 / cores:.1f} h on the {cores} cores of the machine that wrote this."
+        f"mean per kind and base: {cpu_s / 60 / cores:.0f} min on the {cores} cores of the machine that wrote this."
     )
 
 
