@@ -38,6 +38,7 @@ from ..physics.document import with_values
 from ..physics.sensor import sensor_series
 from ..physics.terms.lag import first_order
 from ..run import SETTLE_S
+from ..run import positions as run_positions
 from ..run.folder import RunFolder, RunFolderError
 from ..run.log import RunColumns, RunLogWriter, format_numbers
 from .candidates import BY_NAME, CANDIDATES, Candidate
@@ -165,13 +166,8 @@ class _Inputs:
         nearest = input_rows[
             np.minimum(np.searchsorted(input_time[known], time_s, side="right") - 1, len(input_rows) - 1)
         ]
-        since_move = np.zeros(len(time_s))
-        start = time_s[0]
-        last = (None, None)
-        for index, (x, y, t) in enumerate(zip(incl_x, incl_y, time_s)):
-            if (x, y) != last:
-                last, start = (x, y), t
-            since_move[index] = t - start
+        no_log = np.full(len(time_s), np.nan)
+        since_move = run_positions.since_move(time_s, run_positions.mountings(incl_x, incl_y, no_log), no_log)
         cells = {
             column: (
                 [columns.texts[column][row] for row in nearest.tolist()]
