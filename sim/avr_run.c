@@ -1,7 +1,7 @@
 /*
  * Runs one firmware image in simavr and copies its USART0 output to stdout.
  *
- *   avr_run -m atmega328p -f 16000000 [-t SECONDS] [--unity]
+ *   avr_run -m atmega328p -f 16000000 [-t SECONDS] [--unity [--min-stack BYTES]]
  *           [--lsm9ds0 AX,AY,AZ,TEMP_RAW] [--adc CHANNEL=MILLIVOLTS]...
  *           [--input FILE] firmware.elf
  *
@@ -13,7 +13,19 @@
  * build can trust. With --unity it reads Unity's summary ("N Tests N Failures
  * N Ignored" then OK/FAIL), stops the simulation there, and exits 0 only for
  * a run that printed OK with zero failures.
+ *
+ * Every --unity run ends with a line of the image's RAM: its static data
+ * (.data, .bss, .noinit) and how much of the SRAM above it the stack never
+ * reached (board_stack_untouched). With --min-stack, a run that left fewer
+ * untouched bytes fails even where its tests passed: on a Nano the stack
+ * meeting static data is a crash that only sometimes shows.
+ *
+ * A run that restarts (the C runtime's start-up sets SP to RAMEND a second
+ * time: a jump to the reset vector, or a reset) stops there and fails. A
+ * restart, a crash or a time-out names the Unity test that was running, read
+ * from Unity's state in SRAM.
  */
+#include <ctype.h>
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -28,10 +40,13 @@ enum {
     EXIT_USAGE = 2,
     EXIT_CRASHED = 3,
     EXIT_TIMED_OUT = 4,
+    EXIT_STACK_SHORT = 5,
+    EXIT_RESTARTED = 6,
     LINE_CAPACITY = 256,
     MAX_ADC_INPUTS = 16,
     INPUT_CAPACITY = 64 * 1024,
     INPUT_START_MS = 200,
+    TEST_NAME_CAPACITY = 80,
 };
 
 typedef struct {
@@ -82,10 +97,67 @@ static void on_uart_byte(void *context, uint8_t byte)
     }
 }
 
+typedef struct {
+    uint16_t unity; /* Unity's state (the symbol Unity), or 0 */
+    int starts;
+    char test[TEST_NAME_CAPACITY];
+} start_watch_t;
+
+/*
+ * The name of the test Unity is running: Unity.CurrentTestName, the second
+ * pointer of its state in both Unity and cmake/unity. Empty when there is no
+ * such state or the pointer does not lead to a name (the crash overwrote it).
+ */
+static void running_test(const avr_t *avr, uint16_t unity, char *name)
+{
+    name[0] = '\0';
+    if (unity == 0) {
+        return;
+    }
+    uint16_t address = (uint16_t)(avr->data[unity + 2] | avr->data[unity + 3] << 8);
+    for (size_t i = 0; i + 1 < TEST_NAME_CAPACITY && address + i <= avr->ramend; ++i) {
+        char c = (char)avr->data[address + i];
+        if (c == '\0') {
+            memcpy(name, avr->data + address, i);
+            name[i] = '\0';
+            return;
+        }
+        if (!isalnum((unsigned char)c) && c != '_') {
+            return;
+        }
+    }
+}
+
+enum { OPCODE_OUT_MASK = 0xF800, OPCODE_OUT = 0xB800 };
+
+/*
+ * SPL's writes. avr-libc's start-up code sets SP to RAMEND with an OUT, and
+ * nothing else does: returns to the start-up code (from a constructor) pop
+ * SP back to RAMEND, but with a RET.
+ */
+static void on_stack_pointer_low(avr_t *avr, avr_io_addr_t addr, uint8_t value, void *param)
+{
+    start_watch_t *watch = (start_watch_t *)param;
+    avr->data[addr] = value;
+    uint16_t opcode = (uint16_t)(avr->flash[avr->pc] | avr->flash[avr->pc + 1] << 8);
+    if ((opcode & OPCODE_OUT_MASK) != OPCODE_OUT || (uint16_t)(value | avr->data[addr + 1] << 8) != avr->ramend ||
+        ++watch->starts < 2) {
+        return;
+    }
+    /* .bss is cleared only after this: the name is still the crashed run's. */
+    running_test(avr, watch->unity, watch->test);
+    avr->state = cpu_Done;
+}
+
+static const char *test_named(const char *name)
+{
+    return name[0] ? name : "an unknown test";
+}
+
 static int usage(void)
 {
-    fprintf(stderr, "usage: avr_run -m MCU -f HZ [-t SECONDS] [--unity] [--lsm9ds0 AX,AY,AZ,TEMP_RAW]"
-                    " [--adc CHANNEL=MILLIVOLTS]... [--input FILE] firmware.elf\n");
+    fprintf(stderr, "usage: avr_run -m MCU -f HZ [-t SECONDS] [--unity [--min-stack BYTES]]"
+                    " [--lsm9ds0 AX,AY,AZ,TEMP_RAW] [--adc CHANNEL=MILLIVOLTS]... [--input FILE] firmware.elf\n");
     return EXIT_USAGE;
 }
 
@@ -143,13 +215,33 @@ static int parse_positive(const char *text, double *out)
     return 0;
 }
 
+/* Prints the RAM line; returns 0 when at least min_untouched bytes were never reached by the stack. */
+static int report_ram(const board_t *board, const char *elf_path, size_t min_untouched)
+{
+    size_t free_bytes = 0;
+    size_t untouched = board_stack_untouched(board, &free_bytes);
+    if (free_bytes == 0) {
+        fprintf(stderr, "avr_run: %s has no _end symbol: its stack cannot be measured\n", elf_path);
+        return min_untouched == 0 ? 0 : -1;
+    }
+    size_t ram_start = (size_t)board->avr->ioend + 1;
+    size_t ram = (size_t)board->avr->ramend + 1 - ram_start;
+    printf("avr_run: RAM %zu B: static %zu B, stack untouched %zu B\n", ram, ram - free_bytes, untouched);
+    if (untouched < min_untouched) {
+        fprintf(stderr, "avr_run: %s left %zu B of stack untouched, fewer than the %zu B required\n", elf_path,
+                untouched, min_untouched);
+        return -1;
+    }
+    return 0;
+}
+
 int main(int argc, char **argv)
 {
     const char *mcu = NULL, *elf_path = NULL, *input_path = NULL;
     sensor_option_t sensor_option = {0};
     adc_options_t adc = {0};
     static uint8_t input[INPUT_CAPACITY];
-    double frequency = 0, timeout_s = 60;
+    double frequency = 0, timeout_s = 60, min_stack = 0;
     int unity_mode = 0;
     for (int i = 1; i < argc; i++) {
         const char *arg = argv[i];
@@ -170,6 +262,9 @@ int main(int argc, char **argv)
                 return usage();
         } else if (strcmp(arg, "--input") == 0 && has_value) {
             input_path = argv[++i];
+        } else if (strcmp(arg, "--min-stack") == 0 && has_value) {
+            if (parse_positive(argv[++i], &min_stack) != 0)
+                return usage();
         } else if (strcmp(arg, "--unity") == 0) {
             unity_mode = 1;
         } else if (arg[0] != '-' && !elf_path) {
@@ -178,7 +273,7 @@ int main(int argc, char **argv)
             return usage();
         }
     }
-    if (!mcu || !elf_path || frequency <= 0) {
+    if (!mcu || !elf_path || frequency <= 0 || (min_stack > 0 && !unity_mode)) {
         return usage();
     }
 
@@ -191,6 +286,8 @@ int main(int argc, char **argv)
     unity_watch_t watch;
     memset(&watch, 0, sizeof watch);
     board_capture_uart0(&board, on_uart_byte, &watch);
+    start_watch_t starts = {.unity = board_data_symbol(&board, "Unity")};
+    avr_register_io_write(board.avr, R_SPL, on_stack_pointer_low, &starts);
 
     lsm9ds0_t sensor;
     if (sensor_option.attached) {
@@ -225,16 +322,33 @@ int main(int argc, char **argv)
     fflush(stdout);
 
     double simulated_s = (double)board.avr->cycle / frequency;
+    if (watch.length > 0) {
+        putchar('\n');
+    }
+    int stack_ok = !unity_mode || report_ram(&board, elf_path, (size_t)min_stack) == 0;
+    char test[TEST_NAME_CAPACITY];
+    if (starts.starts > 1) {
+        fprintf(stderr, "avr_run: %s restarted during %s after %.3f s simulated\n", elf_path, test_named(starts.test),
+                simulated_s);
+        return EXIT_RESTARTED;
+    }
     if (state == cpu_Crashed) {
-        fprintf(stderr, "avr_run: %s crashed after %.3f s simulated\n", elf_path, simulated_s);
+        running_test(board.avr, starts.unity, test);
+        fprintf(stderr, "avr_run: %s crashed during %s after %.3f s simulated\n", elf_path, test_named(test),
+                simulated_s);
         return EXIT_CRASHED;
     }
     if (!unity_mode) {
         return state == cpu_Done ? EXIT_PASSED : EXIT_TIMED_OUT;
     }
     if (!watch.verdict_seen) {
-        fprintf(stderr, "avr_run: %s printed no Unity verdict within %.1f s simulated\n", elf_path, simulated_s);
+        running_test(board.avr, starts.unity, test);
+        fprintf(stderr, "avr_run: %s printed no Unity verdict within %.1f s simulated, last in %s\n", elf_path,
+                simulated_s, test_named(test));
         return EXIT_TIMED_OUT;
     }
-    return watch.verdict_ok && watch.failures == 0 ? EXIT_PASSED : EXIT_TESTS_FAILED;
+    if (!(watch.verdict_ok && watch.failures == 0)) {
+        return EXIT_TESTS_FAILED;
+    }
+    return stack_ok ? EXIT_PASSED : EXIT_STACK_SHORT;
 }

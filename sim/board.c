@@ -73,14 +73,20 @@ __attribute__((format(printf, 3, 4))) static void report(char *error, size_t err
     va_end(arguments);
 }
 
-static avr_flashaddr_t symbol_address(const elf_firmware_t *firmware, const char *name)
+static avr_flashaddr_t symbol_address(avr_symbol_t *const *symbols, uint32_t count, const char *name)
 {
-    for (uint32_t i = 0; i < firmware->symbolcount; ++i) {
-        if (strcmp(firmware->symbol[i]->symbol, name) == 0) {
-            return firmware->symbol[i]->addr;
+    for (uint32_t i = 0; i < count; ++i) {
+        if (strcmp(symbols[i]->symbol, name) == 0) {
+            return symbols[i]->addr;
         }
     }
     return 0;
+}
+
+uint16_t board_data_symbol(const board_t *board, const char *name)
+{
+    /* Data-space symbols carry avr-gcc's 0x800000 offset. */
+    return (uint16_t)(symbol_address(board->symbols, board->symbol_count, name) & 0xFFFF);
 }
 
 /* avr_load_firmware copies the flash image into the MCU's own memory. */
@@ -193,9 +199,11 @@ int board_load(board_t *board, const char *elf_path, const char *mcu, uint32_t f
     board->avr->avcc = SUPPLY_MILLIVOLTS;
     board->avr->aref = SUPPLY_MILLIVOLTS;
     avr_load_firmware(board->avr, &firmware);
-    board->exit_address = symbol_address(&firmware, "_exit");
-    /* Data-space symbols carry avr-gcc's 0x800000 offset. */
-    board->stack_floor = (uint16_t)(symbol_address(&firmware, "_end") & 0xFFFF);
+    /* simavr never frees an image's symbols: the board keeps them. */
+    board->symbols = firmware.symbol;
+    board->symbol_count = firmware.symbolcount;
+    board->exit_address = symbol_address(board->symbols, board->symbol_count, "_exit");
+    board->stack_floor = board_data_symbol(board, "_end");
     if (board->stack_floor != 0) {
         memset(board->avr->data + board->stack_floor, BOARD_STACK_PAINT,
                (size_t)board->avr->ramend + 1 - board->stack_floor);

@@ -9,6 +9,7 @@
 #include <stdint.h>
 
 #include <simavr/sim_avr.h>
+#include <simavr/sim_elf.h>
 #include <simavr/sim_io.h>
 
 typedef void (*board_uart_byte_fn)(void *context, uint8_t byte);
@@ -56,6 +57,8 @@ typedef struct board {
     size_t uart_input_sent;
     avr_flashaddr_t exit_address; /* libgcc's _exit: cli, then an endless loop; 0 if none */
     uint16_t stack_floor;         /* first SRAM byte above .data/.bss/.noinit (_end) */
+    avr_symbol_t **symbols;       /* the image's symbol table (simavr's, kept for the process) */
+    uint32_t symbol_count;        /* entries in symbols */
     uint64_t run_until_cycle;     /* the end of the board_run in progress; 0 between runs */
     avr_io_t reset_watch;         /* an IO module of ours, so simavr tells us of each reset */
     board_reset_fn reset_hooks[BOARD_RESET_HOOKS];
@@ -88,6 +91,9 @@ int board_hang(board_t *board);
  */
 enum { BOARD_STACK_PAINT = 0xA5 };
 size_t board_stack_untouched(const board_t *board, size_t *capacity);
+
+/* A data-space symbol's SRAM address, or 0 when the image has no such symbol. */
+uint16_t board_data_symbol(const board_t *board, const char *name);
 
 /*
  * A reset of the MCU (the watchdog's) drops every simavr cycle timer, also

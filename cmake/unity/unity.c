@@ -18,16 +18,7 @@
 
 jmp_buf UnityAbortFrame;
 
-static struct {
-    const char *file;
-    const char *testName;
-    int testLine;
-    unsigned int tests;
-    unsigned int failures;
-    unsigned int ignored;
-    unsigned char currentFailed;
-    unsigned char currentIgnored;
-} unity;
+struct UNITY_STORAGE_T Unity;
 
 static void printString(const char *text)
 {
@@ -102,11 +93,11 @@ static void printFloat(float value)
 
 static void printLocation(int line)
 {
-    printString(unity.file);
+    printString(Unity.TestFile);
     UNITY_OUTPUT_CHAR(':');
     printSigned(line);
     UNITY_OUTPUT_CHAR(':');
-    printString(unity.testName);
+    printString(Unity.CurrentTestName);
     UNITY_OUTPUT_CHAR(':');
 }
 
@@ -127,41 +118,41 @@ static void failHeader(int line)
 
 static void abortTest(void)
 {
-    unity.currentFailed = 1;
+    Unity.CurrentTestFailed = 1;
     longjmp(UnityAbortFrame, 1);
 }
 
 void UnityBegin(const char *file)
 {
     UNITY_OUTPUT_START();
-    unity.file = file;
-    unity.tests = 0;
-    unity.failures = 0;
-    unity.ignored = 0;
+    Unity.TestFile = file;
+    Unity.NumberOfTests = 0;
+    Unity.TestFailures = 0;
+    Unity.TestIgnores = 0;
 }
 
 int UnityEnd(void)
 {
     printString("\n-----------------------\n");
-    printUnsigned(unity.tests);
+    printUnsigned(Unity.NumberOfTests);
     printString(" Tests ");
-    printUnsigned(unity.failures);
+    printUnsigned(Unity.TestFailures);
     printString(" Failures ");
-    printUnsigned(unity.ignored);
+    printUnsigned(Unity.TestIgnores);
     printString(" Ignored \n");
-    printString(unity.failures == 0 ? "OK\n" : "FAIL\n");
+    printString(Unity.TestFailures == 0 ? "OK\n" : "FAIL\n");
     UNITY_OUTPUT_FLUSH();
     UNITY_OUTPUT_COMPLETE();
-    return (int)unity.failures;
+    return (int)Unity.TestFailures;
 }
 
 void UnityDefaultTestRun(UnityTestFunction func, const char *name, int line)
 {
-    unity.testName = name;
-    unity.testLine = line;
-    unity.currentFailed = 0;
-    unity.currentIgnored = 0;
-    unity.tests++;
+    Unity.CurrentTestName = name;
+    Unity.CurrentTestLineNumber = line;
+    Unity.CurrentTestFailed = 0;
+    Unity.CurrentTestIgnored = 0;
+    Unity.NumberOfTests++;
     if (TEST_PROTECT()) {
         setUp();
         func();
@@ -169,10 +160,10 @@ void UnityDefaultTestRun(UnityTestFunction func, const char *name, int line)
     if (TEST_PROTECT()) {
         tearDown();
     }
-    if (unity.currentIgnored) {
-        unity.ignored++;
-    } else if (unity.currentFailed) {
-        unity.failures++;
+    if (Unity.CurrentTestIgnored) {
+        Unity.TestIgnores++;
+    } else if (Unity.CurrentTestFailed) {
+        Unity.TestFailures++;
     } else {
         printLocation(line);
         printString("PASS\n");
@@ -205,7 +196,7 @@ void UnityIgnore(const char *message, int line)
         printString(message);
     }
     UNITY_OUTPUT_CHAR('\n');
-    unity.currentIgnored = 1;
+    Unity.CurrentTestIgnored = 1;
     longjmp(UnityAbortFrame, 1);
 }
 

@@ -28,6 +28,20 @@ void tearDown(void);
 
 typedef void (*UnityTestFunction)(void);
 
+/* The run's state, its first two fields as in Unity's unity_internals.h:
+ * test/unity_main.cpp and sim/avr_run read the running test's name there. */
+struct UNITY_STORAGE_T {
+    const char *TestFile;
+    const char *CurrentTestName;
+    int CurrentTestLineNumber;
+    unsigned int NumberOfTests;
+    unsigned int TestFailures;
+    unsigned int TestIgnores;
+    unsigned char CurrentTestFailed;
+    unsigned char CurrentTestIgnored;
+};
+extern struct UNITY_STORAGE_T Unity;
+
 void UnityBegin(const char *file);
 int UnityEnd(void);
 void UnityDefaultTestRun(UnityTestFunction func, const char *name, int line);
