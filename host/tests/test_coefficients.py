@@ -88,7 +88,7 @@ def test_block_layout():
     # No sensor ID, no domain.
     assert block[146:154] == bytes(8) and block[154:186] == NO_RANGE * 8
     assert block[186:] == struct.pack("<H", bitwise_crc16_xmodem(block[:186]))
-    # The same value is quoted in test/test_compensation for the firmware side.
+    # The same value is quoted in test/test_coefficient_block for the firmware side.
     assert bitwise_crc16_xmodem(block[:186]) == 0x5093
 
 
@@ -101,7 +101,7 @@ def test_block_with_an_id_and_a_domain():
     assert block[146:154] == b"NODE-07\0"
     assert block[154:170] == struct.pack("<8h", -1012, 4498, -16500, 16400, -16450, 16420, 32767, -32768)
     assert block[170:186] == struct.pack("<8h", -1005, 4501, -16510, 16390, -16440, 16410, 32767, -32768)
-    # Quoted in test/test_compensation (test_block_id_and_domain_bytes).
+    # Quoted in test/test_coefficient_block (test_block_id_and_domain_bytes).
     assert bitwise_crc16_xmodem(block[:186]) == 0x9062
     decoded = decode_block(block)
     assert (decoded.sensor_id, decoded.domain, decoded.version) == ("NODE-07", domain, 2)

@@ -20,7 +20,7 @@ HOST_DIR = Path(__file__).resolve().parents[1]
 REPO_DIR = HOST_DIR.parent
 DEFINITION = REPO_DIR / "lib" / "Protocol" / "src" / "ProtocolFrames.def"
 
-# The same vectors as test/test_protocol/test_protocol.cpp. Checksums were
+# The same vectors as test/test_protocol and test/test_frame_writer. Checksums were
 # computed independently ("%04X" % binascii.crc_hqx(body, 0), CRC-16/XMODEM)
 VECTORS = [
     "$START,1*80BD",

@@ -6,10 +6,11 @@
 #include <Kalman.h>
 #include <LSM9DS0.h>
 
+#include "imu_processing_series.h"
+
 // Static, not on the stack: the Nano's 2 KB hold them with Unity's own.
 static Coefficients coefficients;
 static ImuProcessing processing;
-static ImuProcessing unrounded;
 
 // The IMU reader's sample() and resetFilters() before lib/ImuProcessing,
 // line for line: the class must give these numbers bit for bit.
@@ -20,54 +21,11 @@ static TrendDetector referenceTrend;
 
 void setUp(void)
 {
-    loadDefaultCoefficients(coefficients);
-    // Z is uncorrected by default; a surface of its own shows Z goes through.
-    const float z[COMP_COEFFICIENT_COUNT] = {12.5f, -0.75f, 0.0625f, 0.01f, -1e-4f, 2e-8f};
-    for (uint8_t term = 0; term < COMP_COEFFICIENT_COUNT; ++term) {
-        coefficients.set[0].axis[2].p[term] = z[term];
-        coefficients.set[1].axis[2].p[term] = -z[term];
-    }
+    loadTestCoefficients(coefficients);
     processing = ImuProcessing();
-    unrounded = ImuProcessing();
 }
 
 void tearDown(void) {}
-
-static void assertSameFloat(float expected, float actual)
-{
-    TEST_ASSERT_EQUAL_MEMORY(&expected, &actual, sizeof(float));
-}
-
-static void assertSameOutput(const ImuOutput& expected, const ImuOutput& actual, bool withCompensated)
-{
-    for (uint8_t axis = 0; axis < IMU_AXES; ++axis) {
-        assertSameFloat(expected.filtered[axis], actual.filtered[axis]);
-        if (withCompensated) {
-            assertSameFloat(expected.compensated[axis], actual.compensated[axis]);
-        }
-    }
-    assertSameFloat(expected.temperatureC, actual.temperatureC);
-    TEST_ASSERT_EQUAL_UINT8((uint8_t)expected.set, (uint8_t)actual.set);
-}
-
-// A deterministic series: noisy tilt readings and a temperature that climbs
-// and falls by a few degC (raw 8 LSB/degC), so the trend turns.
-static uint32_t noiseState;
-
-static int16_t noise(int16_t span)
-{
-    noiseState = noiseState * 1664525UL + 1013904223UL;
-    return (int16_t)((int32_t)((noiseState >> 16) % (uint32_t)(2 * span + 1)) - span);
-}
-
-static void sampleAt(int16_t i, int16_t raw[IMU_AXES], int16_t& temperatureRaw)
-{
-    raw[0] = (int16_t)(-1700 + noise(40));
-    raw[1] = (int16_t)(-400 + noise(40) + (i > 300 ? 2000 : 0));
-    raw[2] = (int16_t)(16000 + noise(40));
-    int16_t phase = (int16_t)(i % 200);
-    temperatureRaw = (int16_t)((phase < 100 ? phase : 200 - phase) / 2 + noise(2));
-}
 
 static void test_first_sample_seeds_every_channel(void)
 {
@@ -217,30 +175,6 @@ static void test_matches_the_firmware_code_it_replaced(void)
     TEST_ASSERT_GREATER_THAN(1, switches);
 }
 
-// The unquantised path on integer inputs: the same bits, frames included.
-static void test_unrounded_equals_raw_on_integer_inputs(void)
-{
-    noiseState = 11;
-    for (int16_t i = 0; i < 400; ++i) {
-        int16_t raw[IMU_AXES];
-        int16_t temperatureRaw;
-        sampleAt(i, raw, temperatureRaw);
-        const float accel[IMU_AXES] = {(float)raw[0], (float)raw[1], (float)raw[2]};
-        float temperatureC = (float)temperatureRaw / 8.0f + 21.0f;
-        if (i == 123) {
-            processing.reset();
-            unrounded.reset();
-        }
-        ImuOutput expected;
-        ImuOutput out;
-        bool due = processing.update(raw, temperatureRaw, coefficients, expected);
-        TEST_ASSERT_EQUAL(due, unrounded.updateUnrounded(accel, temperatureC, coefficients, out));
-        processing.readFiltered(expected);
-        unrounded.readFiltered(out);
-        assertSameOutput(expected, out, due);
-    }
-}
-
 // Each of the LSM9DS0's 12-bit temperatures seeds the filter with exactly
 // temperatureRawToC's value, though update() feeds it in fixed point.
 static void test_every_sensor_temperature_seeds_exactly(void)
@@ -254,24 +188,6 @@ static void test_every_sensor_temperature_seeds_exactly(void)
     }
 }
 
-static void test_unrounded_takes_fractions(void)
-{
-    const float accel[IMU_AXES] = {-1700.25f, 0.5f, 16000.125f};
-    ImuOutput out;
-    unrounded.updateUnrounded(accel, 24.3f, coefficients, out);
-    unrounded.readFiltered(out);
-    TEST_ASSERT_FLOAT_WITHIN(0.0f, -1700.25f, out.filtered[0]);
-    // The filter holds 2^-15 degC (lib/Kalman): 24.3 to within half of that.
-    TEST_ASSERT_FLOAT_WITHIN(1.0f / 65536.0f, 24.3f, out.temperatureC);
-    const float next[IMU_AXES] = {-1699.75f, 0.5f, 16000.125f};
-    unrounded.updateUnrounded(next, 24.3f, coefficients, out);
-    unrounded.readFiltered(out);
-    // The second sample gets a gain of about 1/2 (test_kalman).
-    TEST_ASSERT_FLOAT_WITHIN(0.001f, -1700.0f, out.filtered[0]);
-    ImuProcessing::compensate(coefficients, out);
-    assertSameFloat(compensate(coefficients.set[0].axis[0], out.temperatureC, out.filtered[0]), out.compensated[0]);
-}
-
 int runUnityTests(void)
 {
     UNITY_BEGIN();
@@ -281,8 +197,6 @@ int runUnityTests(void)
     RUN_TEST(test_reset_reseeds_restarts_count_and_keeps_trend);
     RUN_TEST(test_decimation_and_hysteresis_settings);
     RUN_TEST(test_matches_the_firmware_code_it_replaced);
-    RUN_TEST(test_unrounded_equals_raw_on_integer_inputs);
     RUN_TEST(test_every_sensor_temperature_seeds_exactly);
-    RUN_TEST(test_unrounded_takes_fractions);
     return UNITY_END();
 }
