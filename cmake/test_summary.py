@@ -7,7 +7,9 @@ Usage: test_summary.py --unity LABEL=FILE... --pytest FILE --fuzz LINE --fuzz-fa
 
 Prints one line per runner and `total: N passed, N failed`; exits 1 when
 anything failed, a results file is missing, or a program failed without a
-Unity failure to show for it (a crash, a time-out), which counts as one.
+Unity failure to show for it (a crash, a restart, a time-out, a stack short
+of its headroom), which counts as one. Under a simulated MCU's line, each
+program's static RAM and the bytes its stack never reached (sim/avr_run.c).
 """
 
 import argparse
@@ -19,6 +21,10 @@ from dataclasses import dataclass
 # Unity's per-case line: FILE:LINE:TEST:PASS, or :FAIL/:IGNORE with an
 # optional ": message".
 UNITY_CASE = re.compile(r"^.+:\d+:\w+:(PASS|FAIL|IGNORE)(?::.*)?$", re.MULTILINE)
+# sim/avr_run's closing line of a Unity run, and its verdict on a run that
+# did not end in Unity's own.
+RAM_LINE = re.compile(r"^avr_run: RAM (\d+) B: static (\d+) B, stack untouched (\d+) B$", re.MULTILINE)
+AVR_RUN_VERDICT = re.compile(r"^avr_run: (?!RAM ).*$", re.MULTILINE)
 
 
 @dataclass
@@ -35,25 +41,42 @@ def read_junit(path: str) -> ElementTree.Element | None:
         return None
 
 
-def unity_tree(label: str, path: str, counts: Counts) -> str:
+def ram_table(ram: list[tuple[str, int, int, int]]) -> list[str]:
+    """Each program's static RAM and untouched stack, in bytes."""
+    if not ram:
+        return []
+    width = max(len(name) for name, *_ in ram)
+    lines = [f"  {f'RAM of {ram[0][1]} B':<{width}}  static  stack untouched"]
+    lines += [f"  {name:<{width}}  {static:>6}  {untouched:>15}" for name, _, static, untouched in ram]
+    return lines
+
+
+def unity_tree(label: str, path: str, counts: Counts) -> list[str]:
     root = read_junit(path)
     if root is None:
         counts.failed += 1
-        return f"{label}: no results ({path})"
+        return [f"{label}: no results ({path})"]
     programs = tests = failures = ignored = silent_failures = 0
+    ram = []
     for case in root.iter("testcase"):
         programs += 1
-        results = UNITY_CASE.findall(case.findtext("system-out") or "")
+        output = case.findtext("system-out") or ""
+        results = UNITY_CASE.findall(output)
         tests += len(results)
         failures += results.count("FAIL")
         ignored += results.count("IGNORE")
+        name = case.get("name", "").partition(".")[2]
+        ram += [(name, *map(int, line)) for line in RAM_LINE.findall(output)]
         if case.get("status") == "fail" and "FAIL" not in results:
             silent_failures += 1
-            print(f"{label}: {case.get('name')} failed without a Unity failure", file=sys.stderr)
+            verdicts = "; ".join(AVR_RUN_VERDICT.findall(output))
+            print(f"{label}: {case.get('name')} failed without a Unity failure{': ' if verdicts else ''}{verdicts}",
+                  file=sys.stderr)
     counts.passed += tests - failures - ignored
     counts.failed += failures + silent_failures
     crashed = f", {silent_failures} programs failed outside Unity" if silent_failures else ""
-    return f"{label}: {programs} test programs, {tests} Unity tests, {failures} failures, {ignored} ignored{crashed}"
+    line = f"{label}: {programs} test programs, {tests} Unity tests, {failures} failures, {ignored} ignored{crashed}"
+    return [line, *ram_table(ram)]
 
 
 def pytest_suite(path: str, counts: Counts) -> str:
@@ -91,7 +114,7 @@ def main() -> int:
     lines = []
     for tree in args.unity:
         label, _, path = tree.partition("=")
-        lines.append(unity_tree(label, path, counts))
+        lines += unity_tree(label, path, counts)
     lines.append(pytest_suite(args.pytest, counts))
     fuzz_targets = re.match(r"fuzz: (\d+) targets", args.fuzz)
     if fuzz_targets:

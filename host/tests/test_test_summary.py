@@ -110,3 +110,33 @@ def test_all_passing_exits_zero(tmp_path):
     )
     assert result.stdout.splitlines()[-1] == "total: 7 passed, 0 failed"
     assert result.returncode == 0
+
+
+UNITY_ON_THE_NANO = """<testsuite tests="2">
+<testcase name="atmega328p.test_d" status="run"><system-out>t.cpp:40:test_seven:PASS
+-----------------------
+1 Tests 0 Failures 0 Ignored
+OK
+avr_run: RAM 2048 B: static 1299 B, stack untouched 329 B
+</system-out></testcase>
+<testcase name="atmega328p.test_long_name" status="fail"><system-out>t.cpp:50:test_eight:PASS
+avr_run: RAM 2048 B: static 1885 B, stack untouched 105 B
+avr_run: build/test_long_name.elf restarted during test_nine after 2.007 s simulated
+</system-out></testcase>
+</testsuite>"""
+
+
+def test_each_avr_program_shows_its_ram_and_why_avr_run_failed_it(tmp_path):
+    result = summarise(tmp_path, unity={"simavr atmega328p": UNITY_ON_THE_NANO})
+    lines = result.stdout.splitlines()
+    assert lines[:4] == [
+        "simavr atmega328p: 2 test programs, 2 Unity tests, 0 failures, 0 ignored, 1 programs failed outside Unity",
+        "  RAM of 2048 B   static  stack untouched",
+        "  test_d            1299              329",
+        "  test_long_name    1885              105",
+    ]
+    assert (
+        "atmega328p.test_long_name failed without a Unity failure: "
+        "avr_run: build/test_long_name.elf restarted during test_nine after 2.007 s simulated"
+    ) in result.stderr
+    assert result.returncode == 1
