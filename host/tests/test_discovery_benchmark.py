@@ -159,18 +159,6 @@ def test_the_rates_carry_wilson_intervals_and_say_which_targets_are_missed(tmp_p
     assert "| candidate | none | another effect | the effect on another channel |" in text
     assert "| `hysteresis` | 0 | 0 | 1 |" in text and "| `cross_axis` | 10 | 6 | 0 |" in text
     assert "The whole design's cost is not known: no collinear on fig8, collinear on wave, effect on cycle" in text
-    document = tmp_path / "discovery.md"
-    document.write_text(f"before\n{rates.BEGIN}\nold\n{rates.END}\nafter\n")
-    rates.write_into(document, text)
-    written = document.read_text()
-    assert written.startswith("before\n") and written.endswith("after\n") and "\nold\n" not in written
-    assert "49/50" in written
-    elsewhere = tmp_path / "new" / "rates.md"
-    rates.write_into(elsewhere, text)
-    assert elsewhere.read_text() == f"{rates.BEGIN}\n\n{text}\n{rates.END}\n"
-    document.write_text("no block\n")
-    with pytest.raises(ValueError, match="has no"):
-        rates.write_into(document, text)
     rates.figure(rows, tmp_path / "rates.png")
     assert (tmp_path / "rates.png").stat().st_size > 10_000
 

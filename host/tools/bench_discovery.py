@@ -21,6 +21,8 @@ import time
 from contextlib import ExitStack
 from pathlib import Path
 
+import generated_page
+
 ROOT = Path(__file__).resolve().parents[2]
 ROWS_FOR_SPEED = 100_000
 
@@ -136,7 +138,7 @@ def main() -> int:
         print(line)
         text += f"\nSpeed: {line}, on the machine that wrote this.\n"
     try:
-        rates.write_into(args.document, text)
+        generated_page.write_block(args.document, rates.BEGIN, rates.END, text)
     except ValueError as error:
         print(f"bench-discovery: error: {error}", file=sys.stderr)
         return 1

@@ -8,6 +8,7 @@ from __future__ import annotations
 import datetime
 import os
 import platform
+import re
 from pathlib import Path
 
 DOCS = Path(__file__).resolve().parents[2] / "docs"
@@ -79,3 +80,19 @@ def now() -> datetime.datetime:
 def write(path: Path, lines: list[str]) -> None:
     path.write_text("\n".join(lines).rstrip("\n") + "\n", encoding="utf-8")
     print(f"wrote {path}", flush=True)
+
+
+def write_block(document: Path, begin: str, end: str, text: str) -> None:
+    """Replace what lies between the begin and end markers in a page that
+    people write the rest of; a page that does not exist yet is written with
+    that block alone. ValueError when the page has no such block."""
+    block = f"{begin}\n\n{text}\n{end}"
+    if not document.exists():
+        document.parent.mkdir(parents=True, exist_ok=True)
+        document.write_text(block + "\n", encoding="utf-8")
+        return
+    content = document.read_text(encoding="utf-8")
+    pattern = re.compile(re.escape(begin) + r".*?" + re.escape(end), re.S)
+    if not pattern.search(content):
+        raise ValueError(f"{document} has no {begin} ... {end} block")
+    document.write_text(pattern.sub(lambda _: block, content), encoding="utf-8")

@@ -6,7 +6,6 @@ here is computed from the record's rows; nothing is typed in."""
 from __future__ import annotations
 
 import os
-import re
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -334,18 +333,3 @@ def figure(rows: list[Row], path: Path) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
     plt.close(fig)
-
-
-def write_into(document: Path, text: str) -> None:
-    """Replace what lies between BEGIN and END in the document; a document
-    that does not exist yet is written with that block alone."""
-    block = f"{BEGIN}\n\n{text}\n{END}"
-    if not document.exists():
-        document.parent.mkdir(parents=True, exist_ok=True)
-        document.write_text(block + "\n", encoding="utf-8")
-        return
-    content = document.read_text(encoding="utf-8")
-    pattern = re.compile(re.escape(BEGIN) + r".*?" + re.escape(END), re.S)
-    if not pattern.search(content):
-        raise ValueError(f"{document} has no {BEGIN} ... {END} block")
-    document.write_text(pattern.sub(lambda _: block, content), encoding="utf-8")
