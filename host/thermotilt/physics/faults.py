@@ -1,6 +1,7 @@
-"""Faults injected into the twin: when each is active, their command-line
-syntax and their [[faults]] tables in a model file. Which faults exist and
-what each does is the twin's registry (``thermotilt.twin.faults``)."""
+"""Faults injected into the twin: which a model file or the command line
+may name, when each is active, their command-line syntax and their
+[[faults]] tables in a model file. What each does is the twin's registry
+(``thermotilt.twin.faults``), which implements exactly these."""
 
 from __future__ import annotations
 
@@ -9,10 +10,28 @@ import re
 from dataclasses import dataclass
 from typing import Any
 
-from ..twin.faults import FAULTS
 from .parameters import ModelError, finite_number
 
-FAULT_NAMES: tuple[str, ...] = tuple(FAULTS)
+# Each fault's name and whether it takes a rate (a probability per byte), in
+# the order the twin registers them and the error messages list them.
+FAULT_TAKES_RATE: dict[str, bool] = {
+    "sensor_absent": False,
+    "sensor_stuck": False,
+    "data_ready_cut": False,
+    "inner_open": False,
+    "inner_short": False,
+    "outer_open": False,
+    "outer_short": False,
+    "peltier_disconnected": False,
+    "peltier_reversed": False,
+    "inner_detached": False,
+    "heatsink_failed": False,
+    "chamber_hang": False,
+    "imu_hang": False,
+    "imu_uart_corrupt": True,
+    "chamber_uart_corrupt": True,
+}
+FAULT_NAMES: tuple[str, ...] = tuple(FAULT_TAKES_RATE)
 
 # What is left of the heatsink's conductance to ambient when its fan stops or
 # its thermal joint dries: free convection from fins sized for forced air is
@@ -37,7 +56,7 @@ class Fault:
             raise ModelError(f"fault '{self.name}': start {self.start_s} s must be >= 0")
         if self.end_s is not None and not (math.isfinite(self.end_s) and self.end_s > self.start_s):
             raise ModelError(f"fault '{self.name}': end {self.end_s} s must be after start {self.start_s} s")
-        if FAULTS[self.name].takes_rate:
+        if FAULT_TAKES_RATE[self.name]:
             if self.rate is None or not (0.0 < self.rate <= 1.0):
                 raise ModelError(f"fault '{self.name}' needs a rate, a probability per byte in (0, 1]")
         elif self.rate is not None:

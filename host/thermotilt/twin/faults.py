@@ -1,11 +1,10 @@
 """The faults the twin injects, one small class each: its name, the board
 a run needs for it, whether it takes a rate (a probability per byte), and
 what it does to the twin's boards or physics as it starts and ends
-(docs/architecture.md, "Faults"). A fault's times and syntax
-(NAME[=RATE][@START[-END]], the model file's [[faults]]) are
-``thermotilt.physics.faults``'s; which faults exist is this registry's.
-
-Registration order is the order FAULT_NAMES and the error messages list.
+(docs/architecture.md, "Faults"). Which faults exist, their times and
+syntax (NAME[=RATE][@START[-END]], the model file's [[faults]]) are
+``thermotilt.physics.faults``'s: this registry implements exactly the faults
+it declares, each with the rate it declares, in its order.
 """
 
 from __future__ import annotations
@@ -13,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, ClassVar, Protocol
 
+from ..physics.faults import FAULT_NAMES, FAULT_TAKES_RATE
 from ..run.folder import CHAMBER_BOARD, IMU_BOARD
 
 if TYPE_CHECKING:
@@ -52,6 +52,10 @@ FAULTS: dict[str, TwinFault] = {}
 def register(cls: type[TwinFault]) -> type[TwinFault]:
     if cls.name in FAULTS:
         raise ValueError(f"fault {cls.name} registered twice")
+    if FAULT_TAKES_RATE.get(cls.name) != cls.takes_rate:
+        raise ValueError(
+            f"fault {cls.name}: not declared in thermotilt.physics.faults with takes_rate={cls.takes_rate}"
+        )
     FAULTS[cls.name] = cls()
     return cls
 
@@ -211,3 +215,9 @@ class ImuUartCorrupt(_UartCorrupt):
 class ChamberUartCorrupt(_UartCorrupt):
     name = "chamber_uart_corrupt"
     board = CHAMBER_BOARD
+
+
+if tuple(FAULTS) != FAULT_NAMES:
+    raise ValueError(
+        f"the twin implements the faults {tuple(FAULTS)}, thermotilt.physics.faults declares {FAULT_NAMES}"
+    )
