@@ -1,19 +1,25 @@
 """The drift surfaces: the paper's Equation (3),
 ``f(x, y) = p00 + p10*x + p01*y + p20*x**2 + p11*x*y + p02*y**2``, with x the
 temperature and y the inclination term, one per set (W warming, C cooling)
-and axis (X, Y, Z), and the paper's own coefficients. Imports nothing of the
-serial protocol: the physics model, the fit and the EEPROM block all use it.
+and axis (X, Y, Z), the paper's own coefficients, and the ID of the sensor a
+table is fitted for. Imports nothing of the serial protocol: the physics
+model, the fit and the EEPROM block all use it.
 """
 
 from __future__ import annotations
 
 import math
+import re
 import struct
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import NamedTuple
 
 SETS = ("W", "C")
+# The sensor a table is fitted for: an ID of up to 8 characters, which the
+# EEPROM block carries and the board compares with its own.
+SENSOR_ID_LENGTH = 8
+_SENSOR_ID = re.compile(rf"[A-Za-z0-9_-]{{0,{SENSOR_ID_LENGTH}}}")
 AXES = ("X", "Y", "Z")
 # How the firmware holds a table: 36 float32 (lib/Compensation).
 _FLOAT32_TABLE = struct.Struct("<36f")
@@ -86,3 +92,14 @@ PAPER_DEFAULTS = CoefficientTable(
         ("C", "Z"): ZERO_SURFACE,
     }
 )
+
+
+def sensor_id_problem(text: str) -> str | None:
+    """Why text cannot be a sensor ID (None: it can). An ID is up to 8
+    letters, digits, '_' or '-' (lib/Compensation's isValidSensorId); the
+    empty text means none."""
+    if _SENSOR_ID.fullmatch(text):
+        return None
+    if len(text) > SENSOR_ID_LENGTH:
+        return f"sensor ID {text!r} has {len(text)} characters, at most {SENSOR_ID_LENGTH}"
+    return f"sensor ID {text!r} may hold only letters, digits, '_' and '-'"

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from ..wire.coefficients import sensor_id_problem
+from ..surfaces import sensor_id_problem
 from .parameters import ModelError, Parameter
 from .terms import REGISTRY, SensorTerm
 

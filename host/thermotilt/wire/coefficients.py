@@ -27,12 +27,20 @@ from __future__ import annotations
 
 import binascii
 import math
-import re
 import struct
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 
-from ..surfaces import AXES, COEFFICIENT_NAMES, SETS, CoefficientTable, Surface, table_from_values
+from ..surfaces import (
+    AXES,
+    COEFFICIENT_NAMES,
+    SENSOR_ID_LENGTH,
+    SETS,
+    CoefficientTable,
+    Surface,
+    sensor_id_problem,
+    table_from_values,
+)
 from .protocol import Frame, SequenceCounter, build_frame
 
 MAGIC = 0x54
@@ -40,8 +48,6 @@ FORMAT_VERSION = 2
 BLOCK_SIZE = 188
 V1_BLOCK_SIZE = 148
 BLOCK_SIZES = {1: V1_BLOCK_SIZE, FORMAT_VERSION: BLOCK_SIZE}
-SENSOR_ID_LENGTH = 8
-_SENSOR_ID = re.compile(rf"[A-Za-z0-9_-]{{0,{SENSOR_ID_LENGTH}}}")
 _COEFFICIENTS = struct.Struct("<36f")
 _SENSOR_ID_FIELD = struct.Struct(f"<{SENSOR_ID_LENGTH}s")
 _DOMAIN = struct.Struct("<16h")
@@ -63,17 +69,6 @@ class CoefficientBlockError(ValueError):
 def crc16_xmodem(data: bytes) -> int:
     """CRC-16/XMODEM (poly 0x1021, init 0); b"123456789" -> 0x31C3."""
     return binascii.crc_hqx(data, 0)
-
-
-def sensor_id_problem(text: str) -> str | None:
-    """Why text cannot be a sensor ID (None: it can). An ID is up to 8
-    letters, digits, '_' or '-' (lib/Compensation's isValidSensorId); the
-    empty text means none."""
-    if _SENSOR_ID.fullmatch(text):
-        return None
-    if len(text) > SENSOR_ID_LENGTH:
-        return f"sensor ID {text!r} has {len(text)} characters, at most {SENSOR_ID_LENGTH}"
-    return f"sensor ID {text!r} may hold only letters, digits, '_' and '-'"
 
 
 # The imu_reader's ID record (lib/Compensation/SensorId.h) and where its
