@@ -176,7 +176,7 @@ def test_log_without_any_frame_fails(pty_pair, tmp_path, capsys):
     ],
 )
 def test_a_program_ends_the_log_when_done_or_faulted(pty_pair, tmp_path, phase, fault, end_reason):
-    """The rule the twin follows too (thermotilt.run.recorder.ProgramEnd):
+    """The rule the twin follows too (thermotilt.wire.recorder.ProgramEnd):
     idle or done after running, or a fault at any time, which latches until
     CLEAR. The IMU streams on; without the rule the log would run to its
     30 s of board time."""

@@ -7,7 +7,6 @@ import json
 import pytest
 
 from thermotilt.run.folder import RunFolder
-from thermotilt.run.recorder import ProgramEnd
 from thermotilt.run.summary import (
     SCHEMA,
     BoardReport,
@@ -16,6 +15,7 @@ from thermotilt.run.summary import (
     read_summary,
 )
 from thermotilt.wire.protocol import build_frame, parse_line
+from thermotilt.wire.recorder import ProgramEnd
 
 
 def twin_summary(**changes):

@@ -2,7 +2,7 @@
 
 The same schema comes from the twin (``thermotilt simulate``) and from real
 boards (``thermotilt log``), so every later tool reads both; both write
-their rows through ``thermotilt.run.recorder``. Columns the source cannot
+their rows through ``thermotilt.wire.recorder``. Columns the source cannot
 know stay empty: a real rig knows no ``true_*`` value, and the chamber
 columns are empty when no chamber board is logged. Values that came from a
 frame are written as the board sent them, so nothing is rounded twice.

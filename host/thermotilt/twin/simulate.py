@@ -9,7 +9,7 @@ IMU boards, as a tilt table carries a batch of sensors (``run_sensors``),
 each with its own sensor physics and run folder. The host side is the same
 code path as with real boards: commands go out as frames, and run.csv rows
 come from IMU frames and the chamber's latest CHS frame through the recorder
-``thermotilt log`` uses (``thermotilt.run.recorder``), which also says when
+``thermotilt log`` uses (``thermotilt.wire.recorder``), which also says when
 a chamber program is over. Faults act through their registry
 (``thermotilt.twin.faults``).
 
@@ -30,10 +30,10 @@ from typing import BinaryIO
 from ..physics import Chamber, Fault, Model, Sensor, SensorSample
 from ..run.folder import CHAMBER_BOARD, IMU_BOARD, RunFolder
 from ..run.log import RunLogWriter, format_number
-from ..run.recorder import BoardStream, FrameRecorder
 from ..run.summary import INTERRUPTED, TWIN, BoardReport, RunSummary
 from ..wire.coefficients import SENSOR_ID_RECORD_ADDRESS, encode_sensor_id_record
 from ..wire.protocol import Frame, SequenceCounter, build_frame
+from ..wire.recorder import BoardStream, FrameRecorder
 from .boards import Board, Drive
 from .faults import FAULTS, INNER_THERMISTOR_CHANNEL, OUTER_THERMISTOR_CHANNEL
 from .scenarios import Scenario

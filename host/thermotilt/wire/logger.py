@@ -4,7 +4,7 @@ run folder: run.csv, serial/ and summary.json (docs/run-log.md).
 The IMU reader's frames make the rows (several readers on one table each
 into their own run folder: ``log_imus``); the chamber's CHS frames, when its
 port is given, fill the chamber columns; both go through the recorder the
-twin uses (``thermotilt.run.recorder``). Each row, and each chunk of raw
+twin uses (``thermotilt.wire.recorder``). Each row, and each chunk of raw
 bytes, is flushed as it is written, so stopping with Ctrl-C, the board going
 away or the logger being killed loses nothing already received; the summary
 is written when the log ends, which a kill does not let it do.
@@ -25,9 +25,9 @@ import serial
 
 from ..run.folder import CHAMBER_BOARD, IMU_BOARD, RunFolder
 from ..run.log import RunLogWriter
-from ..run.recorder import BoardStream, FrameRecorder
 from ..run.summary import BOARDS, INTERRUPTED, BoardReport, RunSummary
 from .protocol import SequenceCounter, build_frame
+from .recorder import BoardStream, FrameRecorder
 
 # Long enough for a 10 Hz stream to fill a read; short enough to watch both ports.
 READ_TIMEOUT_S = 0.05

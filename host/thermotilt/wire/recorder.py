@@ -16,9 +16,9 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from typing import Any, Protocol
 
-from ..wire.protocol import FRAMES, Frame, FrameReader
-from .log import RunLogWriter, format_number
-from .summary import PROGRAM_DONE, BoardReport, chamber_fault
+from ..run.log import RunLogWriter, format_number
+from ..run.summary import PROGRAM_DONE, BoardReport, chamber_fault
+from .protocol import FRAMES, Frame, FrameReader
 
 # (IMU frame field, run.csv column): copied as the board wrote them.
 _IMU_FIELDS = (
