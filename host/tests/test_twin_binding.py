@@ -16,8 +16,9 @@ import pytest
 import serial
 from firmware_helpers import chamber, divider_millivolts, of_type, start_program
 
+from thermotilt.build_tree import build_dir
 from thermotilt.surfaces import PAPER_DEFAULTS, table_from_values
-from thermotilt.twin.boards import Board, Drive, TwinError, build_dir, firmware_elf
+from thermotilt.twin.boards import Board, Drive, TwinError, firmware_elf
 from thermotilt.wire.coefficients import encode_block
 from thermotilt.wire.protocol import FrameReader, build_frame
 

@@ -58,9 +58,10 @@ from typing import Any
 
 import numpy as np
 
+from .build_tree import build_dir
+from .lsm9ds0 import ACCELERATION_RAW_RANGE, TEMPERATURE_RAW_RANGE
 from .program import PAPER_PROPORTIONAL_GAIN
 from .surfaces import CoefficientTable
-from .twin.boards import INT16_RANGE, TEMPERATURE_RAW_RANGE, build_dir
 
 WARMING = 0
 COOLING = 1
@@ -80,7 +81,7 @@ class NativeLibraryError(RuntimeError):
 
 
 def library_path() -> Path:
-    """build/native/libthermotilt_host.so of the build tree twin.build_dir() names."""
+    """build/native/libthermotilt_host.so of the build tree build_dir() names."""
     return build_dir() / "native" / "libthermotilt_host.so"
 
 
@@ -317,7 +318,9 @@ def imu_process(
     module docstring lists, for every sample or, given at (sample indices in
     order), for those samples only."""
     temperature = _integers(temperature_raw, TEMPERATURE_RAW_RANGE, "temperature_raw")
-    axes = tuple(_integers(values, INT16_RANGE, name) for name, values in (("ax", ax), ("ay", ay), ("az", az)))
+    axes = tuple(
+        _integers(values, ACCELERATION_RAW_RANGE, name) for name, values in (("ax", ax), ("ay", ay), ("az", az))
+    )
     return _run("thermotilt_imu_process", axes, temperature, reset, decimation, hysteresis_c, coefficients, at)
 
 

@@ -58,6 +58,7 @@ import generated_page
 import numpy as np
 import test_ram
 
+from thermotilt.build_tree import build_dir
 from thermotilt.calibration.dataset import Campaign, SetData, load
 from thermotilt.calibration.families import compare_families
 from thermotilt.calibration.fit import fit_surface
@@ -74,7 +75,6 @@ from thermotilt.twin.boards import (
     DEFAULT_FREQUENCY_HZ,
     Board,
     FirmwareSymbols,
-    build_dir,
     firmware_elf,
     is_runtime_routine,
 )

@@ -40,7 +40,8 @@ import generated_page  # noqa: E402
 
 from thermotilt.calibration.compare import CALIBRATED_C, compare, expected_mounting_miss_lsb, read_fit
 from thermotilt.calibration.paper import FIELD_RMS_LSB, FIELD_TEST_SET, TABLES
-from thermotilt.calibration.validate import LSB_PER_G, SET_NAMES, load_coefficients, validate
+from thermotilt.calibration.validate import SET_NAMES, load_coefficients, validate
+from thermotilt.lsm9ds0 import LSB_PER_G
 from thermotilt.physics import Model
 from thermotilt.run.summary import read_summary
 from thermotilt.twin.cli import announced_ports

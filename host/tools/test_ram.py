@@ -18,7 +18,7 @@ from pathlib import Path
 
 import generated_page
 
-from thermotilt.twin.boards import build_dir
+from thermotilt.build_tree import build_dir
 
 ROOT = Path(__file__).resolve().parents[2]
 MCU = "atmega328p"

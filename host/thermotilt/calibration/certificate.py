@@ -36,11 +36,12 @@ import numpy as np
 from scipy import stats
 from statsmodels.regression.linear_model import OLS
 
+from ..lsm9ds0 import LSB_PER_G, MG_PER_LSB
 from ..surfaces import SETS
 from .dataset import Campaign
 from .fit import SurfaceFit, design, hac_lags
 from .newey_west import hac_panel_covariance
-from .validate import LSB_PER_G, MG_PER_LSB, SET_NAMES, tilt_deg
+from .validate import SET_NAMES, tilt_deg
 
 COVERAGE_PROBABILITY = 0.95
 CERTIFICATE_JSON = "certificate.json"

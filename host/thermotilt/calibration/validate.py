@@ -34,16 +34,15 @@ from pathlib import Path
 
 import numpy as np
 
+from ..lsm9ds0 import LSB_PER_G, MG_PER_LSB
 from ..run.folder import RunFolder, RunFolderError
 from ..run.log import RunLogError, read_run_columns
 from ..surfaces import AXES, PAPER_DEFAULTS, SETS, ZERO_SURFACE, CoefficientTable
 from .compare import CALIBRATED_C, read_fit
 from .dataset import FIT_AXES, REFERENCE_BAND_C, REFERENCE_C, CalibrationDataError, reading_at_25
 
-# The paper's calibration covered +-45 deg of tilt; 1 g is 1 / 0.061 mg LSB at +-2 g (LSM9DS0).
+# The paper's calibration covered +-45 deg of tilt.
 CALIBRATED_INCLINATION_DEG = 45.0
-MG_PER_LSB = 0.061
-LSB_PER_G = 1000.0 / MG_PER_LSB
 TILT_PERCENTILE = 95.0
 PAPER_ACCELERATION_LSB = LSB_PER_G * math.sin(math.radians(CALIBRATED_INCLINATION_DEG))
 SET_NAMES = {"W": "warming", "C": "cooling"}

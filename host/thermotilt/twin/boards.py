@@ -24,11 +24,11 @@ from pathlib import Path
 from types import TracebackType
 from typing import NamedTuple
 
+from ..build_tree import build_dir
+from ..lsm9ds0 import ACCELERATION_RAW_RANGE, TEMPERATURE_RAW_RANGE
+
 DEFAULT_FREQUENCY_HZ = 16_000_000
 SUPPLY_MILLIVOLTS = 5000.0
-INT16_RANGE = range(-32768, 32768)
-# OUT_TEMP_XM is 12-bit two's complement.
-TEMPERATURE_RAW_RANGE = range(-2048, 2048)
 
 _FIRMWARE_MCU = {"imu_reader": "atmega328p", "thermal_chamber": "atmega2560"}
 # simavr 1.6 models ADC0..ADC7 only, also on the Mega.
@@ -50,14 +50,6 @@ class Drive(NamedTuple):
     duty: float  # mean fraction of the time current flowed, 0..1
     direction: int  # +1 heating, -1 cooling, 0 no current
     pwm: int  # the last analogWrite value the firmware gave ENA, 0..255
-
-
-def build_dir() -> Path:
-    """The offline build tree: $THERMOTILT_BUILD_DIR, else <repo>/build."""
-    override = os.environ.get("THERMOTILT_BUILD_DIR")
-    if override:
-        return Path(override)
-    return Path(__file__).resolve().parents[3] / "build"
 
 
 def firmware_elf(name: str) -> Path:
@@ -482,9 +474,9 @@ class Board:
 
     def set_lsm9ds0(self, ax: int, ay: int, az: int, temperature_raw: int) -> None:
         """The sensor's next samples: accelerations in LSB, OUT_TEMP_XM raw (8 LSB/degC)."""
-        ax = _integer_in(ax, INT16_RANGE, "ax")
-        ay = _integer_in(ay, INT16_RANGE, "ay")
-        az = _integer_in(az, INT16_RANGE, "az")
+        ax = _integer_in(ax, ACCELERATION_RAW_RANGE, "ax")
+        ay = _integer_in(ay, ACCELERATION_RAW_RANGE, "ay")
+        az = _integer_in(az, ACCELERATION_RAW_RANGE, "az")
         temperature_raw = _integer_in(temperature_raw, TEMPERATURE_RAW_RANGE, "temperature_raw")
         if self._lib.twin_lsm9ds0_set(self._live(), ax, ay, az, temperature_raw) != 0:
             raise TwinError("attach_lsm9ds0() first")
