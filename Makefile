@@ -105,10 +105,12 @@ lint-cpp: system-deps
 	@command -v clang-format >/dev/null || { echo "error: clang-format is missing: make system-deps" >&2; exit 1; }
 	git ls-files -z -- $(CPP_SOURCES) | xargs -0 clang-format --dry-run --Werror
 
-# The host package and its tests against ruff's rules and layout (host/pyproject.toml).
+# The host package and its tests against ruff's rules and layout, and the
+# package's imports against its layers (import-linter; host/pyproject.toml).
 lint-python: python-deps
 	$(VENV)/bin/ruff check host
 	$(VENV)/bin/ruff format --check host
+	cd host && $(abspath $(VENV))/bin/lint-imports --no-logo --no-cache
 
 lint: lint-cpp lint-python
 
