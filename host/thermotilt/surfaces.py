@@ -16,6 +16,9 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 SETS = ("W", "C")
+# The manufacturer's reference temperature, at which the paper takes each
+# position's reading as free of drift (section 3.3).
+REFERENCE_C = 25.0
 # The sensor a table is fitted for: an ID of up to 8 characters, which the
 # EEPROM block carries and the board compares with its own.
 SENSOR_ID_LENGTH = 8

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from ..surfaces import sensor_id_problem
+from ..surfaces import REFERENCE_C, sensor_id_problem
 from .parameters import ModelError, Parameter
 from .terms import REGISTRY, SensorTerm
 
@@ -96,7 +96,6 @@ DRIFT_SHAPE_SPREAD = 0.25
 TEMPCO_SPREAD_MG_PER_C = 0.43
 ZERO_G_SPREAD_MG = 60.0
 TEMPERATURE_OFFSET_SPREAD_C = 1.0
-REFERENCE_C = 25.0
 DRAWN_ID_PREFIX = "TT-"
 
 

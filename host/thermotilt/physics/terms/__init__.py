@@ -162,4 +162,4 @@ def register(cls: type[Term]) -> type[Term]:
     return cls
 
 
-from . import chamber, sensor  # noqa: E402,F401  (registers the terms)
+from . import chamber, sensor, sensor_candidates  # noqa: E402,F401  (registers the terms)

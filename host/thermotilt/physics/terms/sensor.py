@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 from scipy.signal import lfilter
 
-from ...surfaces import AXES, PAPER_DEFAULTS, SETS, CoefficientTable, Surface
+from ...surfaces import AXES, PAPER_DEFAULTS, REFERENCE_C, SETS, CoefficientTable, Surface
 from ..parameters import Bounds, Parameter, PerAxis, Surfaces
 from . import Section, SensorContext, SensorTerm, hardware, register
 from .lag import first_order, first_order_series
@@ -308,8 +308,8 @@ class Noise(SensorTerm):
 
 # An offset larger than ±2 g would hold a level sensor's ±2 g register at
 # one of its ends.
-_OFFSET = PerAxis(Bounds(-INT16_SPAN / 2, INT16_SPAN / 2, "LSB"))
-_OFFSET_WHY = "±2 g at the ±2 g scale: a larger offset would hold a level sensor's register at one of its ends"
+OFFSET_BOUNDS = PerAxis(Bounds(-INT16_SPAN / 2, INT16_SPAN / 2, "LSB"))
+OFFSET_WHY = "±2 g at the ±2 g scale: a larger offset would hold a level sensor's register at one of its ends"
 
 
 @register
@@ -323,17 +323,17 @@ class MeasuringOffset(SensorTerm):
     parameters = (
         Parameter(
             "warming_lsb",
-            _OFFSET,
+            OFFSET_BOUNDS,
             {"x": -1823.0, "y": -143.0, "z": 0.0},
             "paper section 4.1: the shift of Figure 10's lines, X −1823 and Y −143 LSB while warming; Z none given",
-            _OFFSET_WHY,
+            OFFSET_WHY,
         ),
         Parameter(
             "cooling_lsb",
-            _OFFSET,
+            OFFSET_BOUNDS,
             {"x": -1857.0, "y": -110.0, "z": 0.0},
             "paper section 4.1: X −1857 and Y −110 LSB while cooling; Z none given",
-            _OFFSET_WHY,
+            OFFSET_WHY,
         ),
     )
 
@@ -349,11 +349,6 @@ class MeasuringOffset(SensorTerm):
             return by_set[drift_set]
 
         return error
-
-
-# The manufacturer's reference temperature, at which the paper takes each
-# position's reading as free of drift (section 3.3).
-REFERENCE_C = 25.0
 
 
 @register
@@ -519,134 +514,3 @@ class BiasInstability(SensorTerm):
             return blocks.take(dt_s)
 
         return error
-
-
-# --- candidates: named effects the discovery workflow may switch on ---------
-#
-# Off by default; each default is a plausible magnitude once switched on.
-CANDIDATE_SOURCE = "candidate for discovery; no paper value"
-
-
-@register
-class SensorLag(SensorTerm):
-    name = "sensor_lag"
-    stage = "structure"
-    enabled_by_default = False
-    summary = (
-        "the MEMS structure lags the temperature sensor: the drift surfaces are evaluated at "
-        "a first-order lagged copy of the reported temperature (τ, starting at the first "
-        "reported temperature); the temperature register keeps the reported one"
-    )
-    parameters = (
-        Parameter(
-            "time_constant_s",
-            Bounds(0.0, 3600.0, "s", low_exclusive=True),
-            30.0,
-            CANDIDATE_SOURCE,
-            "as `[die_lag]`; the LSM9DS0 is a system-in-package: its sensing element and "
-            "its temperature sensor share a 4 × 4 × 1 mm package, which does not lag itself "
-            "by hours",
-        ),
-    )
-
-    def bound(self, context: SensorContext) -> Callable[..., Any]:
-        return first_order(self.values["time_constant_s"])
-
-    def bind_series(self, context: SensorContext) -> Callable[..., Any] | None:
-        return first_order_series(self.values["time_constant_s"]) if self.enabled else None
-
-
-@register
-class Hysteresis(SensorTerm):
-    name = "hysteresis"
-    stage = "error"
-    enabled_by_default = False
-    summary = (
-        "a per-axis offset added while the sensor's own trend set is cooling (C), beyond the "
-        "surfaces' and `measuring_offset`'s two sets"
-    )
-    parameters = (
-        Parameter(
-            "cooling_offset_lsb",
-            _OFFSET,
-            {"x": 20.0, "y": 20.0, "z": 0.0},
-            CANDIDATE_SOURCE,
-            _OFFSET_WHY,
-        ),
-    )
-
-    def bound(self, context: SensorContext) -> Callable[..., Any]:
-        cooling = tuple(self.values["cooling_offset_lsb"][axis] for axis in "xyz")
-        warming = (0.0, 0.0, 0.0)
-
-        def error(
-            drift_set: str, reported_c: float, rate: float, dt_s: float, mounting: int
-        ) -> tuple[float, float, float]:
-            return cooling if drift_set == "C" else warming
-
-        return error
-
-
-@register
-class ScaleTempco(SensorTerm):
-    name = "scale_tempco"
-    stage = "scale"
-    enabled_by_default = False
-    summary = (
-        "the scale factor depends on temperature: each axis reads a·(1 + c·(T − 25 °C)), a "
-        "its ideal acceleration, c in ppm/°C, T the reported temperature"
-    )
-    parameters = (
-        Parameter(
-            "ppm_per_c",
-            PerAxis(Bounds(-10000.0, 10000.0, "ppm per degC")),
-            {"x": 100.0, "y": 100.0, "z": 0.0},
-            CANDIDATE_SOURCE,
-            "1 %/°C would change the gain by 60 % between 25 °C and the operating range's "
-            "85 °C; ST's datasheets say the sensitivity \"changes very little over "
-            'temperature"',
-        ),
-    )
-
-    def bound(self, context: SensorContext) -> Callable[..., Any]:
-        ppm = self.values["ppm_per_c"]
-        gain_x, gain_y, gain_z = ppm["x"] * 1e-6, ppm["y"] * 1e-6, ppm["z"] * 1e-6
-
-        def scale(reported_c: float, ideal_x: float, ideal_y: float, ideal_z: float) -> tuple[float, float, float]:
-            excursion = reported_c - REFERENCE_C
-            return (
-                gain_x * excursion * ideal_x,
-                gain_y * excursion * ideal_y,
-                gain_z * excursion * ideal_z,
-            )
-
-        return scale
-
-
-@register
-class CrossAxis(SensorTerm):
-    name = "cross_axis"
-    stage = "ideal"
-    enabled_by_default = False
-    summary = (
-        "each axis reads a share of another: x + s_x·a_y, y + s_y·a_x, z + s_z·a_x, a the "
-        "ideal accelerations before this term"
-    )
-    parameters = (
-        Parameter(
-            "share",
-            PerAxis(Bounds(-0.1, 0.1)),
-            {"x": 0.005, "y": 0.005, "z": 0.0},
-            CANDIDATE_SOURCE,
-            "sin 5.7° = 0.1: a board that far askew on its mount shows by eye (the default 0.005 is 0.29°)",
-        ),
-    )
-
-    def bound(self, context: SensorContext) -> Callable[..., Any]:
-        shares = self.values["share"]
-        share_x, share_y, share_z = shares["x"], shares["y"], shares["z"]
-
-        def ideal(ax: float, ay: float, az: float) -> tuple[float, float, float]:
-            return ax + share_x * ay, ay + share_y * ax, az + share_z * ax
-
-        return ideal
