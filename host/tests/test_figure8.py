@@ -13,7 +13,7 @@ import pytest
 from child_process import THERMOTILT, popen, run
 
 from thermotilt.program import PAPER_HOLD_S
-from thermotilt.run.log import read_run_log
+from thermotilt.run.log import read_run_columns
 from thermotilt.twin import figures
 from thermotilt.twin.scenarios import FIG8_AMBIENT_C
 from thermotilt.wire.protocol import FrameReader
@@ -66,8 +66,8 @@ def fig8_runs(tmp_path_factory):
     for controller, (out, process) in processes.items():
         stdout, stderr = process.communicate(timeout=900)
         assert process.returncode == 0, stderr
-        rows = read_run_log(str(out / "run.csv"))
-        runs[controller] = {"out": out, "stdout": stdout, "rows": rows, "figures": figures.fig8_figures(rows)}
+        log = read_run_columns(str(out / "run.csv"))
+        runs[controller] = {"out": out, "stdout": stdout, "log": log, "figures": figures.fig8_figures(log)}
     return runs
 
 
@@ -156,7 +156,7 @@ def test_the_crossing_step_is_the_one_across_the_outside_temperature(fig8_runs, 
     result = fig8_runs[controller]["figures"]
     assert result["ambient_c"] == pytest.approx(FIG8_AMBIENT_C)
     crossing = figures.crossing_step(
-        figures.step_responses(figures.warming_rows(fig8_runs[controller]["rows"])), result["ambient_c"]
+        figures.step_responses(figures.warming_rows(fig8_runs[controller]["log"])), result["ambient_c"]
     )
     assert (crossing.from_c, crossing.to_c) == (18, 20)
     assert result["crossing_overshoot_c"] == pytest.approx(crossing.overshoot_c, abs=1e-3)

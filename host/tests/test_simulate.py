@@ -1,7 +1,7 @@
 """The digital twin end to end, run as a user runs it (`thermotilt simulate`):
 both real firmware images in simavr against the physics model.
 
-Checks what docs/architecture.md ("Verification", item 4) lists for the
+Checks what docs/twin.md ("What the tests hold the twin to") lists for the
 twin (Figure 8 feature by feature is in test_figure8.py): a cycle at 0 deg
 and at 30 deg on X whose raw drift follows the model's surfaces and whose
 compensated output is flat; byte-identical run.csv for the same seed;
@@ -21,7 +21,7 @@ from twin_helpers import pty_twin
 
 from thermotilt import physics
 from thermotilt.run.folder import RunFolder
-from thermotilt.run.log import ALL_COLUMNS, read_run_log
+from thermotilt.run.log import ALL_COLUMNS, read_run_columns, read_run_log
 from thermotilt.run.summary import read_summary
 from thermotilt.surfaces import PAPER_DEFAULTS
 from thermotilt.twin import boards as twin
@@ -116,12 +116,13 @@ def measuring_offset(row, axis):
     return MEASURING_OFFSET[set_][axis]
 
 
-def settled_rows(rows):
+def settled_rows(path):
     """Rows in the second half of each hold, where the firmware's and the
     model's drift set agree (the sets switch at slightly different moments)."""
+    rows = read_run_log(str(path))
     keep = []
     time_s = [number(row["time_s"]) for row in rows]
-    for hold in figures.holds(rows):
+    for hold in figures.holds(read_run_columns(path)):
         begin = (hold.start_s + hold.end_s) / 2
         keep += [
             row for t, row in zip(time_s, rows) if begin <= t <= hold.end_s and row["comp_set"] == row["true_drift_set"]
@@ -132,7 +133,7 @@ def settled_rows(rows):
 @pytest.mark.twin
 @pytest.mark.parametrize("angle", [0, 30])
 def test_cycle_raw_drift_follows_the_models_surfaces(cycle_runs, angle):
-    rows = settled_rows(read_run_log(str(cycle_runs[angle] / "run.csv")))
+    rows = settled_rows(cycle_runs[angle] / "run.csv")
     assert len(rows) > 1000
     temperatures = [number(row["imu_temp_c"]) for row in rows]
     assert min(temperatures) < -5 and max(temperatures) > 40
@@ -162,10 +163,11 @@ def test_cycle_at_0_deg_drifts_like_section_4_1(cycle_runs):
     # (test_physics.test_paper_drift_over_the_calibration_range). The twin
     # must show what those surfaces give over the temperatures its IMU read.
     rows = read_run_log(str(cycle_runs[0] / "run.csv"))
-    span = figures.drift_figures(rows)
+    log = read_run_columns(str(cycle_runs[0] / "run.csv"))
+    span = figures.drift_figures(log)
     low, high = span["imu_temp_range_c"]
     assert low < -10 and high > 43
-    settled = [row for row, keep in zip(rows, figures.settled_mask(rows)) if keep]
+    settled = [row for row, keep in zip(rows, figures.settled_mask(log)) if keep]
     for axis in ("x", "y"):
         expected = [
             number(row[f"true_a{axis}"])
@@ -215,7 +217,7 @@ def test_a_calibration_cycle_never_trips_the_chambers_guard(cycle_runs, angle):
 @pytest.mark.twin
 @pytest.mark.parametrize("angle", [0, 30])
 def test_cycle_compensated_output_is_flat(cycle_runs, angle):
-    rows = settled_rows(read_run_log(str(cycle_runs[angle] / "run.csv")))
+    rows = settled_rows(cycle_runs[angle] / "run.csv")
     for axis in ("x", "y"):
         worst = max(
             abs(number(row[f"a{axis}_comp"]) - number(row[f"true_a{axis}"]) - measuring_offset(row, axis))

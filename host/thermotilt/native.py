@@ -235,7 +235,7 @@ def _settings(decimation: int, hysteresis_c: float) -> tuple[int, float]:
     return factor, float(hysteresis_c)
 
 
-def _run(
+def _run(  # noqa: PLR0913 - thermotilt_imu_process*'s inputs, as imu_process takes them
     function_name: str,
     axes: tuple[np.ndarray, ...],
     temperature: np.ndarray,
@@ -296,7 +296,7 @@ def _run(
     }
 
 
-def imu_process(
+def imu_process(  # noqa: PLR0913 - the inputs of the C entry point it wraps, each by name
     ax: Any,
     ay: Any,
     az: Any,
@@ -324,7 +324,7 @@ def imu_process(
     return _run("thermotilt_imu_process", axes, temperature, reset, decimation, hysteresis_c, coefficients, at)
 
 
-def imu_process_unrounded(
+def imu_process_unrounded(  # noqa: PLR0913 - imu_process's signature, for unquantised inputs
     ax: Any,
     ay: Any,
     az: Any,

@@ -365,7 +365,6 @@ def sensor_series(
     incl_x_deg, incl_y_deg = np.asarray(incl_x_deg, dtype=float), np.asarray(incl_y_deg, dtype=float)
     if not np.all(dt_s > 0.0):
         raise ValueError(f"dt_s must be > 0, got {dt_s[~(dt_s > 0.0)][0]}")
-    count = len(dt_s)
     constants = model.constants["sensor"]
     stages = _stages(model, seed, series=True)
 
@@ -378,39 +377,13 @@ def sensor_series(
         structure_start = offset(structure_start)
     structure = _lagged(stages["structure"], structure_start, reported, dt_s)
 
-    moved = np.ones(count, dtype=bool)
+    moved = np.ones(len(dt_s), dtype=bool)
     moved[1:] = (incl_x_deg[1:] != incl_x_deg[:-1]) | (incl_y_deg[1:] != incl_y_deg[:-1])
     mounting = np.cumsum(moved) - 1
-    (gravity,) = stages["gravity"]
-    accelerations = []
-    for first in np.flatnonzero(moved).tolist():
-        acceleration = gravity(float(incl_x_deg[first]), float(incl_y_deg[first]))
-        for modify in stages["ideal"]:
-            acceleration = modify(*acceleration)
-        accelerations.append(acceleration)
-    ideal_x, ideal_y, ideal_z = np.array(accelerations, dtype=float).reshape(-1, 3)[mounting].T
-
-    # Runs of steps that share their set and mounting, in order: the
-    # set-dependent and per-mounting terms take them whole.
-    starts = np.flatnonzero(moved | np.concatenate([[True], drift_set[1:] != drift_set[:-1]]))
-    runs = [
-        (slice(start, end), str(drift_set[start]), int(mounting[start]))
-        for start, end in zip(starts.tolist(), [*starts[1:].tolist(), count])
-    ]
-    drift = np.zeros((3, count))
-    if stages["drift"]:
-        for part, set_here, _ in runs:
-            drift[:, part] = stages["drift"][0](set_here, structure[part], ideal_x[part], ideal_y[part], ideal_z[part])
-    # Summed in Sensor.step's order, so that every sum is the same float.
-    raw = np.stack([ideal_x, ideal_y, ideal_z]) + drift
-    for scale in stages["scale"]:
-        raw += np.stack(np.broadcast_arrays(*scale(reported, ideal_x, ideal_y, ideal_z)))
-    for part, set_here, mounting_here in runs:
-        for error in stages["error"]:
-            error_x, error_y, error_z = error(set_here, reported[part], rate[part], dt_s[part], mounting_here)
-            raw[0, part] += error_x
-            raw[1, part] += error_y
-            raw[2, part] += error_z
+    ideal = _ideal_series(stages, incl_x_deg, incl_y_deg, moved, mounting)
+    runs = _runs(moved, drift_set, mounting)
+    drift = _drift_series(stages, runs, structure, ideal)
+    raw = _raw_series(stages, runs, ideal, drift, reported, rate, dt_s)
 
     temperature_lsb = (reported - constants["temperature_zero_c"]) * constants["temperature_lsb_per_c"]
     for register in stages["register"]:
@@ -425,11 +398,79 @@ def sensor_series(
         reported,
         rate,
         drift_set,
-        ideal_x,
-        ideal_y,
-        ideal_z,
+        *ideal,
         *drift,
         mounting,
         *raw,
         structure,
     )
+
+
+# Steps that share their drift set and mounting: which steps, the set, the mounting.
+_Run = tuple[slice, str, int]
+
+
+def _ideal_series(
+    stages: dict[str, list[Any]],
+    incl_x_deg: np.ndarray,
+    incl_y_deg: np.ndarray,
+    moved: np.ndarray,
+    mounting: np.ndarray,
+) -> np.ndarray:
+    """The ideal acceleration of every step, x, y and z by rows, worked out
+    once per mounting, at the step that moved the table there."""
+    (gravity,) = stages["gravity"]
+    accelerations = []
+    for first in np.flatnonzero(moved).tolist():
+        acceleration = gravity(float(incl_x_deg[first]), float(incl_y_deg[first]))
+        for modify in stages["ideal"]:
+            acceleration = modify(*acceleration)
+        accelerations.append(acceleration)
+    return np.array(accelerations, dtype=float).reshape(-1, 3)[mounting].T
+
+
+def _runs(moved: np.ndarray, drift_set: np.ndarray, mounting: np.ndarray) -> list[_Run]:
+    """The runs of steps that share their set and mounting, in order: the
+    set-dependent and per-mounting terms take them whole."""
+    starts = np.flatnonzero(moved | np.concatenate([[True], drift_set[1:] != drift_set[:-1]]))
+    return [
+        (slice(start, end), str(drift_set[start]), int(mounting[start]))
+        for start, end in zip(starts.tolist(), [*starts[1:].tolist(), len(moved)])
+    ]
+
+
+def _drift_series(
+    stages: dict[str, list[Any]], runs: list[_Run], structure: np.ndarray, ideal: np.ndarray
+) -> np.ndarray:
+    """The drift of every step, x, y and z by rows; zero with the drift off."""
+    drift = np.zeros(ideal.shape)
+    if stages["drift"]:
+        ideal_x, ideal_y, ideal_z = ideal
+        for part, set_here, _ in runs:
+            drift[:, part] = stages["drift"][0](set_here, structure[part], ideal_x[part], ideal_y[part], ideal_z[part])
+    return drift
+
+
+def _raw_series(
+    stages: dict[str, list[Any]],
+    runs: list[_Run],
+    ideal: np.ndarray,
+    drift: np.ndarray,
+    reported: np.ndarray,
+    rate: np.ndarray,
+    dt_s: np.ndarray,
+) -> np.ndarray:
+    """The acceleration the registers are rounded from, x, y and z by rows:
+    ideal, drift and every additive error, summed in Sensor.step's order so
+    that every sum is the same float."""
+    ideal_x, ideal_y, ideal_z = ideal
+    raw = np.stack([ideal_x, ideal_y, ideal_z]) + drift
+    for scale in stages["scale"]:
+        raw += np.stack(np.broadcast_arrays(*scale(reported, ideal_x, ideal_y, ideal_z)))
+    for part, set_here, mounting_here in runs:
+        for error in stages["error"]:
+            error_x, error_y, error_z = error(set_here, reported[part], rate[part], dt_s[part], mounting_here)
+            raw[0, part] += error_x
+            raw[1, part] += error_y
+            raw[2, part] += error_z
+    return raw

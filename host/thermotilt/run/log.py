@@ -138,8 +138,10 @@ class RunLogError(ValueError):
 
 
 def read_run_log(path: str) -> list[dict[str, str]]:
-    """Rows of a run.csv as text cells (for tools and tests): the header must
-    be the twin's or the logger's (HEADERS) and every row must have all its cells."""
+    """Rows of a run.csv as text cells, checked: the header must be the
+    twin's or the logger's (HEADERS) and every row must have all its cells.
+    The package reads logs with read_run_columns, which falls back on this
+    to name what is wrong with a file; tests compare cells as written."""
     try:
         with open(path, newline="", encoding="utf-8") as stream:
             records = [cells for cells in csv.reader(stream) if cells]
@@ -177,6 +179,15 @@ class RunColumns:
     @property
     def rows(self) -> int:
         return len(self.numbers["time_s"])
+
+    def where(self, keep: Any) -> RunColumns:
+        """The rows a boolean array keeps."""
+        return RunColumns(
+            self.path,
+            {column: values[keep] for column, values in self.numbers.items()},
+            {column: values[keep] for column, values in self.texts.items()},
+            self.unreadable,
+        )
 
 
 def read_run_columns(path: str) -> RunColumns:

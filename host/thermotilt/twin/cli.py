@@ -4,11 +4,11 @@ firmware images in simavr against the physics model."""
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import time
 from collections.abc import Iterable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..options import (
     UsageError,
@@ -19,6 +19,12 @@ from ..options import (
     interrupted,
     read_at_most,
 )
+
+if TYPE_CHECKING:
+    from ..physics import Model
+    from ..run.summary import RunSummary
+    from .scenarios import Scenario
+    from .simulate import ImuRun
 
 
 def add_commands(commands: argparse._SubParsersAction) -> None:
@@ -108,13 +114,36 @@ def _eeprom_block(path: str) -> bytes:
 
 
 def _simulate(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
+    from ..run.folder import RunFolder
+    from ..run.log import RunLogError, read_run_columns
+    from .simulate import ImuRun
 
+    model, scenario = _model_and_scenario(args)
+    eeprom = _eeprom_block(args.eeprom) if args.eeprom else None
+    out_dir = Path(args.out or f"runs/{scenario.name}-{time.strftime('%Y%m%d-%H%M%S')}")
+    log = RunFolder.at(out_dir).log
+    if log.exists() and not args.force:
+        raise UsageError(f"{log} exists; choose another --out or add --force")
+    summary = _run_twin(
+        args, scenario, ImuRun(model, out_dir, seed=args.seed, eeprom=eeprom, sensor_id=args.sensor or "")
+    )
+    _print_summary(summary)
+    if summary.interrupted:
+        return interrupted()
+    if scenario.paper_figures is not None:
+        try:
+            columns = read_run_columns(str(log))
+        except RunLogError as error:
+            raise UsageError(str(error)) from None
+        for line in scenario.paper_figures(columns):
+            print(line)
+    return 0
+
+
+def _model_and_scenario(args: argparse.Namespace) -> tuple[Model, Scenario]:
+    """The model (--model, --sensor, --enable, --disable, --fault) and the
+    scenario the options ask for."""
     from ..physics import Model, ModelError, parse_fault
-    from ..run.log import RunLogError, read_run_log
-    from . import simulate
-    from .boards import TwinError
-    from .figures import paper_figure_lines
     from .scenarios import ScenarioError, ScenarioOptions, build
 
     try:
@@ -139,36 +168,39 @@ def _simulate(args: argparse.Namespace) -> int:
         )
     except (ModelError, ScenarioError) as error:
         raise UsageError(str(error)) from None
-    eeprom = _eeprom_block(args.eeprom) if args.eeprom else None
-    out_dir = Path(args.out or f"runs/{scenario.name}-{time.strftime('%Y%m%d-%H%M%S')}")
-    if os.path.exists(out_dir / "run.csv") and not args.force:
-        raise UsageError(f"{out_dir}/run.csv exists; choose another --out or add --force")
+    return model, scenario
 
-    def announce_pty(board: str, path: str) -> None:
-        print(f"{board}: {path}", flush=True)
+
+def _run_twin(args: argparse.Namespace, scenario: Scenario, imu: ImuRun) -> RunSummary:
+    """Runs the twin as --pty and --realtime say, its progress on stderr."""
+    from tqdm import tqdm
+
+    from .boards import TwinError
+    from .simulate import Playback, SimulationError, run_imu
 
     realtime = args.pty if args.realtime is None else args.realtime == "on"
     in_real_time = " in real time" if realtime else ""
-    print(f"{scenario.description}: {scenario.duration_s:.0f} s simulated{in_real_time} -> {out_dir}", flush=True)
+    print(f"{scenario.description}: {scenario.duration_s:.0f} s simulated{in_real_time} -> {imu.out_dir}", flush=True)
     with tqdm(total=round(scenario.duration_s), unit="sim s", disable=None, file=sys.stderr) as bar:
+        playback = Playback(
+            pty=args.pty,
+            on_pty=_announce_pty,
+            progress=lambda t: bar.update(round(t) - bar.n),
+            realtime=realtime,
+        )
         try:
-            result = simulate.run(
-                scenario,
-                model,
-                out_dir,
-                seed=args.seed,
-                pty=args.pty,
-                on_pty=announce_pty,
-                progress=lambda t: bar.update(round(t) - bar.n),
-                eeprom=eeprom,
-                realtime=realtime,
-                sensor_id=args.sensor or "",
-            )
-        except (TwinError, simulate.SimulationError) as error:
+            return run_imu(scenario, imu, playback).summary
+        except (TwinError, SimulationError) as error:
             raise UsageError(str(error)) from None
         except OSError as error:
-            raise UsageError(f"cannot write {out_dir}: {error.strerror or error}") from None
-    summary = result.summary
+            raise UsageError(f"cannot write {imu.out_dir}: {error.strerror or error}") from None
+
+
+def _announce_pty(board: str, path: str) -> None:
+    print(f"{board}: {path}", flush=True)
+
+
+def _print_summary(summary: RunSummary) -> None:
     print(
         f"rows: {summary.rows}  simulated: {summary.sim_seconds:.0f} s  "
         f"wall: {summary.wall_seconds:.1f} s  ({summary.speed_x_real_time}x real time)  ({summary.end_reason})"
@@ -179,12 +211,3 @@ def _simulate(args: argparse.Namespace) -> int:
             print(f"{board} refused {refusal}")
         for error in report.reported_errors:
             print(f"{board} reported {error}")
-    if summary.interrupted:
-        return interrupted()
-    try:
-        rows = read_run_log(str(out_dir / "run.csv"))
-    except RunLogError as error:
-        raise UsageError(str(error)) from None
-    for line in paper_figure_lines(scenario.name, rows):
-        print(line)
-    return 0

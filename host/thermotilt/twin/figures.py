@@ -11,6 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..run.log import RunColumns
+
 # Figure 8 is read over the last third of a one-minute step: the settled value.
 SETTLED_WINDOW_S = 20.0
 # A step is complete once 90 % of the change between two settled holds is done.
@@ -44,20 +46,16 @@ class StepResponse:
     overshoot_c: float
 
 
-def _column(rows: list[dict[str, str]], name: str) -> np.ndarray:
-    return np.array([float(row[name]) if row[name] != "" else np.nan for row in rows])
-
-
-def holds(rows: list[dict[str, str]]) -> list[Hold]:
+def holds(log: RunColumns) -> list[Hold]:
     """Consecutive rows with the same programmed temperature; the last one
     counts only if it lasted long enough to settle."""
-    time_s = _column(rows, "time_s")
-    setpoint = _column(rows, "setpoint_c")
-    chamber = _column(rows, "chamber_c")
+    time_s = log.numbers["time_s"]
+    setpoint = log.numbers["setpoint_c"]
+    chamber = log.numbers["chamber_c"]
     found: list[Hold] = []
     start = 0
-    for index in range(1, len(rows) + 1):
-        if index < len(rows) and setpoint[index] == setpoint[start]:
+    for index in range(1, log.rows + 1):
+        if index < log.rows and setpoint[index] == setpoint[start]:
             continue
         if not np.isnan(setpoint[start]):
             window = (time_s >= time_s[index - 1] - SETTLED_WINDOW_S) & (time_s <= time_s[index - 1])
@@ -74,13 +72,13 @@ def holds(rows: list[dict[str, str]]) -> list[Hold]:
     return [hold for hold in found if hold.end_s - hold.start_s >= 2 * SETTLED_WINDOW_S]
 
 
-def step_responses(rows: list[dict[str, str]]) -> list[StepResponse]:
+def step_responses(log: RunColumns) -> list[StepResponse]:
     """How long each change between two settled holds took, and how far the
     chamber went past its new settled value."""
-    time_s = _column(rows, "time_s")
-    chamber = _column(rows, "chamber_c")
+    time_s = log.numbers["time_s"]
+    chamber = log.numbers["chamber_c"]
     found = []
-    settled = holds(rows)
+    settled = holds(log)
     for before, after in zip(settled, settled[1:]):
         in_step = (time_s >= after.start_s) & (time_s <= after.end_s)
         change = after.settled_c - before.settled_c
@@ -92,13 +90,13 @@ def step_responses(rows: list[dict[str, str]]) -> list[StepResponse]:
     return found
 
 
-def warming_rows(rows: list[dict[str, str]]) -> list[dict[str, str]]:
+def warming_rows(log: RunColumns) -> RunColumns:
     """Figure 8 is a warming experiment: its steps are the program's warming phase."""
-    return [row for row in rows if row["phase"] == "W"]
+    return log.where(log.texts["phase"] == "W")
 
 
-def ambient_of(rows: list[dict[str, str]]) -> float:
-    return float(np.nanmedian(_column(rows, "ambient_c")))
+def ambient_of(log: RunColumns) -> float:
+    return float(np.nanmedian(log.numbers["ambient_c"]))
 
 
 def crossing_step(steps: list[StepResponse], ambient_c: float) -> StepResponse | None:
@@ -109,20 +107,20 @@ def crossing_step(steps: list[StepResponse], ambient_c: float) -> StepResponse |
     return None
 
 
-def imu_temperature_offset_c(rows: list[dict[str, str]]) -> float:
+def imu_temperature_offset_c(log: RunColumns) -> float:
     """The LSM9DS0's reading minus the chamber's, over the settled part of the holds."""
-    time_s = _column(rows, "time_s")
-    settled = np.zeros(len(rows), dtype=bool)
-    for hold in holds(rows):
+    time_s = log.numbers["time_s"]
+    settled = np.zeros(log.rows, dtype=bool)
+    for hold in holds(log):
         settled |= (time_s >= hold.end_s - SETTLED_WINDOW_S) & (time_s <= hold.end_s)
-    return float(np.nanmean(_column(rows, "imu_temp_c")[settled] - _column(rows, "chamber_c")[settled]))
+    return float(np.nanmean(log.numbers["imu_temp_c"][settled] - log.numbers["chamber_c"][settled]))
 
 
-def fig8_figures(rows: list[dict[str, str]]) -> dict:
+def fig8_figures(log: RunColumns) -> dict:
     """Figure 8's numbers from the warming steps: step times, settled offsets
     (programmed - measured), overshoots, the crossing of the outside
     temperature and the IMU's temperature offset."""
-    warming = warming_rows(rows)
+    warming = warming_rows(log)
     ambient = ambient_of(warming)
     steps = step_responses(warming)
     crossing = crossing_step(steps, ambient)
@@ -185,28 +183,28 @@ def fig8_table(figures: dict) -> list[str]:
     return lines
 
 
-def settled_mask(rows: list[dict[str, str]], settled_fraction: float = 0.5) -> np.ndarray:
+def settled_mask(log: RunColumns, settled_fraction: float = 0.5) -> np.ndarray:
     """The rows in the last settled_fraction of every hold."""
-    time_s = _column(rows, "time_s")
-    settled = np.zeros(len(rows), dtype=bool)
-    for hold in holds(rows):
+    time_s = log.numbers["time_s"]
+    settled = np.zeros(log.rows, dtype=bool)
+    for hold in holds(log):
         begin = hold.end_s - (hold.end_s - hold.start_s) * settled_fraction
         settled |= (time_s >= begin) & (time_s <= hold.end_s)
     return settled
 
 
-def drift_figures(rows: list[dict[str, str]], settled_fraction: float = 0.5) -> dict:
+def drift_figures(log: RunColumns, settled_fraction: float = 0.5) -> dict:
     """Per axis, over the settled part of every hold: how far the filtered
     raw output and the compensated output move (max - min, LSB)."""
-    settled = settled_mask(rows, settled_fraction)
-    temperature = _column(rows, "imu_temp_c")[settled]
+    settled = settled_mask(log, settled_fraction)
+    temperature = log.numbers["imu_temp_c"][settled]
     figures = {
         "samples": int(settled.sum()),
         "imu_temp_range_c": [round(float(np.nanmin(temperature)), 2), round(float(np.nanmax(temperature)), 2)],
     }
     for axis in ("x", "y"):
-        raw = _column(rows, f"a{axis}_filt")[settled]
-        compensated = _column(rows, f"a{axis}_comp")[settled]
+        raw = log.numbers[f"a{axis}_filt"][settled]
+        compensated = log.numbers[f"a{axis}_comp"][settled]
         figures[axis] = {
             "raw_span_lsb": round(float(np.nanmax(raw) - np.nanmin(raw)), 1),
             "compensated_span_lsb": round(float(np.nanmax(compensated) - np.nanmin(compensated)), 1),
@@ -214,28 +212,30 @@ def drift_figures(rows: list[dict[str, str]], settled_fraction: float = 0.5) -> 
     return figures
 
 
-def paper_figure_lines(scenario_name: str, rows: list[dict[str, str]]) -> list[str]:
-    """The paper's numbers for the scenarios that have them, as lines to print."""
-    lines: list[str] = []
-    if scenario_name == "fig8":
-        figures = fig8_figures(rows)
-        for hold in figures["holds"]:
-            lines.append(
-                f"hold {hold['setpoint_c']:g} degC: settled {hold['settled_c']:.2f}, "
-                f"offset (programmed - measured) {hold['offset_c']:+.2f} degC"
-            )
-        for step in figures["steps"]:
-            lines.append(
-                f"step {step['from_c']:g} -> {step['to_c']:g} degC: {step['completion_s']:.1f} s, "
-                f"overshoot {step['overshoot_c']:.2f} degC"
-            )
-        lines.extend(fig8_table(figures))
-    # Holds shorter than the settling window give no drift to measure.
-    elif scenario_name == "cycle" and holds(rows):
-        figures = drift_figures(rows)
-        for axis in ("x", "y"):
-            lines.append(
-                f"{axis.upper()}: raw drift {figures[axis]['raw_span_lsb']:.0f} LSB, "
-                f"compensated {figures[axis]['compensated_span_lsb']:.0f} LSB"
-            )
-    return lines
+def figure8_lines(log: RunColumns) -> list[str]:
+    """Figure 8's holds, steps and features beside the paper's, as lines to print."""
+    figures = fig8_figures(log)
+    lines = [
+        f"hold {hold['setpoint_c']:g} degC: settled {hold['settled_c']:.2f}, "
+        f"offset (programmed - measured) {hold['offset_c']:+.2f} degC"
+        for hold in figures["holds"]
+    ]
+    lines += [
+        f"step {step['from_c']:g} -> {step['to_c']:g} degC: {step['completion_s']:.1f} s, "
+        f"overshoot {step['overshoot_c']:.2f} degC"
+        for step in figures["steps"]
+    ]
+    return lines + fig8_table(figures)
+
+
+def drift_lines(log: RunColumns) -> list[str]:
+    """Section 4.1's drift and what compensation leaves of it, as lines to
+    print; none for holds shorter than the settling window (no drift to measure)."""
+    if not holds(log):
+        return []
+    figures = drift_figures(log)
+    return [
+        f"{axis.upper()}: raw drift {figures[axis]['raw_span_lsb']:.0f} LSB, "
+        f"compensated {figures[axis]['compensated_span_lsb']:.0f} LSB"
+        for axis in ("x", "y")
+    ]

@@ -26,6 +26,8 @@ from ..program import (
     PAPER_STEP_C,
     REACHED_BAND_C,
 )
+from ..run.log import RunColumns
+from . import figures
 
 # The firmware prints its version and reads its thermistors first; commands
 # are sent once it runs, as a host would after opening the port.
@@ -97,6 +99,8 @@ class Scenario:
     ends_with_program: bool = False
     # What it was built with (build), so that a run can be made again.
     options: ScenarioOptions | None = None
+    # The paper's figures this experiment has, from its run.csv (twin/figures).
+    paper_figures: Callable[[RunColumns], list[str]] | None = None
 
 
 @dataclass(frozen=True)
@@ -177,6 +181,7 @@ def fig8(options: ScenarioOptions) -> Scenario:
             Command(PROGRAM_STARTED_S, "START"),
         ),
         marks={"program_start_s": PROGRAM_STARTED_S},
+        paper_figures=figures.figure8_lines,
     )
 
 
@@ -209,6 +214,7 @@ def cycle(options: ScenarioOptions) -> Scenario:
         ),
         marks={"program_start_s": PROGRAM_STARTED_S},
         ends_with_program=True,
+        paper_figures=figures.drift_lines,
     )
 
 

@@ -36,7 +36,7 @@ from ..wire.protocol import Frame, SequenceCounter, build_frame
 from ..wire.recorder import BoardStream, FrameRecorder
 from .boards import Board, Drive
 from .faults import FAULTS, INNER_THERMISTOR_CHANNEL, OUTER_THERMISTOR_CHANNEL
-from .scenarios import Scenario
+from .scenarios import Command, Scenario, TablePosition
 
 STEP_S = 0.01
 IMU = IMU_BOARD
@@ -216,25 +216,42 @@ class ImuRun:
     sensor_id: str = ""
 
 
+@dataclass(frozen=True)
+class Playback:
+    """How a run is played, beside what it simulates: each board's serial
+    port also a pseudo-terminal (pty; on_pty is told each board's name and
+    path), progress told the simulated seconds every simulated second, no
+    step ending before its simulated time has passed on the wall clock, as
+    on a board (realtime), and where the steps' wall time goes (timing)."""
+
+    pty: bool = False
+    on_pty: Callable[[str, str], None] | None = None
+    progress: Callable[[float], None] | None = None
+    realtime: bool = False
+    timing: StepTiming | None = None
+
+
 def run(
     scenario: Scenario,
     model: Model,
     out_dir: Path,
     seed: int = 1,
-    pty: bool = False,
-    on_pty: Callable[[str, str], None] | None = None,
-    progress: Callable[[float], None] | None = None,
+    *,
     eeprom: bytes | None = None,
-    realtime: bool = False,
-    timing: StepTiming | None = None,
     sensor_id: str = "",
+    timing: StepTiming | None = None,
 ) -> RunResult:
     """Plays a scenario; writes run.csv, serial/ and summary.json in out_dir.
     eeprom, sensor_id: what the IMU's EEPROM holds when it starts (ImuRun).
-    realtime: no step ends before its simulated time has passed on the wall
-    clock, as on a board. timing: where the steps' wall time goes."""
-    imu = ImuRun(model, out_dir, seed, eeprom, sensor_id)
-    return _play(scenario, model, [imu], pty, on_pty, progress, realtime, timing)[0]
+    timing: where the steps' wall time goes. For pseudo-terminals, progress
+    or pacing to the wall clock: run_imu."""
+    return run_imu(scenario, ImuRun(model, out_dir, seed, eeprom, sensor_id), Playback(timing=timing))
+
+
+def run_imu(scenario: Scenario, imu: ImuRun, playback: Playback = Playback()) -> RunResult:
+    """Plays a scenario with one IMU board, the chamber's physics its
+    model's, as playback says; writes its run folder (run)."""
+    return _play(scenario, imu.model, [imu], playback)[0]
 
 
 def run_sensors(
@@ -248,24 +265,21 @@ def run_sensors(
     no sensor acts on the chamber, so each IMU's run folder holds what a run
     of that sensor alone with its seed gives (the chamber's capture copied
     into each). The chamber's physics is chamber_model's."""
-    return _play(scenario, chamber_model, imus, progress=progress)
+    return _play(scenario, chamber_model, imus, Playback(progress=progress))
 
 
-def _play(
-    scenario: Scenario,
-    chamber_model: Model,
-    imus: Sequence[ImuRun],
-    pty: bool = False,
-    on_pty: Callable[[str, str], None] | None = None,
-    progress: Callable[[float], None] | None = None,
-    realtime: bool = False,
-    timing: StepTiming | None = None,
-) -> list[RunResult]:
-    if not imus:
-        raise SimulationError("a run needs at least one IMU board")
-    if pty and len(imus) > 1:
-        raise SimulationError("the pty ports serve one IMU board; run one sensor")
-    check_faults(scenario, chamber_model, len(imus))
+@dataclass(frozen=True)
+class _Played:
+    """How the play of a run went, the same in each of its IMUs' summaries."""
+
+    end_reason: str
+    realtime: bool
+    simulated_s: float
+    wall_s: float
+
+
+def _play(scenario: Scenario, chamber_model: Model, imus: Sequence[ImuRun], playback: Playback) -> list[RunResult]:
+    _check_run(scenario, chamber_model, imus, playback)
     folders = [RunFolder.at(imu.out_dir) for imu in imus]
     for folder in folders:
         folder.serial_dir.mkdir(parents=True, exist_ok=True)
@@ -275,27 +289,11 @@ def _play(
     with ExitStack() as open_files:
         try:
             for imu, folder in zip(imus, folders):
-                link = BoardLink.open(IMU, Board.imu_reader(), open(folder.capture(IMU), "wb"))
-                csv_stream = open_files.enter_context(open(folder.log, "w", newline=""))
-                recorder = FrameRecorder(
-                    RunLogWriter(csv_stream, with_truth=True, flush_each_row=False),
-                    watch_program=scenario.ends_with_program,
-                )
-                units.append(ImuUnit(link, Sensor(imu.model, imu.seed, scenario.ambient_c(0.0)), recorder))
-                if imu.eeprom is not None:
-                    _preload_eeprom(link.board, imu.eeprom)
-                if imu.sensor_id:
-                    link.board.write_eeprom(encode_sensor_id_record(imu.sensor_id), SENSOR_ID_RECORD_ADDRESS)
+                units.append(_imu_unit(scenario, imu, folder, open_files))
+                _load_eeprom(units[-1].link.board, imu)
             if scenario.uses_chamber:
                 chamber_link = BoardLink.open(CHAMBER, Board.thermal_chamber(), open(folders[0].capture(CHAMBER), "wb"))
-            lockstep = Lockstep(scenario, chamber_model, imus[0].seed, units, chamber_link)
-            try:
-                if pty:
-                    lockstep.open_ptys(on_pty)
-                end_reason = lockstep.play(progress, realtime, timing)
-            except KeyboardInterrupt:
-                # Ctrl-C keeps what was simulated so far, summary included.
-                end_reason = INTERRUPTED
+            end_reason = _played(Lockstep(scenario, chamber_model, imus[0].seed, units, chamber_link), playback)
             simulated = units[0].link.board.seconds
             chamber_report = chamber_link.report() if chamber_link is not None else None
             imu_reports = [unit.link.report() for unit in units]
@@ -309,38 +307,82 @@ def _play(
                 link.board.close()
     for folder in folders[1:] if chamber_link is not None else ():
         shutil.copyfile(folders[0].capture(CHAMBER), folder.capture(CHAMBER))
-    wall = time.perf_counter() - wall_start
+    played = _Played(end_reason, playback.realtime, simulated, time.perf_counter() - wall_start)
     results = []
     for imu, unit, imu_report in zip(imus, units, imu_reports):
-        summary = RunSummary(
-            source=TWIN,
-            scenario=scenario.name,
-            description=scenario.description,
-            options=asdict(scenario.options) if scenario.options is not None else None,
-            seed=imu.seed,
-            model=imu.model.source,
-            terms={name: imu.model.enabled(name) for name in imu.model.terms},
-            faults=[vars(fault) for fault in imu.model.faults],
-            imu_eeprom_preloaded_bytes=len(imu.eeprom) if imu.eeprom is not None else 0,
-            end_reason=end_reason,
-            realtime=realtime,
-            sim_seconds=round(simulated, 3),
-            wall_seconds=round(wall, 3),
-            speed_x_real_time=round(simulated / wall, 2) if wall > 0 else None,
-            rows=unit.recorder.rows,
-            marks=scenario.marks,
-            positions=[vars(position) for position in scenario.positions],
-            boards={IMU: imu_report, **({CHAMBER: chamber_report} if chamber_report else {})},
-        )
+        boards = {IMU: imu_report, **({CHAMBER: chamber_report} if chamber_report else {})}
+        summary = _summary(scenario, imu, played, unit.recorder.rows, boards)
         summary.write(imu.out_dir)
         results.append(RunResult(imu.out_dir, summary))
     return results
+
+
+def _check_run(scenario: Scenario, chamber_model: Model, imus: Sequence[ImuRun], playback: Playback) -> None:
+    if not imus:
+        raise SimulationError("a run needs at least one IMU board")
+    if playback.pty and len(imus) > 1:
+        raise SimulationError("the pty ports serve one IMU board; run one sensor")
+    check_faults(scenario, chamber_model, len(imus))
+
+
+def _imu_unit(scenario: Scenario, imu: ImuRun, folder: RunFolder, open_files: ExitStack) -> ImuUnit:
+    """The IMU board of imu, its capture and run.csv open in folder."""
+    link = BoardLink.open(IMU, Board.imu_reader(), open(folder.capture(IMU), "wb"))
+    csv_stream = open_files.enter_context(open(folder.log, "w", newline=""))
+    recorder = FrameRecorder(
+        RunLogWriter(csv_stream, with_truth=True, flush_each_row=False),
+        watch_program=scenario.ends_with_program,
+    )
+    return ImuUnit(link, Sensor(imu.model, imu.seed, scenario.ambient_c(0.0)), recorder)
+
+
+def _load_eeprom(board: Board, imu: ImuRun) -> None:
+    """What imu says its board's EEPROM holds at the start."""
+    if imu.eeprom is not None:
+        _preload_eeprom(board, imu.eeprom)
+    if imu.sensor_id:
+        board.write_eeprom(encode_sensor_id_record(imu.sensor_id), SENSOR_ID_RECORD_ADDRESS)
 
 
 def _preload_eeprom(board: Board, eeprom: bytes) -> None:
     if len(eeprom) > board.eeprom_size:
         raise SimulationError(f"{len(eeprom)} bytes do not fit the IMU's EEPROM of {board.eeprom_size} bytes")
     board.write_eeprom(eeprom)
+
+
+def _played(lockstep: Lockstep, playback: Playback) -> str:
+    """Plays the lockstep as playback says; returns why it stopped."""
+    try:
+        if playback.pty:
+            lockstep.open_ptys(playback.on_pty)
+        return lockstep.play(playback.progress, playback.realtime, playback.timing)
+    except KeyboardInterrupt:
+        # Ctrl-C keeps what was simulated so far, summary included.
+        return INTERRUPTED
+
+
+def _summary(scenario: Scenario, imu: ImuRun, played: _Played, rows: int, boards: dict[str, BoardReport]) -> RunSummary:
+    """The summary.json of imu's run folder."""
+    return RunSummary(
+        source=TWIN,
+        scenario=scenario.name,
+        description=scenario.description,
+        options=asdict(scenario.options) if scenario.options is not None else None,
+        seed=imu.seed,
+        model=imu.model.source,
+        terms={name: imu.model.enabled(name) for name in imu.model.terms},
+        faults=[vars(fault) for fault in imu.model.faults],
+        imu_eeprom_preloaded_bytes=len(imu.eeprom) if imu.eeprom is not None else 0,
+        end_reason=played.end_reason,
+        realtime=played.realtime,
+        sim_seconds=round(played.simulated_s, 3),
+        wall_seconds=round(played.wall_s, 3),
+        speed_x_real_time=round(played.simulated_s / played.wall_s, 2) if played.wall_s > 0 else None,
+        rows=rows,
+        marks=scenario.marks,
+        positions=[vars(position) for position in scenario.positions],
+        boards=boards,
+    )
 
 
 @dataclass
@@ -352,6 +394,32 @@ class ImuUnit:
     sensor: Sensor
     recorder: FrameRecorder
     sample: SensorSample | None = None
+
+
+class _Schedule:
+    """A scenario's table positions and commands, each handed out once its
+    time has come."""
+
+    def __init__(self, scenario: Scenario) -> None:
+        self._positions = list(scenario.positions)
+        self._commands = list(scenario.commands)
+        # The table starts at the first position, whatever that one's time.
+        self.position = self._positions.pop(0)
+
+    def moves(self, t: float) -> list[TablePosition]:
+        """The positions due by t, in order; the table is then at the last."""
+        moved = []
+        while self._positions and self._positions[0].at_s <= t:
+            self.position = self._positions.pop(0)
+            moved.append(self.position)
+        return moved
+
+    def commands(self, t: float) -> list[Command]:
+        """The commands due by t, in order."""
+        due = []
+        while self._commands and self._commands[0].at_s <= t:
+            due.append(self._commands.pop(0))
+        return due
 
 
 class Lockstep:
@@ -394,58 +462,23 @@ class Lockstep:
     ) -> str:
         """Steps to the scenario's end, or to the end of its chamber program
         (ends_with_program); returns why it stopped (the summary's end_reason)."""
-        scenario, imus, links = self.scenario, self.imus, self.links
-        chamber_link = self.chamber_link
-        recorders = [unit.recorder for unit in imus]
-        chamber, faults = self.chamber, self._faults
-        boards = [unit.link.board for unit in imus] + ([chamber_link.board] if chamber_link else [])
-        commands = list(scenario.commands)
-        positions = list(scenario.positions)
-        position = positions.pop(0)
-        for recorder in recorders:
-            recorder.move_table(position.incl_x_deg, position.incl_y_deg, position.at_s)
-        drive = None
-        steps = round(scenario.duration_s / STEP_S)
+        schedule = _Schedule(self.scenario)
+        self._move_table(schedule.position)
+        boards = [unit.link.board for unit in self.imus] + ([self.chamber_link.board] if self.chamber_link else [])
+        first_recorder = self.imus[0].recorder
         pacer = WallClockPacer() if realtime else None
         lap = _no_lap
         if timing is not None:
             lap = timing.lap
             timing.start()
-        for step in range(steps):
+        for step in range(round(self.scenario.duration_s / STEP_S)):
             t = step * STEP_S
-            faults.update(t)
-            while positions and positions[0].at_s <= t:
-                position = positions.pop(0)
-                for recorder in recorders:
-                    recorder.move_table(position.incl_x_deg, position.incl_y_deg, position.at_s)
-            while commands and commands[0].at_s <= t:
-                command = commands.pop(0)
-                if command.board == IMU:
-                    for unit in imus:
-                        unit.link.send(command.frame_type, command.values)
-                else:
-                    links[command.board].send(command.frame_type, command.values)
-            ambient = scenario.ambient_c(t)
-            environment = ambient
+            self._apply_schedule(t, schedule)
+            ambient = self.scenario.ambient_c(t)
             lap("other")
-            if chamber is not None:
-                drive = chamber_link.board.read_l298n()
-                lap("board_io")
-                current = -drive.direction if self.peltier_reversed else drive.direction
-                chamber.step(STEP_S, drive.duty, current, ambient)
-                inner_mv, outer_mv = chamber.thermistor_millivolts()
-                lap("physics")
-                chamber_link.board.set_adc_millivolts(INNER_THERMISTOR_CHANNEL, inner_mv)
-                chamber_link.board.set_adc_millivolts(OUTER_THERMISTOR_CHANNEL, outer_mv)
-                environment = chamber.inner_c
-                lap("board_io")
-            for unit in imus:
-                sample = unit.sensor.step(STEP_S, environment, position.incl_x_deg, position.incl_y_deg)
-                lap("physics")
-                unit.sample = sample
-                unit.link.board.set_lsm9ds0(sample.ax, sample.ay, sample.az, sample.temperature_raw)
-                lap("board_io")
-
+            drive = self._step_chamber(ambient, lap)
+            environment = ambient if self.chamber is None else self.chamber.inner_c
+            self._step_sensors(environment, schedule.position, lap)
             end = (step + 1) * STEP_S
             for board in boards:
                 board.run_until(end)
@@ -453,19 +486,66 @@ class Lockstep:
             if pacer is not None:
                 pacer.wait_until(end)
                 lap("other")
-            chamber_frames = chamber_link.receive() if chamber_link is not None else []
-            for unit in imus:
-                unit.recorder.record_chamber(chamber_frames)
-                imu_frames = [frame for frame in unit.link.receive() if frame.type == "IMU"]
-                lap("frames")
-                if imu_frames:
-                    unit.recorder.set_ambient(ambient)
-                    truth = _truth(unit.sample, chamber, drive)
-                    for frame in imu_frames:
-                        unit.recorder.record_imu(frame, end, truth)
-                lap("csv")
+            self._record(end, ambient, drive, lap)
             if progress is not None and step % 100 == 99:
                 progress(end)
-            if recorders[0].end_reason:
-                return recorders[0].end_reason
-        return f"{scenario.duration_s:g} s simulated"
+            if first_recorder.end_reason:
+                return first_recorder.end_reason
+        return f"{self.scenario.duration_s:g} s simulated"
+
+    def _apply_schedule(self, t: float, schedule: _Schedule) -> None:
+        """The faults, table moves and commands due at t."""
+        self._faults.update(t)
+        for position in schedule.moves(t):
+            self._move_table(position)
+        for command in schedule.commands(t):
+            if command.board == IMU:
+                for unit in self.imus:
+                    unit.link.send(command.frame_type, command.values)
+            else:
+                self.links[command.board].send(command.frame_type, command.values)
+
+    def _move_table(self, position: TablePosition) -> None:
+        for unit in self.imus:
+            unit.recorder.move_table(position.incl_x_deg, position.incl_y_deg, position.at_s)
+
+    def _step_chamber(self, ambient_c: float, lap: Callable[[str], None]) -> Drive | None:
+        """The chamber's physics over the step, driven as the board drove the
+        Peltier during the last; the board then reads the new thermistor
+        voltages. Returns that drive (None: no chamber)."""
+        if self.chamber is None:
+            return None
+        board = self.chamber_link.board
+        drive = board.read_l298n()
+        lap("board_io")
+        current = -drive.direction if self.peltier_reversed else drive.direction
+        self.chamber.step(STEP_S, drive.duty, current, ambient_c)
+        inner_mv, outer_mv = self.chamber.thermistor_millivolts()
+        lap("physics")
+        board.set_adc_millivolts(INNER_THERMISTOR_CHANNEL, inner_mv)
+        board.set_adc_millivolts(OUTER_THERMISTOR_CHANNEL, outer_mv)
+        lap("board_io")
+        return drive
+
+    def _step_sensors(self, environment_c: float, position: TablePosition, lap: Callable[[str], None]) -> None:
+        """Each sensor's physics over the step; its board's registers then hold the new sample."""
+        for unit in self.imus:
+            sample = unit.sensor.step(STEP_S, environment_c, position.incl_x_deg, position.incl_y_deg)
+            lap("physics")
+            unit.sample = sample
+            unit.link.board.set_lsm9ds0(sample.ax, sample.ay, sample.az, sample.temperature_raw)
+            lap("board_io")
+
+    def _record(self, end: float, ambient_c: float, drive: Drive | None, lap: Callable[[str], None]) -> None:
+        """What the boards sent during the step that ends at end, into each IMU's run.csv."""
+        chamber_frames = self.chamber_link.receive() if self.chamber_link is not None else []
+        for unit in self.imus:
+            unit.recorder.record_chamber(chamber_frames)
+            imu_frames = [frame for frame in unit.link.receive() if frame.type == "IMU"]
+            lap("frames")
+            if imu_frames:
+                unit.recorder.set_ambient(ambient_c)
+                truth = _truth(unit.sample, self.chamber, drive)
+                for frame in imu_frames:
+                    unit.recorder.record_imu(frame, end, truth)
+            lap("csv")

@@ -15,7 +15,7 @@ from __future__ import annotations
 import os
 import sys
 import time
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import ExitStack, contextmanager, suppress
 from dataclasses import dataclass
 from pathlib import Path
@@ -116,7 +116,7 @@ def log_boards(
 ) -> RunSummary:
     """Logs into the run folder out_dir until the duration, the row count,
     a closed port, Ctrl-C or, with ``program``, the chamber's program
-    ending (done, or a fault: ProgramEnd); the settings are log_imus'. A
+    ending (done, or a fault: ProgramEnd); the settings are LogSettings'. A
     port given open stays open. ``firmware``: each board's VER as the
     caller asked it, for boards that sent theirs before the log began."""
     return log_imus([(imu_port, out_dir, firmware)], chamber_port, **settings)[0]
@@ -127,39 +127,88 @@ def log_boards(
 ImuReader = tuple[str | serial.Serial, Path, Mapping[str, str] | None]
 
 
+@dataclass(frozen=True)
+class LogSettings:
+    """How a log runs and what its summaries say: the ports' baud rate; the
+    log's end after ``duration_s`` of board time or ``max_rows`` rows (None:
+    no such end); the rig; ``force``: a run folder's earlier log may be
+    overwritten; ``program``: the chamber's program the log follows (None:
+    none); ``description``, ``scenario`` and ``options`` go to the summary
+    as they are."""
+
+    baud: int = 115200
+    duration_s: float | None = None
+    max_rows: int | None = None
+    rig: Rig = Rig()
+    force: bool = False
+    program: ProgramWatch | None = None
+    description: str = "thermotilt log"
+    scenario: str | None = None
+    options: Mapping[str, Any] | None = None
+
+
 def log_imus(
-    imus: Sequence[ImuReader],
-    chamber_port: str | serial.Serial | None = None,
-    baud: int = 115200,
-    duration_s: float | None = None,
-    max_rows: int | None = None,
-    rig: Rig = Rig(),
-    force: bool = False,
-    program: ProgramWatch | None = None,
-    description: str = "thermotilt log",
-    scenario: str | None = None,
-    options: Mapping[str, Any] | None = None,
+    imus: Sequence[ImuReader], chamber_port: str | serial.Serial | None = None, **settings: Any
 ) -> list[RunSummary]:
     """log_boards for several IMU readers on one tilt table, each into its
     own run folder; the chamber's frames go to every folder. The log ends
     for all when it ends for one (its duration or row count, its port
-    closing). ``description``, ``scenario`` and ``options`` go to the
-    summary as they are."""
+    closing). The settings are LogSettings', by name."""
+    chosen = LogSettings(**settings)
     folders = [RunFolder.at(out_dir) for _, out_dir, _ in imus]
     for folder in folders:
         # os.path answers False where pathlib raises (a parent that cannot be
         # searched); creating the folder then says why.
-        if os.path.exists(folder.log) and not force:
+        if os.path.exists(folder.log) and not chosen.force:
             raise LogError(f"{folder.log} exists; choose another --out or add --force")
-    started = time.monotonic()
-
-    def clock() -> float:
-        return time.monotonic() - started
-
-    end_reason = ""
     with ExitStack() as stack:
-        logs = [_LoggedReader(_opened(stack, port, baud), port) for port, _, _ in imus]
-        chamber = _opened(stack, chamber_port, baud) if chamber_port is not None else None
+        session = _Session.open(stack, [port for port, _, _ in imus], chamber_port, folders, chosen)
+        end_reason = session.read_until_end()
+    summaries = []
+    for (_, _, firmware), log, folder in zip(imus, session.logs, folders):
+        summary = session.summary(log, firmware, end_reason)
+        try:
+            summary.write(folder.path)
+        except OSError as error:
+            raise LogError(f"cannot write {folder.summary_path}: {error.strerror or error}") from None
+        summaries.append(summary)
+    for log in session.logs:
+        if log.recorder.rows == 0 and end_reason != INTERRUPTED:
+            raise LogError(
+                f"no IMU frames received from {log.name} ({end_reason}); {log.stream.reader.malformed} malformed lines"
+            )
+    return summaries
+
+
+@dataclass(frozen=True)
+class _Session:
+    """A log's open ports and where what they send goes: each IMU reader's
+    run.csv and capture, and the chamber's capture in every run folder
+    (chamber None: no chamber); clock counts the log's wall seconds."""
+
+    settings: LogSettings
+    logs: list[_LoggedReader]
+    chamber: serial.Serial | None
+    chamber_stream: BoardStream | None
+    clock: Callable[[], float]
+
+    @classmethod
+    def open(
+        cls,
+        stack: ExitStack,
+        imu_ports: Sequence[str | serial.Serial],
+        chamber_port: str | serial.Serial | None,
+        folders: Sequence[RunFolder],
+        settings: LogSettings,
+    ) -> _Session:
+        """Opens the ports, then the run folders' files; stack closes them."""
+        started = time.monotonic()
+
+        def clock() -> float:
+            return time.monotonic() - started
+
+        logs = [_LoggedReader(_opened(stack, port, settings.baud), port) for port in imu_ports]
+        chamber = _opened(stack, chamber_port, settings.baud) if chamber_port is not None else None
         for folder in folders:
             for made in (folder.path, folder.serial_dir):
                 try:
@@ -167,61 +216,64 @@ def log_imus(
                 except OSError as error:
                     raise LogError(f"cannot create folder {made}: {error.strerror or error}") from None
         for log, folder in zip(logs, folders):
-            log.stream = BoardStream(IMU_BOARD, _open_output(stack, folder.capture(IMU_BOARD), "wb"), clock, flush=True)
-            log.recorder = FrameRecorder(
-                RunLogWriter(_open_output(stack, folder.log, "w", newline=""), with_truth=False),
-                watch_program=program is not None,
-            )
-            log.recorder.set_ambient(rig.ambient_c)
-            log.recorder.move_table(rig.incl_x_deg, rig.incl_y_deg, first_frame=rig.position is not None)
+            log.open_outputs(stack, folder, clock, settings)
         chamber_stream = None
         if chamber is not None:
             captures = [_open_output(stack, folder.capture(CHAMBER_BOARD), "wb") for folder in folders]
             chamber_stream = BoardStream(CHAMBER_BOARD, _Copies(captures), clock, flush=True)
+        return cls(settings, logs, chamber, chamber_stream, clock)
+
+    def read_until_end(self) -> str:
+        """Records what the ports send until the log ends; returns why it ended."""
+        end_reason = ""
         try:
             while not end_reason:
-                if chamber is not None:
-                    frames = chamber_stream.feed(_read_available(chamber, wait=False))
-                    for log in logs:
-                        log.recorder.record_chamber(frames)
-                    if program is not None:
-                        program.keep_alive(chamber)
-                stop = logs[0].recorder.end_reason
-                for number, log in enumerate(logs):
-                    # The first port's read waits, so an idle loop does not spin.
-                    stop = log.record(_read_available(log.port, wait=number == 0), duration_s, max_rows) or stop
-                    log.warn_if_silent(clock(), baud)
-                end_reason = stop
+                self._record_chamber()
+                end_reason = self._record_imus()
         except EOFError:
             end_reason = "port closed"
         except KeyboardInterrupt:
             end_reason = INTERRUPTED
-    summaries = []
-    for (_, _, firmware), log, folder in zip(imus, logs, folders):
-        streams = [(log.stream, log.port)] + ([(chamber_stream, chamber)] if chamber is not None else [])
-        summary = RunSummary(
+        return end_reason
+
+    def _record_chamber(self) -> None:
+        if self.chamber is None:
+            return
+        frames = self.chamber_stream.feed(_read_available(self.chamber, wait=False))
+        for log in self.logs:
+            log.recorder.record_chamber(frames)
+        if self.settings.program is not None:
+            self.settings.program.keep_alive(self.chamber)
+
+    def _record_imus(self) -> str:
+        """Rows from what the IMU readers sent; why the log must stop, or ""."""
+        settings = self.settings
+        stop = self.logs[0].recorder.end_reason
+        for number, log in enumerate(self.logs):
+            # The first port's read waits, so an idle loop does not spin.
+            data = _read_available(log.port, wait=number == 0)
+            stop = log.record(data, settings.duration_s, settings.max_rows) or stop
+            log.warn_if_silent(self.clock(), settings.baud)
+        return stop
+
+    def summary(self, log: _LoggedReader, firmware: Mapping[str, str] | None, end_reason: str) -> RunSummary:
+        """The summary of log's run folder; firmware as in ImuReader."""
+        settings = self.settings
+        streams = [(log.stream, log.port)]
+        if self.chamber is not None:
+            streams.append((self.chamber_stream, self.chamber))
+        return RunSummary(
             source=BOARDS,
-            scenario=scenario,
-            description=description,
-            options=dict(options) if options is not None else None,
+            scenario=settings.scenario,
+            description=settings.description,
+            options=dict(settings.options) if settings.options is not None else None,
             end_reason=end_reason,
             realtime=True,
-            wall_seconds=round(clock(), 3),
+            wall_seconds=round(self.clock(), 3),
             rows=log.recorder.rows,
-            positions=rig.positions(),
+            positions=settings.rig.positions(),
             boards={stream.name: _board_report(stream, port, firmware) for stream, port in streams},
         )
-        try:
-            summary.write(folder.path)
-        except OSError as error:
-            raise LogError(f"cannot write {folder.summary_path}: {error.strerror or error}") from None
-        summaries.append(summary)
-    for log in logs:
-        if log.recorder.rows == 0 and end_reason != INTERRUPTED:
-            raise LogError(
-                f"no IMU frames received from {log.name} ({end_reason}); {log.stream.reader.malformed} malformed lines"
-            )
-    return summaries
 
 
 class _LoggedReader:
@@ -234,6 +286,20 @@ class _LoggedReader:
         self.recorder: FrameRecorder
         self.first_ms: int | None = None
         self.warned = False
+
+    def open_outputs(
+        self, stack: ExitStack, folder: RunFolder, clock: Callable[[], float], settings: LogSettings
+    ) -> None:
+        """The stream of what the reader sends, captured in folder's serial/,
+        and the recorder of its rows in folder's run.csv."""
+        self.stream = BoardStream(IMU_BOARD, _open_output(stack, folder.capture(IMU_BOARD), "wb"), clock, flush=True)
+        self.recorder = FrameRecorder(
+            RunLogWriter(_open_output(stack, folder.log, "w", newline=""), with_truth=False),
+            watch_program=settings.program is not None,
+        )
+        rig = settings.rig
+        self.recorder.set_ambient(rig.ambient_c)
+        self.recorder.move_table(rig.incl_x_deg, rig.incl_y_deg, first_frame=rig.position is not None)
 
     def record(self, data: bytes, duration_s: float | None, max_rows: int | None) -> str:
         """Rows from the IMU frames in data; why the log must stop, or ""."""
