@@ -14,13 +14,8 @@ from conftest import SCATTER_OFF
 from scipy import stats
 
 from thermotilt.discovery.candidates import BY_NAME
-from thermotilt.discovery.hide import (
-    ADC_CONVERSIONS_PER_READING,
-    ADC_NOISE_CODES,
-    hide_effect,
-    staircase_inputs,
-    wave_inputs,
-)
+from thermotilt.discovery.chamber_readings import ADC_CONVERSIONS_PER_READING, ADC_NOISE_CODES
+from thermotilt.discovery.hide import hide_effect, staircase_inputs, wave_inputs
 from thermotilt.discovery.replay import Replay, load_measured
 from thermotilt.discovery.search import Search
 from thermotilt.physics import Chamber, Model

@@ -9,7 +9,8 @@ import pytest
 from scipy.linalg import solve_triangular
 from threadpoolctl import threadpool_limits
 
-from thermotilt.discovery.search import ALPHA, Fit, UndeclaredFlicker, _flicker_blocks
+from thermotilt.discovery.channel import Fit, UndeclaredFlicker, _flicker_blocks
+from thermotilt.discovery.search import ALPHA
 from thermotilt.physics.terms.sensor import FLICKER_TIME_CONSTANTS_S
 
 BLOCK_S = 20.0

@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..run.folder import RunFolder
 from .candidates import BY_NAME, CANDIDATES
 from .noise_families import NOISE_FAMILIES
 from .replay import CHAMBER_CHANNELS
@@ -70,8 +71,11 @@ COLUMNS = (
 METHOD_SOURCES = (
     "discovery/benchmark.py",
     "discovery/candidates.py",
+    "discovery/chamber_readings.py",
+    "discovery/channel.py",
     "discovery/hide.py",
     "discovery/noise_families.py",
+    "discovery/nonlinear.py",
     "discovery/replay.py",
     "discovery/search.py",
     "physics/sensor.py",
@@ -100,13 +104,13 @@ class Base:
 def _staircase(folder: Path) -> None:
     from .hide import staircase_inputs
 
-    staircase_inputs(folder / "run.csv")
+    staircase_inputs(RunFolder.at(folder).log)
 
 
 def _wave(folder: Path) -> None:
     from .hide import wave_inputs
 
-    wave_inputs(folder / "run.csv")
+    wave_inputs(RunFolder.at(folder).log)
 
 
 def _twin(scenario: str, *options: str) -> Callable[[Path], None]:
@@ -215,7 +219,7 @@ def _base_folder(data: bytes) -> Path:
     digest = hashlib.sha256(data).hexdigest()[:16]
     if digest not in _BASE_FOLDERS:
         folder = Path(tempfile.mkdtemp(prefix=f"thermotilt-base-{digest}-"))
-        (folder / "run.csv").write_bytes(data)
+        RunFolder.at(folder).log.write_bytes(data)
         _BASE_FOLDERS[digest] = folder
     return _BASE_FOLDERS[digest]
 
@@ -360,11 +364,11 @@ def make_bases(
     made = {}
     for name in names:
         target = folder / name
-        if not (target / "run.csv").exists():
+        if not RunFolder.at(target).log.exists():
             say(f"making the base run {name}: {bases[name].what}")
             target.mkdir(parents=True, exist_ok=True)
             bases[name].make(target)
-        made[name] = (target / "run.csv").read_bytes()
+        made[name] = RunFolder.at(target).log.read_bytes()
     return made
 
 

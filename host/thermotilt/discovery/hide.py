@@ -3,14 +3,15 @@
 The chamber side of a run (the inner face its thermistor's reading implies,
 as the replay takes it; table angles, program columns, the drive) is kept,
 its chamber_c written as the inner thermistor reads that face (the model's
-``thermistor_lag``), held from one chamber status frame to the next; a
-chamber effect changes the face and the readings by what the chamber's
-replay with and without it gives. The sensor side is generated again: the physics
-model's sensor, with one candidate term changed, stepped on the IMU's 100 Hz
-grid with all its noise terms, and the firmware's own processing
-(``thermotilt.native``) turning each sample into filtered, compensated and
-decimated frames. The run folder gets a run.csv without ``true_*`` columns;
-what was hidden goes to ``truth.json``, which discovery never reads.
+``thermistor_lag``), held from one chamber status frame to the next
+(chamber_readings.py); a chamber effect changes the face and the readings
+by what the chamber's replay with and without it gives. The sensor side is
+generated again: the physics model's sensor, with one candidate term
+changed, stepped on the IMU's 100 Hz grid with all its noise terms, and the
+firmware's own processing (``thermotilt.native``) turning each sample into
+filtered, compensated and decimated frames. The run folder gets a run.csv
+without ``true_*`` columns; what was hidden goes to ``truth.json``, which
+discovery never reads.
 
 SNR is the effect's RMS over the noise's RMS on the channel it acts on, both
 over the rows discovery compares (settled rows; about the mean on the
@@ -33,34 +34,29 @@ import numpy as np
 from scipy.signal import lfilter
 
 from .. import native
-from ..physics import Chamber, Model
+from ..physics import Model
 from ..physics.document import with_values
 from ..physics.sensor import sensor_series
-from ..physics.terms.lag import first_order
 from ..run import SETTLE_S
 from ..run import positions as run_positions
 from ..run.folder import RunFolder, RunFolderError
 from ..run.log import RunColumns, RunLogWriter, format_numbers
 from .candidates import BY_NAME, CANDIDATES, Candidate
+from .chamber_readings import ChamberChange, adc_noise_c, frames_measured
+from .channel import gap_rms
 from .noise_families import NOISE_FAMILIES
 from .replay import (
     CHAMBER_CHANNELS,
-    FIRMWARE_OUTPUTS,
     SAMPLE_PERIOD_S,
     DiscoveryDataError,
     Measured,
     Replay,
     SampleGrid,
-    chamber_replay,
-    chamber_rows,
     inner_face_c,
     measured_of,
     read_columns,
-    reading_offsets_c,
     replay,
-    settled_rows,
 )
-from .search import gap_rms
 
 # "flicker": the model's flicker floor this many times larger.
 FLICKER_FACTOR = 5.0
@@ -71,14 +67,6 @@ WANDER_ROW_CORRELATION = {"ar1-0.99": 0.99, "ar1-0.999": 0.999}
 DEFAULT_SNR_RANGE = (0.5, 8.0)
 # The chamber reports its readings to 0.01 degC (CHS, firmware/thermal_chamber).
 CHS_DECIMALS = 2
-# The thermistors' ADC noise, which the twin's readings lack (simavr converts
-# the divider's voltage exactly): assumed 0.5 code RMS per conversion, a
-# quarter of the ATmega2560's typical absolute accuracy (datasheet, ADC
-# characteristics: 2 codes, its static errors included). A reading averages
-# two conversions (firmware/thermal_chamber), so sqrt(2) less, in degC at
-# the reading's temperature (Chamber.celsius_per_adc_code).
-ADC_NOISE_CODES = 0.5
-ADC_CONVERSIONS_PER_READING = 2
 # The firmware's frame cadence (firmware/imu_reader DEFAULT_DECIMATION).
 DECIMATION = 10
 # The chamber's columns, copied from the input run's nearest row.
@@ -230,129 +218,6 @@ def _generate(measured: Measured, model: Model, seed: int, noise: str = "model")
     return processed
 
 
-def _channel_values(processed: Mapping[str, np.ndarray], frames: np.ndarray) -> dict[str, np.ndarray]:
-    return {channel: processed[output][frames].astype(float) for channel, output in FIRMWARE_OUTPUTS.items()}
-
-
-def thermistor_reading(time_s: np.ndarray, face_c: np.ndarray, model: Model) -> np.ndarray:
-    """What the inner thermistor reads of the face through the model's
-    `thermistor_lag` (each step towards the step's mean face temperature)."""
-    if not model.enabled("thermistor_lag"):
-        return face_c
-    follow = first_order(float(model.terms["thermistor_lag"]["time_constant_s"]))
-    reading = np.empty_like(face_c)
-    reading[0] = face_c[0]
-    for index in range(1, len(face_c)):
-        target = 0.5 * (face_c[index] + face_c[index - 1])
-        reading[index] = follow(reading[index - 1], target, float(time_s[index] - time_s[index - 1]))
-    return reading
-
-
-def _frame_rows(inputs: Measured, processed: Mapping[str, np.ndarray], frames: np.ndarray) -> tuple[np.ndarray, ...]:
-    """The frames' times, the input row each falls in, and which frames
-    show a new chamber status."""
-    time_s = processed["grid_time_s"][frames]
-    row = np.minimum(np.searchsorted(inputs.time_s, time_s, side="right") - 1, len(inputs.time_s) - 1)
-    status = inputs.status[row] & (np.diff(row, prepend=-1) != 0)
-    status[0] = True
-    return time_s, row, status
-
-
-def adc_noise_c(
-    inputs: Measured, processed: Mapping[str, np.ndarray], frames: np.ndarray, model: Model, seed: int
-) -> np.ndarray:
-    """The thermistors' ADC noise on each new reading (ADC_NOISE_CODES), in
-    degC at the reading, inner and outer (2 x new readings); its own
-    generator, so the run with the effect gets the same noise."""
-    _, row, status = _frame_rows(inputs, processed, frames)
-    chamber = Chamber(model, float(inputs.ambient_c[0]))
-    readings = np.stack([inputs.chamber_c[row][status], inputs.outer_c[row][status]])
-    codes = ADC_NOISE_CODES / math.sqrt(ADC_CONVERSIONS_PER_READING)
-    spans = np.vectorize(chamber.celsius_per_adc_code)(readings)
-    return codes * spans * np.random.default_rng([seed, 2]).standard_normal(readings.shape)
-
-
-def _frames_measured(
-    inputs: Measured,
-    processed: Mapping[str, np.ndarray],
-    frames: np.ndarray,
-    model: Model,
-    noise_c: np.ndarray,
-    change: ChamberChange | None = None,
-) -> Measured:
-    """The generated frames as a Measured: the same inputs at the frame
-    times, the inner face as its thermistor reads it, each new reading with
-    its ADC noise (noise_c, adc_noise_c) and held from one chamber status
-    frame to the next, as a logger holds them; with a chamber effect's
-    change on the readings."""
-    time_s, row, status = _frame_rows(inputs, processed, frames)
-    new = np.flatnonzero(status)
-    held = np.cumsum(status) - 1
-    face_c = inputs.chamber_c if change is None else inputs.chamber_c + change.face_c
-    reading_c = thermistor_reading(time_s, np.interp(time_s, inputs.time_s, face_c), model)
-    outer_c = inputs.outer_c[row]
-    if change is not None:
-        reading_c = reading_c + change.inner_offset_c
-        outer_c = outer_c + change.outer_c[row]
-    reading_c = (reading_c[new] + noise_c[0])[held]
-    outer_c = (outer_c[new] + noise_c[1])[held]
-    values = _channel_values(processed, frames)
-    values.update(inner=reading_c, outer=outer_c)
-    mounting = inputs.mounting[row]
-    settled = settled_rows(time_s, mounting, np.full(len(time_s), np.nan))
-    used = {channel: settled.copy() for channel in values}
-    used.update(inner=chamber_rows(time_s, status), outer=chamber_rows(time_s, status))
-    for channel in inputs.skipped_channels:
-        if channel in CHAMBER_CHANNELS:
-            del values[channel], used[channel]
-    return Measured(
-        source="generated",
-        time_s=time_s,
-        chamber_c=reading_c,
-        incl_x_deg=inputs.incl_x_deg[row],
-        incl_y_deg=inputs.incl_y_deg[row],
-        mounting=mounting,
-        ambient_c=inputs.ambient_c[row],
-        outer_c=outer_c,
-        duty=inputs.duty[row],
-        direction=inputs.direction[row],
-        status=status,
-        observed=values,
-        used=used,
-        skipped_rows=0,
-        skipped_channels={c: why for c, why in inputs.skipped_channels.items() if c in CHAMBER_CHANNELS},
-    )
-
-
-@dataclass(frozen=True)
-class ChamberChange:
-    """What a chamber effect changes in a run, from the chamber's replay on
-    its inputs with and without it: the inner face and the outer reading
-    (at the input's rows), and the inner thermistor's reading offset."""
-
-    face_c: np.ndarray
-    outer_c: np.ndarray
-    inner_offset_c: float
-
-    @classmethod
-    def of(cls, inputs: Measured, model: Model, changed: Model) -> ChamberChange:
-        inner_before, outer_before = reading_offsets_c(model)
-        inner_after, outer_after = reading_offsets_c(changed)
-        # Both replays start from the same faces: the run with the effect
-        # begins with readings shifted by the offsets' change.
-        shifted = replace(
-            inputs,
-            chamber_c=inputs.chamber_c + (inner_after - inner_before),
-            outer_c=inputs.outer_c + (outer_after - outer_before),
-        )
-        before, after = chamber_replay(inputs, model), chamber_replay(shifted, changed)
-        return cls(
-            face_c=after["face"] - before["face"],
-            outer_c=after["outer"] - before["outer"],
-            inner_offset_c=inner_after - inner_before,
-        )
-
-
 class _NotExcited(Exception):
     """The effect cannot reach the asked size on this channel within its
     parameter's bounds: the inputs hardly excite it there."""
@@ -404,7 +269,95 @@ def _noise_rms(generated: Measured, model: Model, channel: str) -> float:
     return gap_rms(channel, (generated.observed[channel] - replay(generated, model)[channel])[used])
 
 
-def hide_effect(
+@dataclass(frozen=True)
+class _NullRun:
+    """A base run with the noise of its family generated on it and nothing
+    hidden: the run hide_effect writes for "none", and what a run with an
+    effect is made from (the same seed, so the same noise)."""
+
+    inputs: Measured  # the base run's, as read
+    faces: Measured  # the inputs with the inner face their thermistor's reading implies
+    model: Model  # the one discovery is given
+    noisy_model: Model  # with the noise family's terms
+    noise: str
+    seed: int
+    processed: dict[str, np.ndarray]
+    frames: np.ndarray
+    noise_c: np.ndarray
+    measured: Measured
+
+    @classmethod
+    def of(cls, inputs: Measured, model: Model, noise: str, seed: int) -> _NullRun:
+        faces = replace(inputs, chamber_c=inner_face_c(inputs.time_s, inputs.chamber_c, model, inputs.status))
+        noisy_model = noisy(model, noise)
+        processed = _generate(faces, noisy_model, seed, noise)
+        frames = np.flatnonzero(processed["frame_due"])
+        noise_c = adc_noise_c(faces, processed, frames, model, seed)
+        measured = frames_measured(faces, processed, frames, model, noise_c)
+        return cls(inputs, faces, model, noisy_model, noise, seed, processed, frames, noise_c, measured)
+
+    def with_effect(self, candidate: Candidate, channel: str, value: float) -> tuple[dict[str, np.ndarray], Measured]:
+        """The firmware's processing and the frames of this run with the
+        candidate's value on the channel; a chamber effect also changes the
+        faces the sensor follows and the chamber's readings."""
+        hidden = candidate.changed(self.noisy_model, {channel: value})
+        if channel not in CHAMBER_CHANNELS:
+            return _generate(self.faces, hidden, self.seed, self.noise), self.measured
+        change = ChamberChange.of(self.inputs, self.model, candidate.changed(self.model, {channel: value}))
+        measured = frames_measured(self.faces, self.processed, self.frames, self.model, self.noise_c, change)
+        faces = replace(self.faces, chamber_c=self.faces.chamber_c + change.face_c)
+        return _generate(faces, hidden, self.seed, self.noise), measured
+
+
+@dataclass(frozen=True)
+class _Sizing:
+    """Where an effect is hidden and how large: its channel, the
+    parameter's value there, and the effect's and the noise's RMS on it."""
+
+    channel: str
+    value: float
+    effect_rms: float
+    noise_rms: float
+
+
+def _sized(
+    candidate: Candidate,
+    run: _NullRun,
+    channel: str | None,
+    snr: float | None,
+    rng: np.random.Generator,
+    say: Callable[[str], None],
+) -> _Sizing:
+    """The effect sized to snr times the noise (a drawn SNR when None), in a
+    drawn direction, on the channel asked or else on the first, in a drawn
+    order, that the inputs excite enough."""
+    effect = candidate.name
+    generated = run.measured
+    choices = [c for c in candidate.channels if c in generated.channels]
+    if not choices:
+        why = "; ".join(dict.fromkeys(generated.skipped_channels.get(c, f"no {c}") for c in candidate.channels))
+        raise DiscoveryDataError(f"{effect} acts on {', '.join(candidate.channels)}: {why}")
+    if channel is not None and channel not in choices:
+        raise DiscoveryDataError(f"{effect} acts on {', '.join(choices)}, not {channel}")
+    order = [channel] if channel else [choices[i] for i in rng.permutation(len(choices))]
+    if snr is None:
+        snr = float(np.exp(rng.uniform(*np.log(DEFAULT_SNR_RANGE))))
+    sign = 1.0 if rng.random() < 0.5 else -1.0
+    for option in order:
+        noise_rms = _noise_rms(generated, run.model, option)
+        say(f"sizing {effect} on {option} for SNR {snr:g}")
+        try:
+            value, effect_rms = _scaled(candidate, run.model, generated, option, snr * noise_rms, sign)
+        except _NotExcited:
+            continue
+        return _Sizing(option, value, effect_rms, noise_rms)
+    raise DiscoveryDataError(
+        f"{effect} cannot reach SNR {snr:g} on {', '.join(order)} within its bounds "
+        f"{candidate.bounds[0]:g}..{candidate.bounds[1]:g}: these inputs hardly excite it"
+    )
+
+
+def hide_effect(  # noqa: PLR0913 - hide-effect's options, passed by name by the CLI, the benchmark and the tests
     inputs_path: Path,
     out_dir: Path,
     effect: str,
@@ -424,70 +377,28 @@ def hide_effect(
     if effect != "none" and effect not in BY_NAME:
         raise DiscoveryDataError(f"unknown effect {effect!r}; choose none, random or one of {', '.join(BY_NAME)}")
     source = _read_inputs(inputs_path)
-    inputs = source.measured
-    faces = replace(inputs, chamber_c=inner_face_c(inputs.time_s, inputs.chamber_c, model, inputs.status))
-    base_model = noisy(model, noise)
     say("generating the noise")
-    processed = _generate(faces, base_model, seed, noise)
-    frames = np.flatnonzero(processed["frame_due"])
-    noise_c = adc_noise_c(faces, processed, frames, model, seed)
-    generated = _frames_measured(faces, processed, frames, model, noise_c)
-
-    truth_model = base_model
-    hidden: dict[str, object] = {
-        "channel": None,
-        "parameter": None,
-        "value": None,
-        "model_value": None,
-        "snr": None,
-        "effect_rms": None,
-    }
+    run = _NullRun.of(source.measured, model, noise, seed)
+    hidden: dict[str, object] = dict.fromkeys(("channel", "parameter", "value", "model_value", "snr", "effect_rms"))
     if effect == "none":
-        noise_rms = _noise_rms(generated, model, channel or "X")
+        noise_rms = _noise_rms(run.measured, model, channel or "X")
+        processed, generated = run.processed, run.measured
     else:
         candidate = BY_NAME[effect]
-        choices = [c for c in candidate.channels if c in generated.channels]
-        if not choices:
-            why = "; ".join(dict.fromkeys(generated.skipped_channels.get(c, f"no {c}") for c in candidate.channels))
-            raise DiscoveryDataError(f"{effect} acts on {', '.join(candidate.channels)}: {why}")
-        if channel is not None and channel not in choices:
-            raise DiscoveryDataError(f"{effect} acts on {', '.join(choices)}, not {channel}")
-        order = [channel] if channel else [choices[i] for i in rng.permutation(len(choices))]
-        if snr is None:
-            snr = float(np.exp(rng.uniform(*np.log(DEFAULT_SNR_RANGE))))
-        sign = 1.0 if rng.random() < 0.5 else -1.0
-        for option in order:
-            noise_rms = _noise_rms(generated, model, option)
-            say(f"sizing {effect} on {option} for SNR {snr:g}")
-            try:
-                value, effect_rms = _scaled(candidate, model, generated, option, snr * noise_rms, sign)
-            except _NotExcited:
-                continue
-            channel = option
-            break
-        else:
-            raise DiscoveryDataError(
-                f"{effect} cannot reach SNR {snr:g} on {', '.join(order)} within its bounds "
-                f"{candidate.bounds[0]:g}..{candidate.bounds[1]:g}: these inputs hardly excite it"
-            )
-        truth_model = candidate.changed(base_model, {channel: value})
+        sizing = _sized(candidate, run, channel, snr, rng, say)
+        noise_rms = sizing.noise_rms
         say("generating the run with the effect")
-        if channel in CHAMBER_CHANNELS:
-            change = ChamberChange.of(inputs, model, candidate.changed(model, {channel: value}))
-            generated = _frames_measured(faces, processed, frames, model, noise_c, change)
-            processed = _generate(replace(faces, chamber_c=faces.chamber_c + change.face_c), truth_model, seed, noise)
-        else:
-            processed = _generate(faces, truth_model, seed, noise)
+        processed, generated = run.with_effect(candidate, sizing.channel, sizing.value)
         hidden = {
-            "channel": channel,
+            "channel": sizing.channel,
             "parameter": candidate.parameter,
-            "value": value,
-            "model_value": candidate.value(model, channel),
-            "snr": effect_rms / noise_rms,
-            "effect_rms": effect_rms,
+            "value": sizing.value,
+            "model_value": candidate.value(model, sizing.channel),
+            "snr": sizing.effect_rms / noise_rms,
+            "effect_rms": sizing.effect_rms,
         }
     out_dir.mkdir(parents=True, exist_ok=True)
-    _write_run(out_dir / "run.csv", source, processed, frames, generated.chamber_c, generated.outer_c)
+    _write_run(RunFolder.at(out_dir).log, source, processed, run.frames, generated.chamber_c, generated.outer_c)
     truth = Truth(effect=effect, noise_rms=noise_rms, noise=noise, seed=seed, inputs=str(inputs_path), **hidden)  # type: ignore[arg-type]
     (out_dir / "truth.json").write_text(json.dumps(vars(truth), indent=2) + "\n", encoding="utf-8")
     return truth
@@ -533,7 +444,7 @@ def _write_run(
         RunLogWriter(stream, with_truth=False, flush_each_row=False).write_columns(cells)
 
 
-def staircase_inputs(
+def staircase_inputs(  # noqa: PLR0913 - the staircase's shape, set by name by the tests and bench_discovery
     path: Path,
     positions: tuple[tuple[float, float], ...] = ((30.0, 0.0), (-30.0, 0.0), (0.0, 30.0)),
     low_c: float = 0.0,

@@ -199,7 +199,25 @@ def _markdown(result: dict[str, Any]) -> str:
         "",
         f"**Verdict: {result['verdict']}.**",
         "",
+        *_findings(result),
+        *_gap_table(result),
+        *_regime_tables(result),
+        "![residuals before and after](residuals.png)",
+        "",
+        f"Found means: Benjamini–Yekutieli adjusted p below {result['rules']['fdr']} across every "
+        f"candidate and channel of a round, and at least "
+        f"{100 * result['rules']['min_gap_reduction']:.0f} % off the channel's RMS residual "
+        "(docs/discovery.md).",
+        "",
+        *_tests_table(result),
     ]
+    return "\n".join(lines) + "\n"
+
+
+def _findings(result: dict[str, Any]) -> list[str]:
+    """The effects found, the ambiguous groups, what was not testable and
+    the channels skipped."""
+    lines = []
     if result["effects"]:
         lines += [
             "| effect | channel | parameter | value | 95 % interval | adjusted p | gap reduction |",
@@ -227,7 +245,11 @@ def _markdown(result: dict[str, Any]) -> str:
         ]
     for channel, why in result["skipped_channels"].items():
         lines += [f"Channel {channel} skipped: {why}.", ""]
-    lines += [
+    return lines
+
+
+def _gap_table(result: dict[str, Any]) -> list[str]:
+    lines = [
         "## Gap per channel (RMS of measured minus replay, and minus the twin run again when "
         "it was; acceleration about its mean)",
         "",
@@ -242,7 +264,11 @@ def _markdown(result: dict[str, Any]) -> str:
             f"| {channel} | {COLUMNS[channel]} | {gap['replay']['before']:.3f} {unit} | "
             f"{gap['replay']['after']:.3f} {unit} | {cells[0]} | {cells[1]} |"
         )
-    lines += ["", "## Where the gap is: residual by regime (mean / RMS, before → after)", ""]
+    return lines
+
+
+def _regime_tables(result: dict[str, Any]) -> list[str]:
+    lines = ["", "## Where the gap is: residual by regime (mean / RMS, before → after)", ""]
     for channel, rows in result["regimes"].items():
         unit = result["gap"][channel]["unit"]
         lines += [f"### {channel} ({unit})", "", "| regime | | rows | before | after |", "|---|---|---|---|---|"]
@@ -253,16 +279,11 @@ def _markdown(result: dict[str, Any]) -> str:
                 f"{before['mean']:+.3g} / {before['rms']:.3g} | {after['mean']:+.3g} / {after['rms']:.3g} |"
             )
         lines.append("")
-    lines += [
-        "![residuals before and after](residuals.png)",
-        "",
-        f"Found means: Benjamini–Yekutieli adjusted p below {result['rules']['fdr']} across every "
-        f"candidate and channel of a round, and at least "
-        f"{100 * result['rules']['min_gap_reduction']:.0f} % off the channel's RMS residual "
-        "(docs/discovery.md).",
-        "",
-    ]
-    lines += [
+    return lines
+
+
+def _tests_table(result: dict[str, Any]) -> list[str]:
+    lines = [
         "## Every test",
         "",
         "| round | candidate | channel | value | p | adjusted p | gap reduction |",
@@ -278,7 +299,7 @@ def _markdown(result: dict[str, Any]) -> str:
                 f"{test['p_value']:.2g} | {test['adjusted_p']:.2g} | "
                 f"{100 * test['gap_reduction']:.0f} % |"
             )
-    return "\n".join(lines) + "\n"
+    return lines
 
 
 def summary_lines(result: dict) -> list[str]:

@@ -1,8 +1,8 @@
 """Which candidate explains the gap between a run and its replay, decided
 with inference that survives the residual's autocorrelation.
 
-Each channel's residual (measured minus replay) is averaged over blocks of
-BLOCK_S within each table position, which leaves a few hundred points whose
+Each channel's residual (measured minus replay) is averaged over blocks
+within each table position (channel.py), which leaves a few hundred points whose
 correlation is modelled, not ignored: what the model itself declares (on
 the acceleration channels the random drift slope per mounting and the
 flicker of bias instability) plus flicker and white noise it does not,
@@ -20,28 +20,19 @@ docs/discovery.md states the rules.
 
 from __future__ import annotations
 
-import json
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-import statsmodels.api as sm
 from scipy import stats
-from scipy.interpolate import CubicSpline
-from scipy.linalg import solve_triangular
-from scipy.optimize import minimize, minimize_scalar
 from statsmodels.stats.multitest import multipletests
 from threadpoolctl import threadpool_limits
 
 from ..physics import Model
-from ..physics.document import plain
-from ..physics.terms.sensor import (
-    FLICKER_TIME_CONSTANTS_S,
-    FLICKER_VARIANCE_PER_FLOOR,
-    REFERENCE_C,
-)
 from .candidates import BY_NAME, CANDIDATES, Candidate, experiment
-from .replay import ACCELERATION_CHANNELS, CHAMBER_CHANNELS, Measured, Replay
+from .channel import Channel, DeclaredNoise, gap_rms
+from .nonlinear import NonlinearFits
+from .replay import CHAMBER_CHANNELS, Measured, Replay
 
 ALPHA = 0.05
 # Benjamini-Yekutieli, not Benjamini-Hochberg: one round's tests share each
@@ -50,44 +41,10 @@ ALPHA = 0.05
 # each test's size is at its nominal level (docs/discovery.md), so the rate
 # a run names anything at is set here.
 MULTIPLE_TESTING = "fdr_by"
-# Long against the Kalman filters' ~10 s and short against a 60 s
-# staircase hold, so a block still follows the temperature.
-BLOCK_S = 20.0
 # A candidate must take at least this share off the channel's RMS residual:
 # an effect as large as the noise (SNR 1) takes 29 %, SNR 0.5 takes 11 %.
 MIN_GAP_REDUCTION = 0.10
-# A regressor this well explained by the nuisance columns (the channel's
-# constant offset) cannot be told from them on this run.
-NOT_TESTABLE_R2 = 0.999
-# Two effects this correlated on a run (whitened, beyond the nuisance)
-# cannot be told apart by it, whatever their fits say.
-COLLINEAR = 0.99
 MAX_ROUNDS = 4
-# Gauss-Newton on a candidate not linear in its parameter: at most this
-# many steps, stopping when a step is below this share of its probe.
-GAUSS_NEWTON_STEPS = 6
-GAUSS_NEWTON_TOLERANCE = 0.01
-# A candidate that is not additive is tabulated at most this far apart in
-# the log of its value, then, about each channel's best value, at half that
-# spacing, and interpolated between: for sensor_lag on the staircase the
-# interpolant at half this spacing is off by 0.16 LSB at most where the
-# effect is 245 LSB and the noise 6 LSB RMS, so the minimum it gives is
-# where the exact one is, well within its interval; the value found is
-# replayed. The coarse points only say where to look: the minimum is
-# bracketed by the fine ones.
-NONLINEAR_GRID_STEP = 1.0
-# Longer runs get longer blocks, so the block covariance stays this small.
-MAX_BLOCKS = 2000
-# The undeclared AR(1)'s correlation from one block to the next stays
-# below this, so that it is not a second offset per position.
-MAX_AR_RHO = 0.99
-# The undeclared noise's levels, as shares of the residual blocks'
-# variance (natural logs): from none to far more than there is.
-LOG_LEVEL_MIN = -14.0
-LOG_LEVEL_MAX = 4.0
-# White noise of at least this share of the residual blocks' variance
-# keeps the fitted covariance well conditioned.
-MIN_WHITE_SHARE = 1e-3
 
 
 @dataclass(frozen=True)
@@ -109,20 +66,6 @@ class Test:
     @property
     def key(self) -> tuple[str, str]:
         return self.candidate, self.channel
-
-
-@dataclass
-class Tabulated:
-    """A candidate's effect per channel (rows) at log values, in order."""
-
-    log_values: list[float]
-    effects: dict[str, list[np.ndarray]]
-
-    def add(self, log_value: float, predicted: Mapping[str, np.ndarray], base: Mapping[str, np.ndarray]) -> None:
-        at = int(np.searchsorted(self.log_values, log_value))
-        self.log_values.insert(at, log_value)
-        for channel, rows in self.effects.items():
-            rows.insert(at, predicted[channel] - base[channel])
 
 
 @dataclass(frozen=True)
@@ -157,284 +100,11 @@ class Outcome:
     gap: dict[str, dict[str, float]] = field(default_factory=dict)
 
 
-def _nuisance(channel: str) -> bool:
-    """The acceleration channels carry an unknown constant offset (the
-    sensor's mounting on the table); the temperature channel does not."""
-    return channel in ACCELERATION_CHANNELS
-
-
-def gap_rms(channel: str, residual: np.ndarray) -> float:
-    """RMS of a residual as this module judges it: about its mean where the
-    channel has an unknown offset."""
-    centred = residual - residual.mean() if _nuisance(channel) else residual
-    return float(np.sqrt(np.mean(centred**2)))
-
-
-@dataclass(frozen=True)
-class Fit:
-    """The regressors' coefficients, standard errors and two-sided p-values
-    of a fit on whitened blocks.
-
-    The whitening is by a covariance stated in LSB (not up to a scale), so
-    the standard error is the GLS one with that covariance as it is; it
-    carries the random slope per mounting, which one run shows only once
-    per position and no residual-based error can see. The Newey-West (HAC)
-    error of the whitened fit guards against correlation the covariance
-    misses: the larger of the two is used."""
-
-    params: np.ndarray
-    bse: np.ndarray
-    pvalues: np.ndarray
-
-    @classmethod
-    def of(cls, y_w: np.ndarray, design: np.ndarray, count: int) -> Fit:
-        model = sm.OLS(y_w, design)
-        lags = int(np.floor(4 * (len(y_w) / 100.0) ** (2.0 / 9.0)))
-        robust = model.fit(cov_type="HAC", cov_kwds={"maxlags": lags})
-        known = np.sqrt(np.diag(np.linalg.pinv(design.T @ design)))
-        bse = np.maximum(known, robust.bse)[-count:]
-        params = robust.params[-count:]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            z = np.abs(params / bse)
-        return cls(params, bse, 2.0 * stats.norm.sf(z))
-
-
-@dataclass(frozen=True)
-class DeclaredNoise:
-    """The noise the model declares on a channel, as block covariances: a
-    random drift slope per mounting (LSB/degC) and flicker, one Gauss-Markov
-    process per time constant with its variance (LSB^2)."""
-
-    slope_sigma: float = 0.0
-    flicker: tuple[tuple[float, float], ...] = ()  # (time constant s, variance)
-
-    @classmethod
-    def of(cls, model: Model, channel: str) -> DeclaredNoise:
-        if channel not in ACCELERATION_CHANNELS:
-            return cls()
-        axis = channel.lower()
-        slope = (
-            float(model.terms["drift_repeatability"]["sigma_lsb_per_c"][axis])
-            if model.enabled("drift_repeatability")
-            else 0.0
-        )
-        flicker: tuple[tuple[float, float], ...] = ()
-        if model.enabled("bias_instability"):
-            floor = float(model.terms["bias_instability"]["allan_floor_lsb"][axis])
-            variance = floor**2 * FLICKER_VARIANCE_PER_FLOOR
-            flicker = tuple((tau, variance) for tau in FLICKER_TIME_CONSTANTS_S)
-        return cls(slope, flicker)
-
-
-def _flicker_blocks(lag_s: np.ndarray, block_s: float, flicker: tuple[tuple[float, float], ...]) -> np.ndarray:
-    """The block-mean covariance of Gauss-Markov processes (time constant
-    s, variance) over the whole run: flicker does not stop at a table move.
-    A block's mean keeps the share of a process slower than the block,
-    about 2 tau / block of a faster one."""
-    covariance = np.zeros_like(lag_s)
-    for tau, variance in flicker:
-        covariance += variance * min(1.0, 2.0 * tau / block_s) * np.exp(-lag_s / tau)
-    return covariance
-
-
-class UndeclaredFlicker:
-    """Flicker and white noise the model does not declare on an acceleration
-    channel, at levels fitted by restricted maximum likelihood (REML) to the
-    residual blocks on top of the declared covariance.
-
-    The flicker has the model's shape (one Gauss-Markov process per decade
-    of time constant, equal variances, across the whole run), the MEMS bias
-    instability's. It is what moves a position's mean against the others',
-    which a test of an effect that differs between positions must allow for,
-    yet a run of a few positions cannot measure: its decades as slow as a
-    block or slower are seen within a position (faster ones, averaged in a
-    block and smoothed by the filters, pass for white), and the 1/f shape
-    says how far the slower ones move the means. Noise of another shape (a
-    bias wander of one time constant) is read as flicker: a safe error,
-    since it widens intervals.
-
-    REML integrates out a free offset and slope per position, so that no
-    effect constant or linear within a position is taken for noise.
-    Written here because statsmodels' REML (MixedLM) takes only random
-    effects, not a covariance of this form."""
-
-    def __init__(self, design: np.ndarray, declared: np.ndarray, lag_s: np.ndarray, block_s: float) -> None:
-        self.design = design
-        self.declared = declared
-        slow = tuple((tau, 1.0) for tau in FLICKER_TIME_CONSTANTS_S if tau >= block_s)
-        self.unit_flicker = _flicker_blocks(lag_s, block_s, slow)
-
-    def covariance(self, theta: np.ndarray, scale: float) -> np.ndarray:
-        flicker, white = np.exp(theta)
-        undeclared = flicker * self.unit_flicker
-        undeclared[np.diag_indices_from(undeclared)] += white + MIN_WHITE_SHARE
-        return self.declared + scale * undeclared
-
-    def fitted(self, values: np.ndarray) -> np.ndarray:
-        """The lower Cholesky factor of the fitted covariance."""
-        left = _left_by(self.design, values)
-        scale = max(float(np.mean(left**2)), 1e-12)
-
-        def restricted_deviance(theta: np.ndarray) -> float:
-            try:
-                lower = np.linalg.cholesky(self.covariance(theta, scale))
-            except np.linalg.LinAlgError:
-                return 1e300
-            x_w = solve_triangular(lower, self.design, lower=True)
-            y_w = solve_triangular(lower, values, lower=True)
-            q, r = np.linalg.qr(x_w)
-            residual = y_w - q @ (q.T @ y_w)
-            return float(
-                2.0 * np.sum(np.log(np.diag(lower))) + 2.0 * np.sum(np.log(np.abs(np.diag(r)))) + residual @ residual
-            )
-
-        bounds = [(LOG_LEVEL_MIN, LOG_LEVEL_MAX)] * 2
-        theta = minimize(restricted_deviance, np.log([0.1, 0.5]), method="L-BFGS-B", bounds=bounds).x
-        return np.linalg.cholesky(self.covariance(theta, scale))
-
-
 def _probe_step(candidate: Candidate, value: float) -> float:
     """The candidate's probe from value, turned back where it would leave
     the parameter's bounds."""
     low, high = candidate.bounds
     return candidate.probe if low <= value + candidate.probe <= high else -candidate.probe
-
-
-def _correlation(a: np.ndarray, b: np.ndarray) -> float:
-    return abs(float(a @ b)) / float(np.linalg.norm(a) * np.linalg.norm(b))
-
-
-def _left_by(design: np.ndarray, values: np.ndarray) -> np.ndarray:
-    """What a least-squares fit of the design's columns leaves of values."""
-    return values - design @ np.linalg.lstsq(design, values, rcond=None)[0]
-
-
-def _position_ar1(left: np.ndarray, same: np.ndarray, mounting: np.ndarray) -> np.ndarray:
-    """An AR(1) within each position, from the lag-1 correlation of what a
-    free offset and slope per position leave: the temperature and chamber
-    channels' undeclared noise (the readings' rounding, a real rig's)."""
-    total = max(float(np.mean(left**2)), 1e-12)
-    neighbours = mounting[1:] == mounting[:-1]
-    lag1 = float(np.mean((left[1:] * left[:-1])[neighbours])) if neighbours.any() else 0.0
-    rho = float(np.clip(lag1 / total, 0.0, MAX_AR_RHO))
-    index = np.arange(len(left))
-    return total * rho ** np.abs(np.subtract.outer(index, index)) * same + MIN_WHITE_SHARE * total * np.eye(len(left))
-
-
-class Channel:
-    """One channel's blocks and its whitening, fixed for a round.
-
-    The whitening is by the covariance the model declares (DeclaredNoise)
-    plus what it does not, fitted to the residual: UndeclaredFlicker on the
-    acceleration channels, an AR(1) within each position on the others."""
-
-    def __init__(
-        self,
-        measured: Measured,
-        channel: str,
-        residual: np.ndarray,
-        temperature_c: np.ndarray,
-        noise: DeclaredNoise,
-        start_response: np.ndarray | None = None,
-        noise_residual: np.ndarray | None = None,
-    ) -> None:
-        """noise_residual: what the undeclared noise is fitted to, if not the residual
-        itself (the residual less an effect found in it: the noise is then
-        not taken to hold that effect)."""
-        self.name = channel
-        used = measured.used[channel]
-        self.rows = used
-        self.residual_rows = residual[used]
-        mounting = measured.mounting[used]
-        time_s = measured.time_s[used]
-        start = time_s[np.searchsorted(mounting, mounting)]
-        span = time_s[-1] - time_s[0]
-        block_s = max(BLOCK_S, span / MAX_BLOCKS)
-        keys = mounting * 10**9 + np.floor((time_s - start) / block_s).astype(np.int64)
-        _, self._block, counts = np.unique(keys, return_inverse=True, return_counts=True)
-        self._counts = counts
-        self._mounting = np.rint(self.blocks(mounting.astype(float))).astype(np.int64)
-        block_time = self.blocks(time_s)
-        excursion = self.blocks(temperature_c[used]) - REFERENCE_C
-        self.y = self.blocks(self.residual_rows)
-        if _nuisance(channel):
-            self.nuisance = np.ones((len(self.y), 1))
-        elif start_response is not None:
-            self.nuisance = np.column_stack([self.blocks(column[used]) for column in start_response.T])
-        else:
-            self.nuisance = np.empty((len(self.y), 0))
-        noise_blocks = self.y if noise_residual is None else self.blocks(noise_residual[used])
-        self.whiten = self._whitening(block_time, excursion, block_s, noise, noise_blocks)
-        self.y_w = self.whiten(self.y)
-        self.nuisance_w = self.whiten(self.nuisance)
-
-    def blocks(self, values: np.ndarray) -> np.ndarray:
-        return np.bincount(self._block, weights=values) / self._counts
-
-    def _whitening(
-        self,
-        block_time: np.ndarray,
-        excursion: np.ndarray,
-        block_s: float,
-        noise: DeclaredNoise,
-        noise_blocks: np.ndarray,
-    ) -> Callable[[np.ndarray], np.ndarray]:
-        lag_s = np.abs(np.subtract.outer(block_time, block_time))
-        same = np.equal.outer(self._mounting, self._mounting)
-        declared = noise.slope_sigma**2 * np.outer(excursion, excursion) * same
-        declared += _flicker_blocks(lag_s, block_s, noise.flicker)
-        columns = []
-        for m in np.unique(self._mounting):
-            inside = (self._mounting == m).astype(float)
-            columns += [inside[:, None], (inside * excursion)[:, None]]
-        design = np.hstack(columns)
-        if self.name in ACCELERATION_CHANNELS:
-            lower = UndeclaredFlicker(design, declared, lag_s, block_s).fitted(noise_blocks)
-        else:
-            lower = np.linalg.cholesky(declared + _position_ar1(_left_by(design, noise_blocks), same, self._mounting))
-
-        def whiten(values: np.ndarray) -> np.ndarray:
-            return solve_triangular(lower, values, lower=True)
-
-        return whiten
-
-    def fit(self, regressors: np.ndarray, left: np.ndarray | None = None) -> Fit:
-        """GLS of the residual blocks (or of `left`, blocks of what an
-        effect leaves of them) on the nuisance and these regressors (block
-        means, one column each)."""
-        design = np.hstack([self.nuisance_w, self.whiten(regressors)])
-        return Fit.of(self.y_w if left is None else self.whiten(left), design, regressors.shape[1])
-
-    def beyond_nuisance(self, whitened: np.ndarray) -> np.ndarray:
-        """What of whitened blocks the nuisance columns do not explain."""
-        if not self.nuisance_w.shape[1]:
-            return whitened
-        return _left_by(self.nuisance_w, whitened)
-
-    def joint_p_values(self, first: np.ndarray, second: np.ndarray) -> tuple[float, float]:
-        """The p-values of two effects (block means) fitted together; both 1
-        where their whitened effects beyond the nuisance correlate at
-        COLLINEAR or more, which this run cannot tell apart whatever a fit
-        says."""
-        beyond = [self.beyond_nuisance(self.whiten(g)) for g in (first, second)]
-        if _correlation(*beyond) >= COLLINEAR:
-            return 1.0, 1.0
-        first_p, second_p = self.fit(np.column_stack([first, second])).pvalues
-        return float(first_p), float(second_p)
-
-    def testable(self, regressor: np.ndarray) -> bool:
-        g = self.whiten(regressor)
-        total = float(g @ g)
-        if total == 0.0:
-            return False
-        left = self.beyond_nuisance(g)
-        return 1.0 - float(left @ left) / total < NOT_TESTABLE_R2
-
-    def reduction(self, explained_rows: np.ndarray) -> float:
-        """The share of the RMS residual an effect takes off."""
-        before = gap_rms(self.name, self.residual_rows)
-        after = gap_rms(self.name, self.residual_rows - explained_rows)
-        return 1.0 - after / before if before > 0 else 0.0
 
 
 class Search:
@@ -444,7 +114,7 @@ class Search:
         self.measured = measured
         self.replay = Replay(measured)
         self.model = model
-        self._tables: dict[tuple[str, str], Tabulated] = {}
+        self._nonlinear = NonlinearFits(measured, self.predict)
         self._progress = progress or (lambda message: None)
 
     def predict(self, model: Model) -> dict[str, np.ndarray]:
@@ -469,39 +139,13 @@ class Search:
         done: set[tuple[str, str]] = set()
         for round_index in range(MAX_ROUNDS):
             self._progress(f"round {round_index + 1}: testing {len(CANDIDATES)} candidates")
-            residual = self.residuals(base)
-            starts = (
-                self.replay.chamber_start_response(model)
-                if any(c in CHAMBER_CHANNELS for c in self.measured.channels)
-                else {}
-            )
-            channels = {
-                channel: Channel(
-                    self.measured,
-                    channel,
-                    residual[channel],
-                    base["temperature"],
-                    DeclaredNoise.of(model, channel),
-                    starts.get(channel),
-                )
-                for channel in self.measured.channels
-            }
+            channels = self._channels(model, base)
             regressors = {candidate.name: self._regressors(candidate, model, base) for candidate in CANDIDATES}
             tests = self._tests(model, base, channels, regressors, done)
             outcome.rounds.append(tests)
             if round_index == 0:
                 outcome.not_testable = sorted({t.candidate for t in tests} - {t.candidate for t in tests if t.testable})
-            # The chamber's reading drives the sensor's replay: an effect
-            # found there changes every channel, so it goes in first.
-            accepted = sorted(
-                (
-                    t
-                    for t in tests
-                    if t.adjusted_p < ALPHA and t.gap_reduction >= MIN_GAP_REDUCTION and self._within_bounds(t)
-                ),
-                key=lambda t: (t.channel not in CHAMBER_CHANNELS, -t.gap_reduction),
-            )
-            accepted = [t for t in accepted if not self._contradicted_elsewhere(t, model, base, channels)]
+            accepted = self._accepted(tests, model, base, channels)
             if not accepted:
                 break
             best, rivals = self._settled(accepted, channels, regressors)
@@ -514,16 +158,7 @@ class Search:
                 done.update((candidate.name, best.channel) for candidate in CANDIDATES)
                 continue
             candidate = next(c for c in CANDIDATES if c.name == best.candidate)
-            best = self._refined(
-                best,
-                channels[best.channel],
-                regressors[best.candidate][best.channel],
-                model,
-                base,
-                residual[best.channel],
-                base["temperature"],
-                starts.get(best.channel),
-            )
+            best = self._refined(best, channels[best.channel], regressors[best.candidate][best.channel], model, base)
             effect, model = self._add(candidate, best, model)
             outcome.effects.append(effect)
             # One value acting on every channel is set once, where it
@@ -532,6 +167,49 @@ class Search:
                 [best.key] if candidate.per_axis else [(candidate.name, channel) for channel in candidate.channels]
             )
             base = self.predict(model)
+        self._conclude(outcome, model, base)
+        return outcome
+
+    def _channels(self, model: Model, base: Mapping[str, np.ndarray]) -> dict[str, Channel]:
+        """Every channel's blocks and whitening for a round on the residual
+        the model leaves."""
+        residual = self.residuals(base)
+        starts = (
+            self.replay.chamber_start_response(model)
+            if any(c in CHAMBER_CHANNELS for c in self.measured.channels)
+            else {}
+        )
+        return {
+            channel: Channel(
+                self.measured,
+                channel,
+                residual[channel],
+                base["temperature"],
+                DeclaredNoise.of(model, channel),
+                starts.get(channel),
+            )
+            for channel in self.measured.channels
+        }
+
+    def _accepted(
+        self, tests: list[Test], model: Model, base: Mapping[str, np.ndarray], channels: Mapping[str, Channel]
+    ) -> list[Test]:
+        """The round's tests that pass every rule of a found effect, in the
+        order they are taken: the chamber's reading drives the sensor's
+        replay, so an effect found there changes every channel and goes in
+        first; then the largest reduction."""
+        accepted = sorted(
+            (
+                t
+                for t in tests
+                if t.adjusted_p < ALPHA and t.gap_reduction >= MIN_GAP_REDUCTION and self._within_bounds(t)
+            ),
+            key=lambda t: (t.channel not in CHAMBER_CHANNELS, -t.gap_reduction),
+        )
+        return [t for t in accepted if not self._contradicted_elsewhere(t, model, base, channels)]
+
+    def _conclude(self, outcome: Outcome, model: Model, base: Mapping[str, np.ndarray]) -> None:
+        """The outcome's model, verdict and gaps once the rounds are over."""
         outcome.model = model
         outcome.residual_after = self.residuals(base)
         outcome.verdict = "found" if outcome.effects else "ambiguous" if outcome.ambiguous else "none"
@@ -542,7 +220,6 @@ class Search:
             }
             for channel in self.measured.channels
         }
-        return outcome
 
     def _regressors(self, candidate: Candidate, model: Model, base: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
         """Per channel, the replayed effect of one unit of the parameter
@@ -607,9 +284,9 @@ class Search:
         else:
             if candidate.additive:
                 start = candidate.value(model, channel_name) + float(channel.fit(g[:, None]).params[0])
-                value, interval, effect_rows = self._gauss_newton(candidate, channel_name, model, base, channel, start)
+                value, interval, effect_rows = self._nonlinear.fit_gauss_newton(candidate, channel, model, base, start)
             else:
-                value, interval, effect_rows = self._fit_nonlinear(candidate, channel_name, model, base, channel)
+                value, interval, effect_rows = self._nonlinear.fit_tabulated(candidate, channel, model, base)
             effect_blocks = channel.blocks(effect_rows[channel.rows])
             p_value = float(channel.fit(effect_blocks[:, None]).pvalues[0]) if np.any(effect_blocks) else 1.0
         test = Test(
@@ -630,9 +307,6 @@ class Search:
         regressor_rows: np.ndarray,
         model: Model,
         base: Mapping[str, np.ndarray],
-        residual: np.ndarray,
-        temperature_c: np.ndarray,
-        start_response: np.ndarray | None,
     ) -> Test:
         """The found effect fitted again with the undeclared noise fitted to
         the residual without it (one step of iterated feasible GLS): fitted
@@ -647,15 +321,7 @@ class Search:
             if candidate.additive and candidate.linear
             else regressor_rows
         )
-        cleaner = Channel(
-            self.measured,
-            best.channel,
-            residual,
-            temperature_c,
-            DeclaredNoise.of(model, best.channel),
-            start_response,
-            noise_residual=residual - effect_rows,
-        )
+        cleaner = channel.refitted(effect_rows)
         refined, _ = self._test(candidate, cleaner, regressor_rows, model, base)
         if not refined.testable or not self._within_bounds(refined):
             return best
@@ -812,107 +478,3 @@ class Search:
             test.gap_reduction,
         )
         return effect, candidate.changed(model, {test.channel: value})
-
-    def _gauss_newton(
-        self,
-        candidate: Candidate,
-        channel_name: str,
-        model: Model,
-        base: Mapping[str, np.ndarray],
-        channel: Channel,
-        value: float,
-    ) -> tuple[float, tuple[float, float], np.ndarray]:
-        """Least squares of the whitened blocks over an additive parameter
-        whose effect is not linear in it (a dead zone), by Gauss-Newton
-        steps from the linear fit's value, each slope from replays: the
-        value (within its bounds), its interval from the slope there, and
-        the effect at that value (rows)."""
-        low, high = candidate.bounds
-
-        def effect(at: float) -> np.ndarray:
-            return self.predict(candidate.changed(model, {channel_name: at}))[channel_name] - base[channel_name]
-
-        for _ in range(GAUSS_NEWTON_STEPS):
-            value = float(np.clip(value, low, high))
-            current = effect(value)
-            step = candidate.probe if value + candidate.probe <= high else -candidate.probe
-            slope = (effect(value + step) - current) / step
-            result = channel.fit(
-                channel.blocks(slope[channel.rows])[:, None], left=channel.y - channel.blocks(current[channel.rows])
-            )
-            change = float(result.params[0])
-            value += change
-            if abs(change) < GAUSS_NEWTON_TOLERANCE * abs(candidate.probe):
-                break
-        value = float(np.clip(value, low, high))
-        half_width = 1.96 * float(result.bse[0])
-        return value, (value - half_width, value + half_width), effect(value)
-
-    def _tabulated(self, candidate: Candidate, model: Model, base: Mapping[str, np.ndarray]) -> Tabulated:
-        """The candidate's effect on each of its channels (rows) at
-        NONLINEAR_GRID_STEP-spaced log values over its search range, and at
-        the values _refined_about added: one replay a value, shared by
-        every channel it acts on."""
-        key = (candidate.name, json.dumps(plain(model.terms), sort_keys=True))
-        if key not in self._tables:
-            low, high = np.log(candidate.bounds[0]), np.log(candidate.bounds[1])
-            channels = [c for c in candidate.channels if c in self.measured.channels]
-            table = Tabulated([], {c: [] for c in channels})
-            for log_value in np.linspace(low, high, max(4, int(np.ceil((high - low) / NONLINEAR_GRID_STEP)) + 1)):
-                table.add(float(log_value), self._predicted_at(candidate, model, float(log_value)), base)
-            self._tables[key] = table
-        return self._tables[key]
-
-    def _predicted_at(self, candidate: Candidate, model: Model, log_value: float) -> dict[str, np.ndarray]:
-        channels = [c for c in candidate.channels if c in self.measured.channels]
-        return self.predict(candidate.changed(model, {channels[0]: float(np.exp(log_value))}))
-
-    def _refined_about(
-        self, table: Tabulated, candidate: Candidate, model: Model, base: Mapping[str, np.ndarray], index: int
-    ) -> None:
-        """The table with the points halfway to the neighbours of its
-        index-th value, where it has none closer."""
-        values = list(table.log_values)
-        spacing = NONLINEAR_GRID_STEP / 2.0
-        for neighbour in (index - 1, index + 1):
-            if 0 <= neighbour < len(values) and abs(values[neighbour] - values[index]) > spacing * 1.01:
-                middle = 0.5 * (values[neighbour] + values[index])
-                table.add(middle, self._predicted_at(candidate, model, middle), base)
-
-    def _fit_nonlinear(
-        self, candidate: Candidate, channel_name: str, model: Model, base: Mapping[str, np.ndarray], channel: Channel
-    ) -> tuple[float, tuple[float, float], np.ndarray]:
-        """Least squares of the whitened blocks over the parameter's value
-        (log scale, within its bounds): the cost on the tabulated effect,
-        interpolated cubically in the log value, from the best grid value
-        to the minimum between its neighbours; then the value's effect
-        replayed, and its interval from the interpolant's slope there (the
-        linearised GLS)."""
-
-        def effect(value: float) -> np.ndarray:
-            return self.predict(candidate.changed(model, {channel_name: value}))[channel_name] - base[channel_name]
-
-        table = self._tabulated(candidate, model, base)
-
-        def cost_at(effect_blocks: np.ndarray) -> float:
-            left = channel.beyond_nuisance(channel.whiten(channel.y - effect_blocks))
-            return float(left @ left)
-
-        coarse = [cost_at(channel.blocks(rows[channel.rows])) for rows in table.effects[channel_name]]
-        self._refined_about(table, candidate, model, base, int(np.argmin(coarse)))
-        blocks = np.array([channel.blocks(rows[channel.rows]) for rows in table.effects[channel_name]])
-        interpolated = CubicSpline(table.log_values, blocks, axis=0)
-
-        def cost(log_value: float) -> float:
-            return cost_at(interpolated(log_value))
-
-        grid = np.array(table.log_values)
-        nearest = int(np.argmin([cost_at(effect_blocks) for effect_blocks in blocks]))
-        bracket = (grid[max(nearest - 1, 0)], grid[min(nearest + 1, len(grid) - 1)])
-        best = minimize_scalar(cost, bounds=bracket, method="bounded", options={"xatol": 1e-3})
-        value = float(np.exp(best.x))
-        # d effect / d value, from the interpolant's slope in the log value.
-        slope = interpolated(best.x, 1) / value
-        result = channel.fit(slope[:, None])
-        half_width = 1.96 * float(result.bse[0])
-        return value, (value - half_width, value + half_width), effect(value)

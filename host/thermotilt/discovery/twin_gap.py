@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 
 from ..physics import Fault, Model
+from .channel import gap_rms
 from .replay import DiscoveryDataError, Measured, load_measured
-from .search import gap_rms
 
 
 def scenario_of(measured: Path):

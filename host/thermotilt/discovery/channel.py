@@ -1,0 +1,337 @@
+"""One channel of a run as the search (search.py) tests it: its residual
+(measured minus replay) averaged over blocks of BLOCK_S within each table
+position, whitened by the blocks' covariance (GLS), and fitted on the
+whitened blocks with Newey-West (HAC) standard errors.
+
+The covariance is what the model declares (on the acceleration channels
+the random drift slope per mounting and the flicker of bias instability)
+plus flicker and white noise it does not, fitted to the run; on the
+chamber's channels the unknown start of the chamber is a nuisance.
+docs/discovery.md ("Decision") states the rules.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import statsmodels.api as sm
+from scipy import stats
+from scipy.linalg import solve_triangular
+from scipy.optimize import minimize
+
+from ..physics import Model
+from ..physics.terms.sensor import FLICKER_TIME_CONSTANTS_S, FLICKER_VARIANCE_PER_FLOOR
+from ..surfaces import REFERENCE_C
+from .replay import ACCELERATION_CHANNELS, Measured
+
+# Long against the Kalman filters' ~10 s and short against a 60 s
+# staircase hold, so a block still follows the temperature.
+BLOCK_S = 20.0
+# A regressor this well explained by the nuisance columns (the channel's
+# constant offset) cannot be told from them on this run.
+NOT_TESTABLE_R2 = 0.999
+# Two effects this correlated on a run (whitened, beyond the nuisance)
+# cannot be told apart by it, whatever their fits say.
+COLLINEAR = 0.99
+# Longer runs get longer blocks, so the block covariance stays this small.
+MAX_BLOCKS = 2000
+# The undeclared AR(1)'s correlation from one block to the next stays
+# below this, so that it is not a second offset per position.
+MAX_AR_RHO = 0.99
+# The undeclared noise's levels, as shares of the residual blocks'
+# variance (natural logs): from none to far more than there is.
+LOG_LEVEL_MIN = -14.0
+LOG_LEVEL_MAX = 4.0
+# White noise of at least this share of the residual blocks' variance
+# keeps the fitted covariance well conditioned.
+MIN_WHITE_SHARE = 1e-3
+
+
+def _nuisance(channel: str) -> bool:
+    """The acceleration channels carry an unknown constant offset (the
+    sensor's mounting on the table); the temperature channel does not."""
+    return channel in ACCELERATION_CHANNELS
+
+
+def gap_rms(channel: str, residual: np.ndarray) -> float:
+    """RMS of a residual as the search judges it: about its mean where the
+    channel has an unknown offset."""
+    centred = residual - residual.mean() if _nuisance(channel) else residual
+    return float(np.sqrt(np.mean(centred**2)))
+
+
+@dataclass(frozen=True)
+class Fit:
+    """The regressors' coefficients, standard errors and two-sided p-values
+    of a fit on whitened blocks.
+
+    The whitening is by a covariance stated in LSB (not up to a scale), so
+    the standard error is the GLS one with that covariance as it is; it
+    carries the random slope per mounting, which one run shows only once
+    per position and no residual-based error can see. The Newey-West (HAC)
+    error of the whitened fit guards against correlation the covariance
+    misses: the larger of the two is used."""
+
+    params: np.ndarray
+    bse: np.ndarray
+    pvalues: np.ndarray
+
+    @classmethod
+    def of(cls, y_w: np.ndarray, design: np.ndarray, count: int) -> Fit:
+        model = sm.OLS(y_w, design)
+        lags = int(np.floor(4 * (len(y_w) / 100.0) ** (2.0 / 9.0)))
+        robust = model.fit(cov_type="HAC", cov_kwds={"maxlags": lags})
+        known = np.sqrt(np.diag(np.linalg.pinv(design.T @ design)))
+        bse = np.maximum(known, robust.bse)[-count:]
+        params = robust.params[-count:]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            z = np.abs(params / bse)
+        return cls(params, bse, 2.0 * stats.norm.sf(z))
+
+
+@dataclass(frozen=True)
+class DeclaredNoise:
+    """The noise the model declares on a channel, as block covariances: a
+    random drift slope per mounting (LSB/degC) and flicker, one Gauss-Markov
+    process per time constant with its variance (LSB^2)."""
+
+    slope_sigma: float = 0.0
+    flicker: tuple[tuple[float, float], ...] = ()  # (time constant s, variance)
+
+    @classmethod
+    def of(cls, model: Model, channel: str) -> DeclaredNoise:
+        if channel not in ACCELERATION_CHANNELS:
+            return cls()
+        axis = channel.lower()
+        slope = (
+            float(model.terms["drift_repeatability"]["sigma_lsb_per_c"][axis])
+            if model.enabled("drift_repeatability")
+            else 0.0
+        )
+        flicker: tuple[tuple[float, float], ...] = ()
+        if model.enabled("bias_instability"):
+            floor = float(model.terms["bias_instability"]["allan_floor_lsb"][axis])
+            variance = floor**2 * FLICKER_VARIANCE_PER_FLOOR
+            flicker = tuple((tau, variance) for tau in FLICKER_TIME_CONSTANTS_S)
+        return cls(slope, flicker)
+
+
+def _flicker_blocks(lag_s: np.ndarray, block_s: float, flicker: tuple[tuple[float, float], ...]) -> np.ndarray:
+    """The block-mean covariance of Gauss-Markov processes (time constant
+    s, variance) over the whole run: flicker does not stop at a table move.
+    A block's mean keeps the share of a process slower than the block,
+    about 2 tau / block of a faster one."""
+    covariance = np.zeros_like(lag_s)
+    for tau, variance in flicker:
+        covariance += variance * min(1.0, 2.0 * tau / block_s) * np.exp(-lag_s / tau)
+    return covariance
+
+
+class UndeclaredFlicker:
+    """Flicker and white noise the model does not declare on an acceleration
+    channel, at levels fitted by restricted maximum likelihood (REML) to the
+    residual blocks on top of the declared covariance.
+
+    The flicker has the model's shape (one Gauss-Markov process per decade
+    of time constant, equal variances, across the whole run), the MEMS bias
+    instability's. It is what moves a position's mean against the others',
+    which a test of an effect that differs between positions must allow for,
+    yet a run of a few positions cannot measure: its decades as slow as a
+    block or slower are seen within a position (faster ones, averaged in a
+    block and smoothed by the filters, pass for white), and the 1/f shape
+    says how far the slower ones move the means. Noise of another shape (a
+    bias wander of one time constant) is read as flicker: a safe error,
+    since it widens intervals.
+
+    REML integrates out a free offset and slope per position, so that no
+    effect constant or linear within a position is taken for noise.
+    Written here because statsmodels' REML (MixedLM) takes only random
+    effects, not a covariance of this form."""
+
+    def __init__(self, design: np.ndarray, declared: np.ndarray, lag_s: np.ndarray, block_s: float) -> None:
+        self.design = design
+        self.declared = declared
+        slow = tuple((tau, 1.0) for tau in FLICKER_TIME_CONSTANTS_S if tau >= block_s)
+        self.unit_flicker = _flicker_blocks(lag_s, block_s, slow)
+
+    def covariance(self, theta: np.ndarray, scale: float) -> np.ndarray:
+        flicker, white = np.exp(theta)
+        undeclared = flicker * self.unit_flicker
+        undeclared[np.diag_indices_from(undeclared)] += white + MIN_WHITE_SHARE
+        return self.declared + scale * undeclared
+
+    def fitted(self, values: np.ndarray) -> np.ndarray:
+        """The lower Cholesky factor of the fitted covariance."""
+        left = _left_by(self.design, values)
+        scale = max(float(np.mean(left**2)), 1e-12)
+
+        def restricted_deviance(theta: np.ndarray) -> float:
+            try:
+                lower = np.linalg.cholesky(self.covariance(theta, scale))
+            except np.linalg.LinAlgError:
+                return 1e300
+            x_w = solve_triangular(lower, self.design, lower=True)
+            y_w = solve_triangular(lower, values, lower=True)
+            q, r = np.linalg.qr(x_w)
+            residual = y_w - q @ (q.T @ y_w)
+            return float(
+                2.0 * np.sum(np.log(np.diag(lower))) + 2.0 * np.sum(np.log(np.abs(np.diag(r)))) + residual @ residual
+            )
+
+        bounds = [(LOG_LEVEL_MIN, LOG_LEVEL_MAX)] * 2
+        theta = minimize(restricted_deviance, np.log([0.1, 0.5]), method="L-BFGS-B", bounds=bounds).x
+        return np.linalg.cholesky(self.covariance(theta, scale))
+
+
+def _correlation(a: np.ndarray, b: np.ndarray) -> float:
+    return abs(float(a @ b)) / float(np.linalg.norm(a) * np.linalg.norm(b))
+
+
+def _left_by(design: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """What a least-squares fit of the design's columns leaves of values."""
+    return values - design @ np.linalg.lstsq(design, values, rcond=None)[0]
+
+
+def _position_ar1(left: np.ndarray, same: np.ndarray, mounting: np.ndarray) -> np.ndarray:
+    """An AR(1) within each position, from the lag-1 correlation of what a
+    free offset and slope per position leave: the temperature and chamber
+    channels' undeclared noise (the readings' rounding, a real rig's)."""
+    total = max(float(np.mean(left**2)), 1e-12)
+    neighbours = mounting[1:] == mounting[:-1]
+    lag1 = float(np.mean((left[1:] * left[:-1])[neighbours])) if neighbours.any() else 0.0
+    rho = float(np.clip(lag1 / total, 0.0, MAX_AR_RHO))
+    index = np.arange(len(left))
+    return total * rho ** np.abs(np.subtract.outer(index, index)) * same + MIN_WHITE_SHARE * total * np.eye(len(left))
+
+
+class Channel:
+    """One channel's blocks and its whitening, fixed for a round.
+
+    The whitening is by the covariance the model declares (DeclaredNoise)
+    plus what it does not, fitted to the residual: UndeclaredFlicker on the
+    acceleration channels, an AR(1) within each position on the others."""
+
+    def __init__(
+        self,
+        measured: Measured,
+        channel: str,
+        residual: np.ndarray,
+        temperature_c: np.ndarray,
+        noise: DeclaredNoise,
+        start_response: np.ndarray | None = None,
+        noise_residual: np.ndarray | None = None,
+    ) -> None:
+        """noise_residual: what the undeclared noise is fitted to, if not the residual
+        itself (the residual less an effect found in it: the noise is then
+        not taken to hold that effect)."""
+        self.name = channel
+        self._measured, self._residual, self._temperature_c = measured, residual, temperature_c
+        self._noise, self._start_response = noise, start_response
+        used = measured.used[channel]
+        self.rows = used
+        self.residual_rows = residual[used]
+        mounting = measured.mounting[used]
+        time_s = measured.time_s[used]
+        start = time_s[np.searchsorted(mounting, mounting)]
+        span = time_s[-1] - time_s[0]
+        block_s = max(BLOCK_S, span / MAX_BLOCKS)
+        keys = mounting * 10**9 + np.floor((time_s - start) / block_s).astype(np.int64)
+        _, self._block, counts = np.unique(keys, return_inverse=True, return_counts=True)
+        self._counts = counts
+        self._mounting = np.rint(self.blocks(mounting.astype(float))).astype(np.int64)
+        block_time = self.blocks(time_s)
+        excursion = self.blocks(temperature_c[used]) - REFERENCE_C
+        self.y = self.blocks(self.residual_rows)
+        if _nuisance(channel):
+            self.nuisance = np.ones((len(self.y), 1))
+        elif start_response is not None:
+            self.nuisance = np.column_stack([self.blocks(column[used]) for column in start_response.T])
+        else:
+            self.nuisance = np.empty((len(self.y), 0))
+        noise_blocks = self.y if noise_residual is None else self.blocks(noise_residual[used])
+        self.whiten = self._whitening(block_time, excursion, block_s, noise, noise_blocks)
+        self.y_w = self.whiten(self.y)
+        self.nuisance_w = self.whiten(self.nuisance)
+
+    def blocks(self, values: np.ndarray) -> np.ndarray:
+        return np.bincount(self._block, weights=values) / self._counts
+
+    def refitted(self, effect_rows: np.ndarray) -> Channel:
+        """The same channel with its undeclared noise fitted to the residual
+        less an effect found in it (rows)."""
+        return Channel(
+            self._measured,
+            self.name,
+            self._residual,
+            self._temperature_c,
+            self._noise,
+            self._start_response,
+            noise_residual=self._residual - effect_rows,
+        )
+
+    def _whitening(
+        self,
+        block_time: np.ndarray,
+        excursion: np.ndarray,
+        block_s: float,
+        noise: DeclaredNoise,
+        noise_blocks: np.ndarray,
+    ) -> Callable[[np.ndarray], np.ndarray]:
+        lag_s = np.abs(np.subtract.outer(block_time, block_time))
+        same = np.equal.outer(self._mounting, self._mounting)
+        declared = noise.slope_sigma**2 * np.outer(excursion, excursion) * same
+        declared += _flicker_blocks(lag_s, block_s, noise.flicker)
+        columns = []
+        for m in np.unique(self._mounting):
+            inside = (self._mounting == m).astype(float)
+            columns += [inside[:, None], (inside * excursion)[:, None]]
+        design = np.hstack(columns)
+        if self.name in ACCELERATION_CHANNELS:
+            lower = UndeclaredFlicker(design, declared, lag_s, block_s).fitted(noise_blocks)
+        else:
+            lower = np.linalg.cholesky(declared + _position_ar1(_left_by(design, noise_blocks), same, self._mounting))
+
+        def whiten(values: np.ndarray) -> np.ndarray:
+            return solve_triangular(lower, values, lower=True)
+
+        return whiten
+
+    def fit(self, regressors: np.ndarray, left: np.ndarray | None = None) -> Fit:
+        """GLS of the residual blocks (or of `left`, blocks of what an
+        effect leaves of them) on the nuisance and these regressors (block
+        means, one column each)."""
+        design = np.hstack([self.nuisance_w, self.whiten(regressors)])
+        return Fit.of(self.y_w if left is None else self.whiten(left), design, regressors.shape[1])
+
+    def beyond_nuisance(self, whitened: np.ndarray) -> np.ndarray:
+        """What of whitened blocks the nuisance columns do not explain."""
+        if not self.nuisance_w.shape[1]:
+            return whitened
+        return _left_by(self.nuisance_w, whitened)
+
+    def joint_p_values(self, first: np.ndarray, second: np.ndarray) -> tuple[float, float]:
+        """The p-values of two effects (block means) fitted together; both 1
+        where their whitened effects beyond the nuisance correlate at
+        COLLINEAR or more, which this run cannot tell apart whatever a fit
+        says."""
+        beyond = [self.beyond_nuisance(self.whiten(g)) for g in (first, second)]
+        if _correlation(*beyond) >= COLLINEAR:
+            return 1.0, 1.0
+        first_p, second_p = self.fit(np.column_stack([first, second])).pvalues
+        return float(first_p), float(second_p)
+
+    def testable(self, regressor: np.ndarray) -> bool:
+        g = self.whiten(regressor)
+        total = float(g @ g)
+        if total == 0.0:
+            return False
+        left = self.beyond_nuisance(g)
+        return 1.0 - float(left @ left) / total < NOT_TESTABLE_R2
+
+    def reduction(self, explained_rows: np.ndarray) -> float:
+        """The share of the RMS residual an effect takes off."""
+        before = gap_rms(self.name, self.residual_rows)
+        after = gap_rms(self.name, self.residual_rows - explained_rows)
+        return 1.0 - after / before if before > 0 else 0.0
