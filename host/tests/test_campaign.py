@@ -14,7 +14,7 @@ from test_log import wait_for
 from twin_helpers import pty_twin
 
 from thermotilt import cli
-from thermotilt.calibration.campaign import select_positions
+from thermotilt.calibration.campaign.plan import select_positions
 from thermotilt.physics import Model
 from thermotilt.run.log import read_run_log
 from thermotilt.twin.scenarios import campaign_positions
@@ -318,7 +318,8 @@ def test_boards_campaign_without_a_board_is_one_line(tmp_path):
 @pytest.mark.slow
 @pytest.mark.twin
 def test_one_job_reports_progress_while_a_position_runs(tmp_path):
-    from thermotilt.calibration.campaign import PARTIAL_DIR, TwinCampaign, TwinSetup
+    from thermotilt.calibration.campaign.folder import PARTIAL_DIR
+    from thermotilt.calibration.campaign.twin import TwinCampaign, TwinSetup
     from thermotilt.twin.scenarios import ScenarioOptions
 
     out = tmp_path / "campaign"

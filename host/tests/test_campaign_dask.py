@@ -12,13 +12,10 @@ from distributed import Client, Event, LocalCluster
 from test_campaign import SHORT, campaign_file, interrupt_once_a_position_is_done, statuses
 
 from thermotilt import cli
-from thermotilt.calibration.campaign import (
-    CAMPAIGN_FILE,
-    TwinSetup,
-    Unit,
-    run_twin_position_shipped,
-    select_positions,
-)
+from thermotilt.calibration.campaign.dask import run_twin_position_shipped
+from thermotilt.calibration.campaign.folder import CAMPAIGN_FILE
+from thermotilt.calibration.campaign.plan import Unit, select_positions
+from thermotilt.calibration.campaign.twin import TwinSetup
 from thermotilt.twin.scenarios import ScenarioOptions
 
 TIMES = ("started_utc", "wall_seconds")

@@ -125,8 +125,8 @@ def test_ctrl_c_while_a_position_is_reported_waits_for_the_report(monkeypatch, c
 
     from tqdm import tqdm
 
-    from thermotilt.calibration.campaign import DONE, PositionRecord
-    from thermotilt.calibration.cli import report_position
+    from thermotilt.calibration.campaign.folder import DONE, PositionRecord
+    from thermotilt.calibration.campaign.session import report_position
 
     written = []
 

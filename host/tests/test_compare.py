@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from thermotilt.calibration.compare import CALIBRATED_C, GRID_POINTS, expected_mounting_miss_lsb
-from thermotilt.calibration.dataset import REFERENCE_C
+from thermotilt.surfaces import REFERENCE_C
 
 SIGMA = 0.8  # LSB per degC, the default model's Y
 G = 16393.0  # LSB per g (docs/run-log.md)

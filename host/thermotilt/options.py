@@ -10,6 +10,7 @@ import argparse
 import os
 import sys
 from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from typing import IO, NoReturn, TypeVar
 
 from .program import (
@@ -22,6 +23,7 @@ from .program import (
     PAPER_HOLD_S,
     REST_SECONDS_RANGE,
 )
+from .run.folder import RunFolder, RunFolderError
 
 PROGRAM = "thermotilt"
 # 128 + SIGINT, what a shell reports for a command stopped by Ctrl-C.
@@ -61,6 +63,15 @@ def one_line(message: str) -> str:
     return "".join(char if char.isprintable() else repr(char)[1:-1] for char in message)
 
 
+@contextmanager
+def as_usage_error(*errors: type[Exception]) -> Iterator[None]:
+    """What a workflow raises of these is bad input the user can fix: one line."""
+    try:
+        yield
+    except errors as error:
+        raise UsageError(str(error)) from None
+
+
 def interrupted() -> int:
     print(f"{PROGRAM}: interrupted", file=sys.stderr)
     return EXIT_INTERRUPTED
@@ -96,9 +107,10 @@ def existing_folder(text: str) -> str:
 
 def existing_run(text: str) -> str:
     """An argparse type: a run folder (with its run.csv) or a run.csv."""
-    path = os.path.join(text, "run.csv") if os.path.isdir(text) else text
-    if not os.path.isfile(path):
-        raise argparse.ArgumentTypeError(f"{path}: no run log (a run folder with run.csv, or a run.csv)")
+    try:
+        RunFolder.of(text)
+    except RunFolderError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
     return text
 
 

@@ -21,8 +21,8 @@ import numpy as np
 
 from ..physics import Model, ModelError
 from ..physics.terms.sensor import coefficient_table_of
-from ..surfaces import COEFFICIENT_NAMES, Surface
-from .dataset import REFERENCE_C, CalibrationDataError
+from ..surfaces import COEFFICIENT_NAMES, REFERENCE_C, Surface
+from .dataset import CalibrationDataError
 from .paper import PRINTING_ERRORS, TABLES
 
 CALIBRATED_C = (-10.0, 45.0)
@@ -224,3 +224,18 @@ def format_comparison(comparisons: list[SurfaceComparison], reference: str) -> s
             )
         )
     return "\n".join(lines)
+
+
+@dataclass(frozen=True)
+class FitComparison:
+    """``thermotilt compare``'s workflow: a fit beside its reference."""
+
+    comparisons: list[SurfaceComparison]
+    reference: str
+
+    def summary(self) -> str:
+        return format_comparison(self.comparisons, self.reference)
+
+
+def compare_fit(fit_dir: Path, reference: str) -> FitComparison:
+    return FitComparison(compare(read_fit(fit_dir), reference, fitted_sensor_id(fit_dir)), reference)

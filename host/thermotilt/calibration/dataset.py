@@ -28,12 +28,12 @@ import numpy as np
 
 from ..program import REACHED_BAND_C
 from ..run import SETTLE_S
-from ..run.folder import LOG_FILE
+from ..run.folder import LOG_FILE, RunFolder
 from ..run.log import RunLogError, format_number, read_run_columns
-from ..run.positions import settled, staircase
-from .campaign import CampaignError, recorded_sensor_id
+from ..run.positions import mountings, settled, staircase
+from ..surfaces import REFERENCE_C
+from .campaign.folder import CampaignError, CampaignFolder
 
-REFERENCE_C = 25.0
 # Wide enough for a 2 degC staircase step's rows on both sides of 25 degC.
 REFERENCE_BAND_C = 1.5
 # Enough rows to draw the reference line through.
@@ -72,12 +72,12 @@ class Campaign:
 
 
 def run_logs(folder: Path) -> list[Path]:
-    """``*/run.csv`` and ``*.csv`` in the run-log schema, sorted."""
+    """Each position's run log (``*/run.csv``) and logs kept under other names (``*.csv``), sorted."""
     if not folder.is_dir():
         raise CalibrationDataError(f"{folder}: not a folder of run logs")
-    logs = sorted(set(folder.glob("*/run.csv")) | set(folder.glob("*.csv")))
+    logs = sorted(set(folder.glob(f"*/{LOG_FILE}")) | set(folder.glob("*.csv")))
     if not logs:
-        raise CalibrationDataError(f"{folder}: no run log (*/run.csv or *.csv)")
+        raise CalibrationDataError(f"{folder}: no run log (*/{LOG_FILE} or *.csv)")
     return logs
 
 
@@ -107,18 +107,18 @@ def _temperature_rates(time_s: np.ndarray, temperature_c: np.ndarray) -> np.ndar
     return rates
 
 
-def _position_groups(name: str, incl_x_deg: np.ndarray, incl_y_deg: np.ndarray) -> dict[str, np.ndarray]:
-    """A run log's rows by tilt position (its incl_x_deg, incl_y_deg), in
-    order of appearance; a campaign run holds several, a logged run one."""
-    # Angles are within +-90 deg: the marker stands for an empty cell.
-    unknown = 1e9
-    angles = np.column_stack([np.nan_to_num(incl_x_deg, nan=unknown), np.nan_to_num(incl_y_deg, nan=unknown)])
-    pairs, first, which = np.unique(angles, axis=0, return_index=True, return_inverse=True)
+def _position_groups(name: str, numbers: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """A run log's rows by mounting of the tilt table (run.positions), in
+    order; a campaign run holds several, a logged run one. Each is named
+    by its angles (and, for a position the table came back to, its count)."""
+    mounting = mountings(numbers["incl_x_deg"], numbers["incl_y_deg"], numbers["since_move_s"])
+    starts = np.flatnonzero(np.diff(mounting, prepend=-1))
     groups = {}
-    for pair in np.argsort(first):
-        x, y = (format_number(None if value == unknown else value, 2) for value in pairs[pair])
-        label = f"x {x} deg, y {y} deg" if x or y else "angles unknown"
-        groups[f"{name} ({label})"] = np.flatnonzero(which.ravel() == pair)
+    for start, end in zip(starts, [*starts[1:], len(mounting)]):
+        x, y = (format_number(numbers[column][start], 2) for column in ("incl_x_deg", "incl_y_deg"))
+        label = f"{name} (" + (f"x {x} deg, y {y} deg" if x or y else "angles unknown") + ")"
+        visits = sum(key.split(" #")[0] == label for key in groups)
+        groups[label if not visits else f"{label} #{visits + 1}"] = np.arange(start, end)
     return groups
 
 
@@ -138,8 +138,7 @@ def load(folder: Path, settle_s: float | None = None) -> Campaign:
             raise CalibrationDataError(f"{path}: no rows")
         numbers, texts = log.numbers, log.texts
         has_chamber = bool((texts["phase"] != "").any())
-        name = path.parent.name if path.name == LOG_FILE else path.stem
-        for label, rows in _position_groups(name, numbers["incl_x_deg"], numbers["incl_y_deg"]).items():
+        for label, rows in _position_groups(RunFolder.of(path).name, numbers).items():
             index = len(positions)
             positions.append(label)
             time_s = numbers["time_s"][rows]
@@ -191,7 +190,7 @@ def load(folder: Path, settle_s: float | None = None) -> Campaign:
             rate_c_per_s=data[:, 3],
         )
     try:
-        sensor_id = recorded_sensor_id(folder)
+        sensor_id = CampaignFolder(folder).recorded_sensor_id()
     except CampaignError as error:
         raise CalibrationDataError(str(error)) from None
     return Campaign(tuple(positions), sets, skipped, stabilizing, sensor_id)

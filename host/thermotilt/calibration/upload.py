@@ -309,20 +309,9 @@ class _Session:
         self.client = CommandClient(port, on_frame=self.frames.append)
 
     def run(self, fit: FitToUpload, save: bool, fit_name: str) -> UploadResult:
-        table = fit.table
         version = self.hello()
         self.check_identity(fit.sensor_id, fit_name)
-        read_back = {}
-        for set_name in SETS:
-            for axis in AXES:
-                surface = table.surface(set_name, axis)
-                self.command(f"SETCOE {set_name} {axis}", "SETCOE", [set_name, axis, *surface], NOTHING_SAVED)
-                read_back[(set_name, axis)] = self.read_back(set_name, axis, surface, "", NOTHING_SAVED)
-        domains = [set_name for set_name in SETS if fit.domain[set_name].temperature_centi_c is not None]
-        for set_name in domains:
-            domain = fit.domain[set_name]
-            self.command(f"SETDOM {set_name}", "SETDOM", domain.setdom_values(set_name), NOTHING_SAVED)
-            self.read_domain(set_name, domain, "", NOTHING_SAVED)
+        read_back = self.send(fit)
         if not save:
             source = self.coef_source("; the coefficients are in RAM, not saved")
             if source != "U":
@@ -330,8 +319,8 @@ class _Session:
             return UploadResult(
                 self.name,
                 version["firmware_version"],
-                table,
-                CoefficientTable(read_back),
+                fit.table,
+                read_back,
                 None,
                 False,
                 None,
@@ -340,6 +329,38 @@ class _Session:
                 fit.sensor_id,
                 fit.domain,
             )
+        self.save()
+        restart, source, after_reset, imu_frames = self.check_after_reset(fit)
+        return UploadResult(
+            self.name,
+            version["firmware_version"],
+            fit.table,
+            read_back,
+            after_reset,
+            True,
+            restart["reset_cause"],
+            source,
+            imu_frames,
+            fit.sensor_id,
+            fit.domain,
+        )
+
+    def send(self, fit: FitToUpload) -> CoefficientTable:
+        """SETCOE and SETDOM, each read back; the surfaces as read back."""
+        read_back = {}
+        for set_name in SETS:
+            for axis in AXES:
+                surface = fit.table.surface(set_name, axis)
+                self.command(f"SETCOE {set_name} {axis}", "SETCOE", [set_name, axis, *surface], NOTHING_SAVED)
+                read_back[(set_name, axis)] = self.read_back(set_name, axis, surface, "", NOTHING_SAVED)
+        domains = [set_name for set_name in SETS if fit.domain[set_name].temperature_centi_c is not None]
+        for set_name in domains:
+            domain = fit.domain[set_name]
+            self.command(f"SETDOM {set_name}", "SETDOM", domain.setdom_values(set_name), NOTHING_SAVED)
+            self.read_domain(set_name, domain, "", NOTHING_SAVED)
+        return CoefficientTable(read_back)
+
+    def save(self) -> None:
         saved_timeout = self.client.timeout_s
         self.client.timeout_s = SAVE_TIMEOUT_S
         try:
@@ -351,6 +372,10 @@ class _Session:
             )
         finally:
             self.client.timeout_s = saved_timeout
+
+    def check_after_reset(self, fit: FitToUpload) -> tuple[Frame, str, CoefficientTable, int]:
+        """The board reset and loading the saved block: its restart frame,
+        coef_source, the surfaces read back and how many IMU frames came."""
         restart = self.restart()
         sensor_id, source = self.identity(SAVED_UNCHECKED)
         if source != "E":
@@ -366,7 +391,7 @@ class _Session:
                 f"{self.reported(restart)}; ICF says coef_source E"
             )
         after_reset = {
-            (s, a): self.read_back(s, a, table.surface(s, a), " after the reset", AFTER_RESET)
+            (s, a): self.read_back(s, a, fit.table.surface(s, a), " after the reset", AFTER_RESET)
             for s in SETS
             for a in AXES
         }
@@ -376,19 +401,7 @@ class _Session:
         wrong = sorted({frame["coef_source"] for frame in imu} - {"E"})
         if wrong:
             raise UploadError(f"after the reset {self.name} sent IMU frames with coef_source {', '.join(wrong)}, not E")
-        return UploadResult(
-            self.name,
-            version["firmware_version"],
-            table,
-            CoefficientTable(read_back),
-            CoefficientTable(after_reset),
-            True,
-            restart["reset_cause"],
-            source,
-            len(imu),
-            fit.sensor_id,
-            fit.domain,
-        )
+        return restart, source, CoefficientTable(after_reset), len(imu)
 
     def command(self, what: str, frame_type: str, values: Iterable[Any] = (), consequence: str = "") -> Any:
         try:

@@ -37,9 +37,9 @@ import numpy as np
 from ..lsm9ds0 import LSB_PER_G, MG_PER_LSB
 from ..run.folder import RunFolder, RunFolderError
 from ..run.log import RunLogError, read_run_columns
-from ..surfaces import AXES, PAPER_DEFAULTS, SETS, ZERO_SURFACE, CoefficientTable
+from ..surfaces import AXES, PAPER_DEFAULTS, REFERENCE_C, SETS, ZERO_SURFACE, CoefficientTable
 from .compare import CALIBRATED_C, read_fit
-from .dataset import FIT_AXES, REFERENCE_BAND_C, REFERENCE_C, CalibrationDataError, reading_at_25
+from .dataset import FIT_AXES, REFERENCE_BAND_C, CalibrationDataError, reading_at_25
 
 # The paper's calibration covered +-45 deg of tilt.
 CALIBRATED_INCLINATION_DEG = 45.0
@@ -178,7 +178,27 @@ def load_coefficients(source: str) -> Coefficients:
     return Coefficients(CoefficientTable(surfaces), domain, source)
 
 
-def validate(run: Path, coefficients: Coefficients | None = None) -> Validation:
+@dataclass(frozen=True)
+class _Rows:
+    """The run's rows that have a temperature, a set and every X/Y acceleration."""
+
+    path: Path
+    all_rows: int
+    time_s: np.ndarray
+    temperature: np.ndarray
+    sets: np.ndarray
+    filtered: dict[str, np.ndarray]
+    firmware: dict[str, np.ndarray]
+    sources: list[str]
+    # The board's own word on each row's temperature (temp_domain): True outside.
+    board_outside: np.ndarray | None
+
+    @property
+    def count(self) -> int:
+        return len(self.time_s)
+
+
+def _usable_rows(run: Path) -> _Rows:
     try:
         path = RunFolder.of(run).log
         log = read_run_columns(str(path))
@@ -191,73 +211,91 @@ def validate(run: Path, coefficients: Coefficients | None = None) -> Validation:
             usable &= np.isfinite(numbers[column])
     if not usable.any():
         raise CalibrationDataError(f"{path}: no row with a temperature, a set and every X/Y acceleration")
-    time_s = numbers["time_s"][usable]
-    temperature = numbers["imu_temp_c"][usable]
-    sets = texts["comp_set"][usable]
-    filtered = {axis: numbers[f"a{axis.lower()}_filt"][usable] for axis in FIT_AXES}
-    firmware = {axis: numbers[f"a{axis.lower()}_comp"][usable] for axis in FIT_AXES}
-    usable_rows = int(np.count_nonzero(usable))
-    sources = sorted(set(texts["coef_source"][usable].tolist()))
-    # The board's own word on each row's temperature (temp_domain), where
-    # the host knows no range for the coefficients it ran.
+    flags = texts.get("temp_domain")
+    board_flags = flags is not None and np.isin(flags[usable], DOMAIN_FLAGS).any()
+    return _Rows(
+        path,
+        log.rows,
+        numbers["time_s"][usable],
+        numbers["imu_temp_c"][usable],
+        texts["comp_set"][usable],
+        {axis: numbers[f"a{axis.lower()}_filt"][usable] for axis in FIT_AXES},
+        {axis: numbers[f"a{axis.lower()}_comp"][usable] for axis in FIT_AXES},
+        sorted(set(texts["coef_source"][usable].tolist())),
+        flags[usable] == OUTSIDE_FLAG if board_flags else None,
+    )
+
+
+def validate(run: Path, coefficients: Coefficients | None = None) -> Validation:
+    rows = _usable_rows(run)
     board_outside = None
     if coefficients is None:
-        after_from = f"the firmware's output (coef_source {'/'.join(sources)})"
-        domain = paper_domain() if sources == ["D"] else None
-        flags = texts.get("temp_domain")
-        if domain is None and flags is not None and np.isin(flags[usable], DOMAIN_FLAGS).any():
-            board_outside = flags[usable] == OUTSIDE_FLAG
+        after_from = f"the firmware's output (coef_source {'/'.join(rows.sources)})"
+        domain = paper_domain() if rows.sources == ["D"] else None
+        # Where the host knows no range for the coefficients the board ran.
+        board_outside = rows.board_outside if domain is None else None
     else:
         after_from = f"compensated here with {coefficients.source}"
         domain = coefficients.domain
-    results = []
-    series = {"time_s": time_s, "temperature_c": temperature, "set": sets}
-    for set_name in SETS:
-        in_set = sets == set_name
-        if not in_set.any():
-            continue
-        t = temperature[in_set]
-        for axis in FIT_AXES:
-            before = filtered[axis][in_set]
-            if coefficients is None:
-                after = firmware[axis][in_set]
-            else:
-                surface = coefficients.table.surface(set_name, axis)
-                after = before - surface.evaluate(t, before)
-            series.setdefault(f"{axis} before", np.full(usable_rows, np.nan))[in_set] = before
-            series.setdefault(f"{axis} after", np.full(usable_rows, np.nan))[in_set] = after
-            rms_before, tilt_before = _about_25(t, before)
-            rms_after, tilt_after = _about_25(t, after)
-            if tilt_after is not None:
-                series.setdefault(f"{axis} tilt error after", np.full(usable_rows, np.nan))[in_set] = tilt_after
-            results.append(
-                AxisResult(
-                    set_name,
-                    axis,
-                    int(in_set.sum()),
-                    rms_before,
-                    rms_after,
-                    int(board_outside[in_set].sum())
-                    if board_outside is not None
-                    else _outside(domain, set_name, axis, t, before),
-                    _percentile_of_size(tilt_before),
-                    _percentile_of_size(tilt_after),
-                )
-            )
+    series = {"time_s": rows.time_s, "temperature_c": rows.temperature, "set": rows.sets}
+    results = [
+        _axis_result(rows, set_name, axis, coefficients, domain, board_outside, series)
+        for set_name in SETS
+        if (rows.sets == set_name).any()
+        for axis in FIT_AXES
+    ]
     difference = None
     if coefficients is not None:
-        difference = max(float(np.nanmax(np.abs(series[f"{axis} after"] - firmware[axis]))) for axis in FIT_AXES)
+        difference = max(float(np.nanmax(np.abs(series[f"{axis} after"] - rows.firmware[axis]))) for axis in FIT_AXES)
     return Validation(
-        str(path),
-        usable_rows,
-        log.rows - usable_rows,
-        (float(temperature.min()), float(temperature.max())),
+        str(rows.path),
+        rows.count,
+        rows.all_rows - rows.count,
+        (float(rows.temperature.min()), float(rows.temperature.max())),
         after_from,
-        f"coef_source {'/'.join(sources)}",
+        f"coef_source {'/'.join(rows.sources)}",
         domain.source if domain else BOARD_DOMAIN if board_outside is not None else None,
         results,
         difference,
         series,
+    )
+
+
+def _axis_result(
+    rows: _Rows,
+    set_name: str,
+    axis: str,
+    coefficients: Coefficients | None,
+    domain: Domain | None,
+    board_outside: np.ndarray | None,
+    series: dict[str, np.ndarray],
+) -> AxisResult:
+    """One set's and axis's figures; its rows' before, after and tilt error go into series."""
+    in_set = rows.sets == set_name
+    t = rows.temperature[in_set]
+    before = rows.filtered[axis][in_set]
+    if coefficients is None:
+        after = rows.firmware[axis][in_set]
+    else:
+        after = before - coefficients.table.surface(set_name, axis).evaluate(t, before)
+    series.setdefault(f"{axis} before", np.full(rows.count, np.nan))[in_set] = before
+    series.setdefault(f"{axis} after", np.full(rows.count, np.nan))[in_set] = after
+    rms_before, tilt_before = _about_25(t, before)
+    rms_after, tilt_after = _about_25(t, after)
+    if tilt_after is not None:
+        series.setdefault(f"{axis} tilt error after", np.full(rows.count, np.nan))[in_set] = tilt_after
+    outside = (
+        int(board_outside[in_set].sum()) if board_outside is not None else _outside(domain, set_name, axis, t, before)
+    )
+    return AxisResult(
+        set_name,
+        axis,
+        int(in_set.sum()),
+        rms_before,
+        rms_after,
+        outside,
+        _percentile_of_size(tilt_before),
+        _percentile_of_size(tilt_after),
     )
 
 
@@ -355,3 +393,55 @@ def range_warnings(validation: Validation) -> list[str]:
                 f"the surface is extrapolated there"
             )
     return warnings
+
+
+@dataclass
+class ValidationRun:
+    """``thermotilt validate``'s workflow: a run checked; ``write`` puts its
+    report and figures in out_dir and validation.json in the run folder."""
+
+    run: RunFolder
+    validation: Validation
+    coefficients: Coefficients | None
+    paper: dict[tuple[str, str], tuple[float, float]] | None
+    out_dir: Path
+    written: list[Path] = field(default_factory=list)
+
+    def write(self) -> None:
+        import json
+
+        from .report import write_validation_report
+
+        document = self.run.path / "validation.json"
+        try:
+            report = write_validation_report(self.out_dir, self.validation, self.coefficients, self.paper)
+            document.write_text(json.dumps(self.validation.document(), indent=2) + "\n", encoding="utf-8")
+        except OSError as error:
+            raise CalibrationDataError(
+                f"cannot write {error.filename or self.out_dir}: {error.strerror or error}"
+            ) from None
+        self.written = [report, document]
+
+    def summary(self) -> str:
+        lines = [format_validation(self.validation, self.paper)]
+        lines += [f"warning: {warning}" for warning in range_warnings(self.validation)]
+        if self.written:
+            lines.append(f"wrote {' and '.join(map(str, self.written))}")
+        return "\n".join(lines)
+
+
+def validate_run(run_path: Path, coefficients: str | None, out_dir: Path | None) -> ValidationRun:
+    """The run validated with the firmware's output or the named coefficients
+    ("paper" or a fit folder); out_dir defaults to RUN/validation."""
+    from ..run.summary import RunSummaryError
+    from .paper import field_rms_lsb
+
+    run = RunFolder.of(run_path)
+    loaded = load_coefficients(coefficients) if coefficients else None
+    validation = validate(run.log, loaded)
+    try:
+        summary = run.summary()
+    except RunSummaryError as error:
+        raise CalibrationDataError(str(error)) from None
+    paper = field_rms_lsb(summary.scenario if summary is not None else None)
+    return ValidationRun(run, validation, loaded, paper, out_dir or run.path / "validation")

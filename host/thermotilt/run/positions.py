@@ -15,12 +15,19 @@ RUNNING_PHASES = ("W", "C")
 
 def mountings(incl_x_deg: np.ndarray, incl_y_deg: np.ndarray, since_move_s: np.ndarray) -> np.ndarray:
     """Each row's mounting: 0 from the first row, one more at every table
-    move (the angles change, or since_move_s starts again)."""
+    move (the angles change, or since_move_s starts again). Empty angles are
+    one angle: a log without the table's angles is one mounting."""
     moved = np.zeros(len(incl_x_deg), dtype=bool)
-    moved[1:] = (np.diff(incl_x_deg) != 0) | (np.diff(incl_y_deg) != 0)
+    moved[1:] = _changed(incl_x_deg) | _changed(incl_y_deg)
     with np.errstate(invalid="ignore"):
         moved[1:] |= np.diff(since_move_s) < 0
     return np.cumsum(moved)
+
+
+def _changed(values: np.ndarray) -> np.ndarray:
+    """Whether each value differs from the one before it, NaN equal to NaN."""
+    after, before = values[1:], values[:-1]
+    return (after != before) & ~(np.isnan(after) & np.isnan(before))
 
 
 def since_move(time_s: np.ndarray, mounting: np.ndarray, since_move_s: np.ndarray) -> np.ndarray:

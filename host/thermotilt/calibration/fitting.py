@@ -1,0 +1,152 @@
+"""``thermotilt fit``'s workflow: a campaign folder (one sensor's, or a
+batch's, a folder per sensor) fitted, certified and, if asked, scored by
+surface family; the result writes its files and says what it did."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from .campaign.folder import CampaignFolder
+from .dataset import FIT_AXES, CalibrationDataError
+
+
+@dataclass(frozen=True)
+class FitOptions:
+    axes: tuple[str, ...] = FIT_AXES
+    settle_s: float | None = None
+    # The sensor the campaign calibrated, where its campaign.json does not say.
+    sensor_id: str | None = None
+    compare_families: bool = False
+
+
+@dataclass
+class SensorFit:
+    """One sensor's campaign fitted, for out_dir."""
+
+    campaign_dir: Path
+    out_dir: Path
+    campaign: Any
+    fits: list[Any]
+    certificate: dict
+    errors: Any
+    families: list[Any] | None
+    fitted_for: str
+    report: Path | None = None
+
+    def write(self) -> None:
+        from .certificate import write_certificate
+        from .families import format_families, write_families
+        from .fit import write_outputs
+        from .report import write_fit_report
+
+        try:
+            write_outputs(self.fits, self.campaign, self.out_dir, self.fitted_for)
+            if self.families is not None:
+                write_families(self.families, self.out_dir)
+            families = format_families(self.families) if self.families else None
+            self.report = write_fit_report(self.out_dir, self.fits, self.campaign, families)
+            write_certificate(self.out_dir, self.certificate, self.errors)
+        except OSError as error:
+            raise CalibrationDataError(f"cannot write {self.out_dir}: {error.strerror or error}") from None
+
+    def summary(self) -> str:
+        from .families import format_families
+        from .fit import format_table
+
+        campaign = self.campaign
+        lines = [
+            f"{len(campaign.positions)} positions, {sum(fit.points for fit in self.fits)} points"
+            + (f" ({campaign.skipped_rows} rows with empty cells skipped)" if campaign.skipped_rows else "")
+        ]
+        if campaign.stabilizing_rows:
+            lines.append(
+                f"{campaign.stabilizing_rows} rows left out: the chamber had not yet reached its "
+                f"program's setpoint (docs/calibration.md)"
+            )
+        lines += [
+            format_table(self.fits),
+            "bounds: Newey-West (HAC) 95 % within each position; coefficients.json also has the "
+            "OLS bounds, which ignore the rows' autocorrelation",
+        ]
+        if self.families is not None:
+            lines.append(format_families(self.families))
+        lines.append(
+            f"fitted for sensor {self.fitted_for}"
+            if self.fitted_for
+            else "fitted for no particular sensor (no sensor ID)"
+        )
+        uncertainty = self.certificate["uncertainty"]
+        lines += [
+            f"tilt uncertainty over the calibrated domain: U = {self.certificate['tilt_u95_deg']:.4f} deg "
+            f"(95 %, k = {uncertainty['coverage_factor']:.2f}; {uncertainty['rows']} rows worth "
+            f"{uncertainty['effective_rows']:.0f} independent values)",
+            f"wrote {self.out_dir / 'coefficients.json'}, coefficients.bin (EEPROM block), coefficients.h, "
+            f"{self.report.name} with figures, certificate.json and certificate.html",
+        ]
+        return "\n".join(lines)
+
+
+def fit_sensor(campaign_dir: Path, out_dir: Path, options: FitOptions) -> SensorFit:
+    """One sensor's campaign fitted and certified (nothing written yet)."""
+    from .certificate import certify
+    from .dataset import load
+    from .families import compare_families
+    from .fit import fit_campaign
+
+    campaign = load(campaign_dir, settle_s=options.settle_s)
+    fits = fit_campaign(campaign, options.axes)
+    fitted_for = campaign.sensor_id or ""
+    if options.sensor_id is not None:
+        if fitted_for and options.sensor_id != fitted_for:
+            raise CalibrationDataError(
+                f"--sensor-id {options.sensor_id}: the campaign in {campaign_dir} was logged with sensor {fitted_for}"
+            )
+        fitted_for = options.sensor_id
+    certificate, errors = certify(campaign, fits, campaign_dir, fitted_for)
+    families = compare_families(campaign, options.axes) if options.compare_families else None
+    return SensorFit(campaign_dir, out_dir, campaign, fits, certificate, errors, families, fitted_for)
+
+
+@dataclass
+class FolderFit:
+    """A campaign folder's fits: one sensor's, or a batch's (a folder each
+    in out_dir, by sensor ID)."""
+
+    out_dir: Path
+    sensors: dict[str, SensorFit]
+    batch: bool
+
+    def write(self) -> None:
+        for fit in self.sensors.values():
+            fit.write()
+
+    def summary(self) -> str:
+        if not self.batch:
+            return next(iter(self.sensors.values())).summary()
+        lines = []
+        for sensor, fit in self.sensors.items():
+            lines += [f"== sensor {sensor}", fit.summary()]
+        lines.append(f"{len(self.sensors)} sensors fitted, one folder each in {self.out_dir}:")
+        lines += [
+            f"  {sensor:<8}  U = {fit.certificate['tilt_u95_deg']:.4f} deg  -> {fit.out_dir}"
+            for sensor, fit in self.sensors.items()
+        ]
+        return "\n".join(lines)
+
+
+def fit_folder(campaign_dir: Path, out_dir: Path, options: FitOptions) -> FolderFit:
+    """The campaign in campaign_dir fitted, each sensor of a batch on its own."""
+    try:
+        sensor_ids = CampaignFolder(campaign_dir).batch()
+    except ValueError as error:
+        raise CalibrationDataError(str(error)) from None
+    if not sensor_ids:
+        return FolderFit(out_dir, {"": fit_sensor(campaign_dir, out_dir, options)}, batch=False)
+    if options.sensor_id is not None:
+        raise CalibrationDataError(
+            f"--sensor-id names one sensor; {campaign_dir} is a batch, each sensor named by its campaign"
+        )
+    fits = {sensor: fit_sensor(campaign_dir / sensor, out_dir / sensor, options) for sensor in sensor_ids}
+    return FolderFit(out_dir, fits, batch=True)
