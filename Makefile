@@ -105,12 +105,16 @@ lint-cpp: system-deps
 	@command -v clang-format >/dev/null || { echo "error: clang-format is missing: make system-deps" >&2; exit 1; }
 	git ls-files -z -- $(CPP_SOURCES) | xargs -0 clang-format --dry-run --Werror
 
-# The host package and its tests against ruff's rules and layout, and the
-# package's imports against its layers (import-linter; host/pyproject.toml).
+# The host package and its tests against ruff's rules and layout; the
+# package's imports against its layers (import-linter) and the size of its
+# functions and modules (flake8-max-function-length, pylint's
+# too-many-lines), as host/pyproject.toml and host/.flake8 set them.
 lint-python: python-deps
 	$(VENV)/bin/ruff check host
 	$(VENV)/bin/ruff format --check host
 	cd host && $(abspath $(VENV))/bin/lint-imports --no-logo --no-cache
+	cd host && $(abspath $(VENV))/bin/flake8 thermotilt
+	cd host && $(abspath $(VENV))/bin/pylint --score=no thermotilt
 
 lint: lint-cpp lint-python
 
