@@ -152,7 +152,7 @@ def test_the_scatter_terms_do_not_disturb_each_others_draws(model):
 # --- the paper's campaign fit over the model -----------------------------------
 
 EMULATION_STEP_S = 0.25
-# docs/architecture.md: the IMU's Kalman filter settles to a gain of 1e-3 at
+# docs/firmware.md: the IMU's Kalman filter settles to a gain of 1e-3 at
 # 100 Hz, a 10 s first-order lag, applied alike to temperature and acceleration.
 KALMAN_TIME_CONSTANT_S = 10.0
 # Figure 8: a 2 degC step completes (90 %) in about 13 s.

@@ -1,7 +1,7 @@
 """The faults the twin injects, one small class each: its name, the board
 a run needs for it, whether it takes a rate (a probability per byte), and
 what it does to the twin's boards or physics as it starts and ends
-(docs/architecture.md, "Faults"). Which faults exist, their times and
+(docs/twin.md, "How the twin works"). Which faults exist, their times and
 syntax (NAME[=RATE][@START[-END]], the model file's [[faults]]) are
 ``thermotilt.physics.faults``'s: this registry implements exactly the faults
 it declares, each with the rate it declares, in its order.
