@@ -13,7 +13,17 @@ from typing import Any, Protocol
 
 from ...program import CALIBRATION_MAX_C, CALIBRATION_MIN_C, PAPER_STEP_C
 from ...twin.scenarios import ScenarioOptions, campaign_positions
-from .folder import DONE, FAILED, CampaignError, CampaignFile, CampaignFolder, Position, PositionRecord
+from .folder import (
+    DONE,
+    FAILED,
+    FORMAT,
+    CampaignError,
+    CampaignFile,
+    CampaignFolder,
+    Position,
+    PositionRecord,
+    utc_now,
+)
 
 
 @dataclass(frozen=True)
@@ -80,6 +90,12 @@ def program_settings(options: ScenarioOptions) -> dict[str, Any]:
         "controller": options.controller,
         "ambient_c": options.ambient_c,
     }
+
+
+def campaign_header(rig: str, options: ScenarioOptions, unit: Unit, **details: Any) -> dict[str, Any]:
+    """A unit's campaign.json settings: what --resume must find the same."""
+    header = {"format": FORMAT, "rig": rig, "created_utc": utc_now(), "program": program_settings(options), **details}
+    return header | ({"sensor": unit.sensor} if unit.sensor else {})
 
 
 def failed_records(task: Task, error: str) -> list[PositionRecord]:

@@ -16,8 +16,8 @@ from ...program import CALIBRATION_MAX_C, CALIBRATION_MIN_C
 from ...run.summary import INTERRUPTED as RUN_INTERRUPTED
 from ...run.summary import PROGRAM_DONE
 from ...twin.scenarios import ScenarioOptions
-from .folder import DONE, FAILED, FORMAT, INTERRUPTED, CampaignError, CampaignFolder, Position, PositionRecord, utc_now
-from .plan import Campaign, CampaignOutcome, Finished, Progress, RunEnd, Task, Unit, program_settings
+from .folder import DONE, FAILED, INTERRUPTED, CampaignError, CampaignFolder, Position, PositionRecord
+from .plan import Campaign, CampaignOutcome, Finished, Progress, RunEnd, Task, Unit, campaign_header
 
 # A Nano resets when its port opens and its bootloader waits ~1-2 s; a Mega the same.
 BOOT_WAIT_S = 10.0
@@ -56,14 +56,9 @@ class BoardsCampaign(Campaign):
         if len(self.ports) > 1 and resume:
             folder.check_batch(unit.sensor for unit in self.ports)
         headers = {
-            unit: {
-                "format": FORMAT,
-                "rig": "boards",
-                "created_utc": utc_now(),
-                "program": program_settings(setup.options),
-                "ports": {"imu_reader": port, "thermal_chamber": setup.chamber_port},
-                **({"sensor": unit.sensor} if unit.sensor else {}),
-            }
+            unit: campaign_header(
+                "boards", setup.options, unit, ports={"imu_reader": port, "thermal_chamber": setup.chamber_port}
+            )
             for unit, port in self.ports.items()
         }
         super().__init__(folder, positions, headers, resume, force)

@@ -15,8 +15,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ...twin.scenarios import ScenarioError, ScenarioOptions, cycle
-from .folder import DONE, FAILED, FORMAT, INTERRUPTED, CampaignError, CampaignFolder, Position, PositionRecord, utc_now
-from .plan import Campaign, CampaignOutcome, Finished, PositionRunner, Progress, Unit, program_settings
+from .folder import DONE, FAILED, INTERRUPTED, CampaignError, CampaignFolder, Position, PositionRecord
+from .plan import Campaign, CampaignOutcome, Finished, PositionRunner, Progress, Unit, campaign_header
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -181,16 +181,14 @@ class TwinCampaign(Campaign):
         if batch and resume:
             folder.check_batch(unit.sensor for unit in self.units)
         headers = {
-            unit: {
-                "format": FORMAT,
-                "rig": "twin",
-                "created_utc": utc_now(),
-                "program": program_settings(setup.options),
-                "seed": setup.seed,
-                "model": model.source,
-                "terms": {name: model.enabled(name) for name in model.terms},
-                **({"sensor": unit.sensor} if unit.sensor else {}),
-            }
+            unit: campaign_header(
+                "twin",
+                setup.options,
+                unit,
+                seed=setup.seed,
+                model=model.source,
+                terms={name: model.enabled(name) for name in model.terms},
+            )
             for unit, model in models.items()
         }
         self.setup = setup
