@@ -230,3 +230,40 @@ def test_the_papers_figures_stand_beside_the_set_its_test_used():
     cooling = next(line for line in table if line.startswith("cooling"))
     assert warming.split() == ["warming", "X", "200", "7.8", "26.1", "0.0200", "0.0900"]
     assert cooling.split() == ["cooling", "X", "3000", "121.8", "2.1", "n/a", "n/a", "122", "4"]
+
+
+def test_a_switch_between_the_sets_is_measured_as_the_step_of_the_compensated_reading(tmp_path):
+    # 10 Hz: warming until 300 s, cooling until 340 s (too close to the next
+    # switch to be measured), warming again until 700 s, then cooling to
+    # 900 s. The compensated X reads 5 LSB more while cooling; Y the same.
+    rows = []
+    for index in range(9000):
+        time_s = index / 10
+        cooling = 300 <= time_s < 340 or time_s >= 700
+        rows.append((time_s, "C" if cooling else "W", OFFSET_X + (5.0 if cooling else 0.0), OFFSET_Y))
+    with open(tmp_path / "run.csv", "w", newline="") as stream:
+        writer = csv.DictWriter(stream, fieldnames=COLUMNS, lineterminator="\n", extrasaction="ignore")
+        writer.writeheader()
+        for time_s, set_name, ax, ay in rows:
+            row = {column: "" for column in COLUMNS}
+            row.update(
+                time_s=f"{time_s:.3f}",
+                imu_temp_c="25.000",
+                comp_set=set_name,
+                coef_source="E",
+                ax_filt=f"{ax:.1f}",
+                ay_filt=f"{ay:.1f}",
+                ax_comp=f"{ax:.1f}",
+                ay_comp=f"{ay:.1f}",
+            )
+            writer.writerow(row)
+    validation = validate(tmp_path)
+    assert [(switch.time_s, switch.to_set) for switch in validation.switches] == [(700.0, "C")]
+    (switch,) = validation.switches
+    assert switch.step_lsb == {"X": pytest.approx(5.0), "Y": pytest.approx(0.0)}
+    # 5 LSB at -1823 LSB (-6.4 deg): 5 / (16393.4 cos 6.4 deg) rad.
+    assert switch.step_deg["X"] == pytest.approx(
+        np.degrees(5.0 / (16393.44 * np.cos(np.arcsin(1823 / 16393.44)))), rel=1e-3
+    )
+    document = validation.document()["set_switches"]
+    assert document["count"] == 1 and document["largest_step_lsb"] == {"X": pytest.approx(5.0), "Y": pytest.approx(0.0)}

@@ -50,6 +50,14 @@ SET_NAMES = {"W": "warming", "C": "cooling"}
 DOMAIN_FLAGS = ("I", "O")
 OUTSIDE_FLAG = "O"
 BOARD_DOMAIN = "the block the board loaded (run.csv's temp_domain)"
+# A switch between the sets is measured as the change of the compensated
+# reading from the median of the SWITCH_WINDOW_S before it to the median of
+# the SWITCH_WINDOW_S after it, each SWITCH_GAP_S away from the switch
+# (where the Kalman filter's ~10 s settle), with at least SWITCH_MIN_ROWS rows
+# on each side and no other switch in between.
+SWITCH_WINDOW_S = 60.0
+SWITCH_GAP_S = 30.0
+SWITCH_MIN_ROWS = 10
 _NEEDED = (
     "time_s",
     "imu_temp_c",
@@ -90,6 +98,17 @@ class AxisResult:
 
 
 @dataclass(frozen=True)
+class SetSwitch:
+    """The device changed its set at time_s: the compensated reading's step
+    there per axis (after minus before), in LSB and in degrees of tilt."""
+
+    time_s: float
+    to_set: str
+    step_lsb: dict[str, float]
+    step_deg: dict[str, float]
+
+
+@dataclass(frozen=True)
 class Validation:
     run: str
     rows: int
@@ -105,6 +124,16 @@ class Validation:
     # The rows behind the table, for figures: time_s, temperature_c, set, and
     # per axis "X before", "X after"...
     series: dict[str, np.ndarray] = field(default_factory=dict)
+    switches: list[SetSwitch] = field(default_factory=list)
+
+    def largest_switch_step(self, unit: str) -> dict[str, float] | None:
+        """Per axis, the largest size of a switch's step ("lsb" or "deg"); None without a measured switch."""
+        if not self.switches:
+            return None
+        return {
+            axis: max(abs((s.step_lsb if unit == "lsb" else s.step_deg)[axis]) for s in self.switches)
+            for axis in FIT_AXES
+        }
 
     def result(self, set_name: str, axis: str) -> AxisResult | None:
         return next((r for r in self.results if (r.set_name, r.axis) == (set_name, axis)), None)
@@ -150,6 +179,11 @@ class Validation:
                 for r in self.results
             ],
             "firmware_difference_lsb": self.firmware_difference_lsb,
+            "set_switches": {
+                "count": len(self.switches),
+                "largest_step_lsb": self.largest_switch_step("lsb"),
+                "largest_step_deg": self.largest_switch_step("deg"),
+            },
         }
 
 
@@ -258,7 +292,38 @@ def validate(run: Path, coefficients: Coefficients | None = None) -> Validation:
         results,
         difference,
         series,
+        set_switches(rows.time_s, rows.sets, {axis: series[f"{axis} after"] for axis in FIT_AXES}),
     )
+
+
+def set_switches(time_s: np.ndarray, sets: np.ndarray, compensated: dict[str, np.ndarray]) -> list[SetSwitch]:
+    """Each change of the device's set that has SWITCH_MIN_ROWS rows in both
+    of its windows and no other change between them, with the compensated
+    reading's step there (SWITCH_WINDOW_S, SWITCH_GAP_S)."""
+    changes = np.flatnonzero(sets[1:] != sets[:-1]) + 1
+    change_times = time_s[changes]
+    reach = SWITCH_GAP_S + SWITCH_WINDOW_S
+    switches = []
+    for index, at in zip(changes, change_times):
+        if np.count_nonzero(np.abs(change_times - at) <= reach) > 1:
+            continue
+        before = (time_s >= at - reach) & (time_s < at - SWITCH_GAP_S)
+        after = (time_s > at + SWITCH_GAP_S) & (time_s <= at + reach)
+        if min(np.count_nonzero(before), np.count_nonzero(after)) < SWITCH_MIN_ROWS:
+            continue
+        levels = {axis: (np.median(values[before]), np.median(values[after])) for axis, values in compensated.items()}
+        switches.append(
+            SetSwitch(
+                float(at),
+                str(sets[index]),
+                {axis: float(late - early) for axis, (early, late) in levels.items()},
+                {
+                    axis: float(tilt_deg(np.array(late)) - tilt_deg(np.array(early)))
+                    for axis, (early, late) in levels.items()
+                },
+            )
+        )
+    return switches
 
 
 def _axis_result(
@@ -360,6 +425,14 @@ def format_validation(validation: Validation, paper: dict[tuple[str, str], tuple
         lines.append(
             f"tilt error after compensation, X and Y: {validation.tilt_error_p95_deg:.4f} deg "
             f"({TILT_PERCENTILE:g}th percentile)"
+        )
+    largest = validation.largest_switch_step("lsb")
+    if largest is not None:
+        degrees_step = validation.largest_switch_step("deg")
+        lines.append(
+            f"warming<->cooling switches measured: {len(validation.switches)}; the largest step of the "
+            "compensated reading: "
+            + ", ".join(f"{axis} {largest[axis]:.1f} LSB ({degrees_step[axis]:.4f} deg)" for axis in FIT_AXES)
         )
     if validation.firmware_difference_lsb is not None:
         lines.append(
