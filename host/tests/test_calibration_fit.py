@@ -123,11 +123,15 @@ def nominal(angle_deg: float) -> tuple[float, float]:
     return x, 0.5 * x
 
 
-def write_run_log(path, angle_deg: float, temperatures, sets, drift=TRUE, blank_every: int = 0, chamber=None) -> None:
+def write_run_log(
+    path, angle_deg: float, temperatures, sets, drift=TRUE, blank_every: int = 0, chamber=None, cooling_shift=0.0
+) -> None:
     """A run.csv of a position: the chamber running, filters settled, both
-    axes carrying `drift` on top of offsets of 300 and -400 LSB. `chamber`,
-    one (phase, setpoint_c, inner_c) a row, writes the chamber's columns;
-    without it the phase follows the set and they stay empty."""
+    axes carrying `drift` on top of offsets of 300 and -400 LSB, and
+    cooling_shift more on the cooling rows (the measuring offset's change
+    between the sets, paper section 4.1). `chamber`, one (phase,
+    setpoint_c, inner_c) a row, writes the chamber's columns; without it the
+    phase follows the set and they stay empty."""
     x, y = nominal(angle_deg)
     path.parent.mkdir(parents=True, exist_ok=True)
     with open(path, "w", newline="") as stream:
@@ -135,8 +139,9 @@ def write_run_log(path, angle_deg: float, temperatures, sets, drift=TRUE, blank_
         writer.writeheader()
         for index, (temperature, set_name) in enumerate(zip(temperatures, sets)):
             row = {column: "" for column in COLUMNS}
-            ax = x + 300.0 + drift.evaluate(temperature, x)
-            ay = y - 400.0 + drift.evaluate(temperature, y)
+            shift = cooling_shift if set_name == "C" else 0.0
+            ax = x + 300.0 + shift + drift.evaluate(temperature, x)
+            ay = y - 400.0 + shift + drift.evaluate(temperature, y)
             row.update(
                 time_s=f"{index / 10:.3f}",
                 phase="W" if set_name == "W" else "C",
@@ -181,6 +186,30 @@ def test_residuals_are_taken_against_each_positions_25c_reading(tmp_path):
         # The 25 degC reading is a line through +-1.5 degC of a curved drift:
         # p20 * 1.5^2 = 0.23 LSB off at most, plus the cells' 0.01 LSB.
         assert np.max(np.abs(warming.residual[axis] - expected)) < 0.3, axis
+
+
+def test_both_sets_are_taken_against_one_reading_of_the_position(tmp_path):
+    # Section 4.1's set offsets differ by ~34 LSB; referenced together, the
+    # warming surface carries half of that below the position's reading and
+    # the cooling surface half above, so the compensated reading is the same
+    # whichever set the device is in.
+    temperatures, sets = cycle()
+    shift = 34.0
+    for angle in ANGLES_DEG:
+        write_run_log(tmp_path / f"pos{angle}" / "run.csv", angle, temperatures, sets, cooling_shift=shift)
+    campaign = load(tmp_path)
+    angles = sorted(ANGLES_DEG, key=lambda angle: f"pos{angle}")
+    for set_name, half in (("W", -shift / 2), ("C", shift / 2)):
+        data = campaign.sets[set_name]
+        for axis, offset in (("X", 0), ("Y", 1)):
+            expected = np.array(
+                [
+                    TRUE.evaluate(t, nominal(angles[index])[offset])
+                    for t, index in zip(data.temperature_c, data.position)
+                ]
+            )
+            # As above: 0.3 LSB for the 25 degC line through a curved drift.
+            assert np.max(np.abs(data.residual[axis] - expected - half)) < 0.3, (set_name, axis)
 
 
 def test_rows_before_the_chamber_first_reaches_its_setpoint_are_not_fitted(tmp_path):

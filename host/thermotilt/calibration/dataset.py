@@ -54,7 +54,7 @@ class SetData:
 
     temperature_c: np.ndarray
     acceleration: dict[str, np.ndarray]  # axis -> filtered LSB
-    residual: dict[str, np.ndarray]  # axis -> LSB minus the 25 degC reading
+    residual: dict[str, np.ndarray]  # axis -> LSB minus the position's 25 degC reading (both sets')
     position: np.ndarray  # index into Campaign.positions, for grouped statistics
     # dT/dt of the filtered IMU temperature, degC/s, for model families with a rate term.
     rate_c_per_s: np.ndarray | None = None
@@ -122,6 +122,25 @@ def _position_groups(name: str, numbers: dict[str, np.ndarray]) -> dict[str, np.
     return groups
 
 
+def _position_reference(label: str, by_set: dict[str, np.ndarray]) -> np.ndarray:
+    """The one reading both sets' residuals are taken against, per column
+    (temperature, X, Y, rate; zero but for X and Y): the mean of the two
+    sets' readings at 25 degC. Each set's surface then carries its offset
+    from the other, and a reading compensated with either set is the same."""
+    references = []
+    for set_name, data in by_set.items():
+        if not len(data):
+            raise CalibrationDataError(f"{label}: no settled rows of the {set_name} set")
+        at_25 = [reading_at_25(data[:, 0], data[:, column]) for column in (1, 2)]
+        if None in at_25:
+            raise CalibrationDataError(
+                f"{label}: the {set_name} set never crosses {REFERENCE_C:g} degC "
+                f"(needs {MIN_REFERENCE_ROWS} rows within {REFERENCE_BAND_C:g} degC of it)"
+            )
+        references.append(at_25)
+    return np.array([0.0, *np.mean(references, axis=0), 0.0])
+
+
 def load(folder: Path, settle_s: float | None = None) -> Campaign:
     """Every position's residuals per set; CalibrationDataError when a
     position cannot give them."""
@@ -165,19 +184,14 @@ def load(folder: Path, settle_s: float | None = None) -> Campaign:
                 ]
             )
             comp_set = texts["comp_set"][used_rows]
-            for set_name, set_parts in parts.items():
+            by_set = {}
+            for set_name in parts:
                 cells = columns[comp_set == set_name]
-                data = cells[np.isfinite(cells).all(axis=1)]
-                skipped += len(cells) - len(data)
-                if not len(data):
-                    raise CalibrationDataError(f"{label}: no settled rows of the {set_name} set")
-                references = [reading_at_25(data[:, 0], data[:, column]) for column in (1, 2)]
-                if None in references:
-                    raise CalibrationDataError(
-                        f"{label}: the {set_name} set never crosses {REFERENCE_C:g} degC "
-                        f"(needs {MIN_REFERENCE_ROWS} rows within {REFERENCE_BAND_C:g} degC of it)"
-                    )
-                set_parts.append((index, data, np.array([0.0, *references, 0.0])))
+                by_set[set_name] = cells[np.isfinite(cells).all(axis=1)]
+                skipped += len(cells) - len(by_set[set_name])
+            reference = _position_reference(label, by_set)
+            for set_name, set_parts in parts.items():
+                set_parts.append((index, by_set[set_name], reference))
     sets = {}
     for set_name, set_parts in parts.items():
         data = np.concatenate([part[1] for part in set_parts])
