@@ -25,7 +25,7 @@ speed figures down.
 Each figure is printed as it is measured and, at the end, written with the
 date, the machine and the command to docs/performance.md (overwritten;
 `--page` names another file). Then each Nano test program's RAM goes into
-docs/testing.md (host/tools/test_ram.py).
+docs/testing.md (host/tools/nano_ram.py).
 
 `bench.py --memory` prints only each board's RAM: its static data and the
 stack's high-water mark (a few seconds).
@@ -55,8 +55,8 @@ from collections import Counter
 from pathlib import Path
 
 import generated_page
+import nano_ram
 import numpy as np
-import test_ram
 
 from thermotilt.build_tree import build_dir
 from thermotilt.calibration.dataset import Campaign, SetData, load
@@ -746,7 +746,7 @@ def main() -> None:
     fit_end_to_end(figures)
     integrity(figures)
     write_page(args.page, figures.rows, started, load_at_start)
-    test_ram.write()
+    nano_ram.write()
 
 
 if __name__ == "__main__":

@@ -5,7 +5,7 @@ alone), for the offline build and, when UNITY_ROOT names a checkout of
 ThrowTheSwitch's Unity (the one `pio test` installs), for the same tests
 built with it, which is what PlatformIO's build holds.
 
-Usage: THERMOTILT_BUILD_DIR=build [UNITY_ROOT=DIR] test_ram.py [--page FILE]
+Usage: THERMOTILT_BUILD_DIR=build [UNITY_ROOT=DIR] nano_ram.py [--page FILE]
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from thermotilt.build_tree import build_dir
 ROOT = Path(__file__).resolve().parents[2]
 MCU = "atmega328p"
 PAGE = generated_page.DOCS / "testing.md"
-BEGIN = "<!-- make bench writes the Nano test programs' RAM from here on (host/tools/test_ram.py) -->"
+BEGIN = "<!-- make bench writes the Nano test programs' RAM from here on (host/tools/nano_ram.py) -->"
 END = "<!-- /test-ram -->"
 # sim/avr_run's closing line of a Unity run.
 RAM_LINE = re.compile(r"^avr_run: RAM (\d+) B: static (\d+) B, stack untouched (\d+) B$", re.MULTILINE)
