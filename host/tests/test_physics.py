@@ -482,7 +482,9 @@ def test_paper_drift_over_the_calibration_range(model):
     assert {s.drift_set for s in rising} == {"W"}
     assert rising[-1].ax - rising[0].ax == pytest.approx(-1313.62, abs=1.0)
     assert rising[-1].ay - rising[0].ay == pytest.approx(-773.44, abs=1.0)
-    falling = sweep(drift_only, [46.0 - 0.05 * i for i in range(1121)])
+    # From 47: by 45 the die has cooled past set_transition_c (1.5 degC), so
+    # the sensor is wholly in its cooling set.
+    falling = sweep(drift_only, [47.0 - 0.05 * i for i in range(1141)])
     at_45 = next(s for s in falling if s.die_c <= 45.0 + 1e-9)
     assert at_45.drift_set == "C" and falling[-1].die_c == pytest.approx(-10.0)
     assert falling[-1].ax - at_45.ax == pytest.approx(1322.99, abs=1.0)
@@ -496,6 +498,42 @@ def test_drift_set_follows_the_trend_with_a_schmitt_band(model):
     # 22 -> 21.6 is 0.4 below the peak (inside the 0.5 band), 21.4 is 0.6 below;
     # from the 20.0 trough, 20.6 is the first more than 0.5 above.
     assert sets == ["W", "W", "W", "W", "C", "C", "C", "C", "C", "W"]
+
+
+def offsets_along(model, path):
+    """The measuring offset on X (LSB) at each die temperature of path, the
+    measuring offset alone switched on (set_transition_c 1.5 degC)."""
+    assert model.terms["drift"]["set_transition_c"] == 1.5
+    alone = model.with_terms(SENSOR_EFFECTS_OFF | {"measuring_offset": True})
+    sensor = Sensor(alone, seed=1, environment_c=path[0])
+    return np.array([sensor.step(0.01, t, 0.0, 0.0).unrounded_ax for t in path])
+
+
+def test_the_offset_crosses_between_sets_over_the_transition_temperature(model):
+    warming, cooling = (model.terms["measuring_offset"][key]["x"] for key in ("warming_lsb", "cooling_lsb"))
+    # Up to 30, back down 0.75 degC (half of 1.5), up again, then down 3.
+    path = [20.0, 30.0, 29.25, 30.0, 31.0, 30.25, 29.5, 28.0]
+    offsets = offsets_along(model, path)
+    expected_shares = [1.0, 1.0, 0.5, 1.0, 1.0, 0.5, 0.0, 0.0]
+    assert offsets.tolist() == pytest.approx([cooling + s * (warming - cooling) for s in expected_shares])
+
+
+def test_the_set_state_depends_on_the_path_not_the_rate(model):
+    # The same turn at 0.1 and at 0.001 degC a step: the same offsets at the
+    # same temperatures (a stop operator is rate-independent).
+    fast = np.concatenate([np.linspace(25.0, 30.0, 51), np.linspace(30.0, 28.0, 21)[1:]])
+    slow = np.concatenate([np.linspace(25.0, 30.0, 5001), np.linspace(30.0, 28.0, 2001)[1:]])
+    assert offsets_along(model, fast)[-1] == pytest.approx(offsets_along(model, slow)[-1], abs=1e-6)
+    assert offsets_along(model, fast)[55] == pytest.approx(offsets_along(model, slow)[5500], abs=1e-6)
+
+
+def test_small_wiggles_move_the_offset_in_proportion_not_in_steps(model):
+    # A plateau wandering +-0.1 degC moves the share by at most 0.2 / 1.5 of
+    # the way between the sets: no jump from one set's offset to the other's.
+    warming, cooling = (model.terms["measuring_offset"][key]["x"] for key in ("warming_lsb", "cooling_lsb"))
+    wiggle = 25.0 + 0.1 * np.sin(np.linspace(0.0, 20.0 * np.pi, 2001))
+    offsets = offsets_along(model, np.concatenate([[20.0], wiggle]))
+    assert np.ptp(offsets[1:]) <= abs(warming - cooling) * 0.2 / 1.5 + 1e-9
 
 
 def test_firmware_compensation_recovers_the_tilt(model):
@@ -575,7 +613,8 @@ def test_rate_sensitivity_adds_gain_times_rate_on_z(model):
 def test_measuring_offset_shifts_each_axis_by_the_papers_set(model):
     # Paper section 4.1: X -1823 LSB warming, -1857 cooling; Y -143, -110.
     offset_only = model.with_terms(SENSOR_EFFECTS_OFF | {"measuring_offset": True})
-    path = [25.0, 26.0, 25.0, 24.0]  # the last two are more than 0.5 degC below the peak
+    # The last two are more than set_transition_c (1.5 degC) below the peak.
+    path = [25.0, 26.0, 24.0, 23.0]
     samples = sweep(offset_only, path)
     assert [s.drift_set for s in samples] == ["W", "W", "C", "C"]
     assert [(s.ax, s.ay, s.az) for s in samples] == [

@@ -180,6 +180,41 @@ def drift_sets(band_c: float, start_c: float, die_c: np.ndarray) -> np.ndarray:
     return sets
 
 
+class SetState:
+    """How far the sensor is in its warming state: 1 holds the warming set's
+    surfaces and measuring offset (W), 0 the cooling set's (C), and between
+    them the sensor is that share of the way. Prandtl's stop operator on the
+    die temperature (`[drift] set_transition_c`): every change of the die
+    temperature moves the share by change / transition, held within 0..1,
+    so a reversal crosses from one set to the other over that much
+    temperature, at any rate. Starts warming, as the paper's cycles do."""
+
+    __slots__ = ("_transition_c", "warming_share")
+
+    def __init__(self, transition_c: float) -> None:
+        self._transition_c = transition_c
+        self.warming_share = 1.0
+
+    def update(self, change_c: float) -> float:
+        share = self.warming_share + change_c / self._transition_c
+        self.warming_share = share = 1.0 if share > 1.0 else 0.0 if share < 0.0 else share
+        return share
+
+
+def warming_shares(transition_c: float, start_c: float, die_c: np.ndarray) -> np.ndarray:
+    """SetState(transition_c) updated with each change of the die temperature
+    from start_c on, as an array: the same floats as SetState.update, whose
+    clipping a cumulative sum cannot follow, so a loop over the steps."""
+    state = SetState(transition_c)
+    return np.array([state.update(change) for change in np.diff(die_c, prepend=start_c).tolist()])
+
+
+def _blend(warming_share: Any, warming: Any, cooling: Any) -> Any:
+    """The share of the way from the cooling set's value to the warming
+    set's; at a share of 1 or 0 exactly that set's value."""
+    return warming_share * warming + (1.0 - warming_share) * cooling
+
+
 class Sensor:
     """The LSM9DS0 accelerometer and temperature sensor on the tilt table."""
 
@@ -198,6 +233,7 @@ class Sensor:
         "_die_c",
         "_structure_c",
         "_trend",
+        "_set_state",
         "_angles",
         "_acceleration",
         "_mounting",
@@ -228,6 +264,7 @@ class Sensor:
         # The warming/cooling choice runs whether or not the drift is on: the
         # sample always says which set the firmware would pick.
         self._trend = Trend(model.terms["drift"]["schmitt_band_c"], self._die_c)
+        self._set_state = SetState(model.terms["drift"]["set_transition_c"])
         self._angles: tuple[float, float] | None = None
         self._acceleration = (0.0, 0.0, 0.0)
         # A table move is a new mounting of the sensor; the first position is 0.
@@ -244,6 +281,7 @@ class Sensor:
         self._die_c = die
         rate = (die - previous_die) / dt_s
         drift_set = self._trend.update(die)
+        warming_share = self._set_state.update(die - previous_die)
         reported = die
         for offset in self._reported:
             reported = offset(reported)
@@ -266,7 +304,7 @@ class Sensor:
         ideal_x, ideal_y, ideal_z = self._acceleration
 
         if self._drift is not None:
-            drift_x, drift_y, drift_z = self._drift(drift_set, structure, ideal_x, ideal_y, ideal_z)
+            drift_x, drift_y, drift_z = self._drift_at(warming_share, structure, ideal_x, ideal_y, ideal_z)
             raw_x, raw_y, raw_z = ideal_x + drift_x, ideal_y + drift_y, ideal_z + drift_z
         else:
             drift_x = drift_y = drift_z = 0.0
@@ -278,7 +316,7 @@ class Sensor:
             raw_z += error_z
         mounting = self._mounting
         for error in self._errors:
-            error_x, error_y, error_z = error(drift_set, reported, rate, dt_s, mounting)
+            error_x, error_y, error_z = error(warming_share, reported, rate, dt_s, mounting)
             raw_x += error_x
             raw_y += error_y
             raw_z += error_z
@@ -308,6 +346,21 @@ class Sensor:
             raw_y,
             raw_z,
             structure,
+        )
+
+    def _drift_at(
+        self, warming_share: float, temperature_c: float, ideal_x: float, ideal_y: float, ideal_z: float
+    ) -> tuple[float, float, float]:
+        if warming_share == 1.0:
+            return self._drift("W", temperature_c, ideal_x, ideal_y, ideal_z)
+        if warming_share == 0.0:
+            return self._drift("C", temperature_c, ideal_x, ideal_y, ideal_z)
+        warming_x, warming_y, warming_z = self._drift("W", temperature_c, ideal_x, ideal_y, ideal_z)
+        cooling_x, cooling_y, cooling_z = self._drift("C", temperature_c, ideal_x, ideal_y, ideal_z)
+        return (
+            _blend(warming_share, warming_x, cooling_x),
+            _blend(warming_share, warming_y, cooling_y),
+            _blend(warming_share, warming_z, cooling_z),
         )
 
 
@@ -371,6 +424,7 @@ def sensor_series(
     die = _lagged(stages["die"], float(start_c), environment_c, dt_s)
     rate = np.diff(die, prepend=float(start_c)) / dt_s
     drift_set = drift_sets(model.terms["drift"]["schmitt_band_c"], float(start_c), die)
+    warming_share = warming_shares(model.terms["drift"]["set_transition_c"], float(start_c), die)
     reported, structure_start = die, float(start_c)
     for offset in stages["reported"]:
         reported = offset(reported)
@@ -381,9 +435,9 @@ def sensor_series(
     moved[1:] = (incl_x_deg[1:] != incl_x_deg[:-1]) | (incl_y_deg[1:] != incl_y_deg[:-1])
     mounting = np.cumsum(moved) - 1
     ideal = _ideal_series(stages, incl_x_deg, incl_y_deg, moved, mounting)
-    runs = _runs(moved, drift_set, mounting)
-    drift = _drift_series(stages, runs, structure, ideal)
-    raw = _raw_series(stages, runs, ideal, drift, reported, rate, dt_s)
+    runs = _runs(moved, warming_share, mounting)
+    drift = _drift_series(stages, runs, warming_share, structure, ideal)
+    raw = _raw_series(stages, runs, ideal, drift, (warming_share, reported, rate, dt_s))
 
     temperature_lsb = (reported - constants["temperature_zero_c"]) * constants["temperature_lsb_per_c"]
     for register in stages["register"]:
@@ -406,7 +460,8 @@ def sensor_series(
     )
 
 
-# Steps that share their drift set and mounting: which steps, the set, the mounting.
+# Steps that share their set state and mounting: which steps, the state
+# ("W" wholly warming, "C" wholly cooling, "" between), the mounting.
 _Run = tuple[slice, str, int]
 
 
@@ -429,25 +484,39 @@ def _ideal_series(
     return np.array(accelerations, dtype=float).reshape(-1, 3)[mounting].T
 
 
-def _runs(moved: np.ndarray, drift_set: np.ndarray, mounting: np.ndarray) -> list[_Run]:
-    """The runs of steps that share their set and mounting, in order: the
-    set-dependent and per-mounting terms take them whole."""
-    starts = np.flatnonzero(moved | np.concatenate([[True], drift_set[1:] != drift_set[:-1]]))
+def _runs(moved: np.ndarray, warming_share: np.ndarray, mounting: np.ndarray) -> list[_Run]:
+    """The runs of steps that share their set state and mounting, in order:
+    the set-dependent and per-mounting terms take them whole."""
+    state = np.where(warming_share == 1.0, "W", np.where(warming_share == 0.0, "C", ""))
+    starts = np.flatnonzero(moved | np.concatenate([[True], state[1:] != state[:-1]]))
     return [
-        (slice(start, end), str(drift_set[start]), int(mounting[start]))
+        (slice(start, end), str(state[start]), int(mounting[start]))
         for start, end in zip(starts.tolist(), [*starts[1:].tolist(), len(moved)])
     ]
 
 
 def _drift_series(
-    stages: dict[str, list[Any]], runs: list[_Run], structure: np.ndarray, ideal: np.ndarray
+    stages: dict[str, list[Any]],
+    runs: list[_Run],
+    warming_share: np.ndarray,
+    structure: np.ndarray,
+    ideal: np.ndarray,
 ) -> np.ndarray:
-    """The drift of every step, x, y and z by rows; zero with the drift off."""
+    """The drift of every step, x, y and z by rows; zero with the drift off.
+    Between the sets, both sets' drift blended as Sensor._drift_at blends it."""
     drift = np.zeros(ideal.shape)
-    if stages["drift"]:
-        ideal_x, ideal_y, ideal_z = ideal
-        for part, set_here, _ in runs:
-            drift[:, part] = stages["drift"][0](set_here, structure[part], ideal_x[part], ideal_y[part], ideal_z[part])
+    if not stages["drift"]:
+        return drift
+    (surfaces,) = stages["drift"]
+    ideal_x, ideal_y, ideal_z = ideal
+    for part, state, _ in runs:
+        arguments = (structure[part], ideal_x[part], ideal_y[part], ideal_z[part])
+        if state:
+            drift[:, part] = surfaces(state, *arguments)
+        else:
+            drift[:, part] = _blend(
+                warming_share[part], np.array(surfaces("W", *arguments)), np.array(surfaces("C", *arguments))
+            )
     return drift
 
 
@@ -456,20 +525,22 @@ def _raw_series(
     runs: list[_Run],
     ideal: np.ndarray,
     drift: np.ndarray,
-    reported: np.ndarray,
-    rate: np.ndarray,
-    dt_s: np.ndarray,
+    conditions: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
 ) -> np.ndarray:
-    """The acceleration the registers are rounded from, x, y and z by rows:
-    ideal, drift and every additive error, summed in Sensor.step's order so
-    that every sum is the same float."""
+    """The acceleration the registers are rounded from: ideal, drift and
+    every additive error, x, y and z by rows, summed in Sensor.step's order
+    so that every sum is the same float. conditions: each step's warming
+    share, reported temperature, rate and dt_s."""
+    warming_share, reported, rate, dt_s = conditions
     ideal_x, ideal_y, ideal_z = ideal
     raw = np.stack([ideal_x, ideal_y, ideal_z]) + drift
     for scale in stages["scale"]:
         raw += np.stack(np.broadcast_arrays(*scale(reported, ideal_x, ideal_y, ideal_z)))
-    for part, set_here, mounting_here in runs:
+    for part, _, mounting_here in runs:
         for error in stages["error"]:
-            error_x, error_y, error_z = error(set_here, reported[part], rate[part], dt_s[part], mounting_here)
+            error_x, error_y, error_z = error(
+                warming_share[part], reported[part], rate[part], dt_s[part], mounting_here
+            )
             raw[0, part] += error_x
             raw[1, part] += error_y
             raw[2, part] += error_z

@@ -142,6 +142,17 @@ class Drift(SensorTerm):
             "as the firmware's TrendDetector",
             "the firmware uses 0.5; a band wider than the paper's ±6 °C field swings would never switch",
         ),
+        Parameter(
+            "set_transition_c",
+            Bounds(0.05, 20.0, "degC"),
+            1.5,
+            "assumed: after a reversal the sensor moves from one set's surfaces and measuring "
+            "offset to the other's linearly over this much die temperature, as the stress of an "
+            "elastic–perfectly-plastic die attach (Prandtl's stop operator: Krasnosel'skii and "
+            "Pokrovskii, Systems with Hysteresis, 1989); less than the calibration's 2 °C step "
+            "(paper section 3.2), after which the paper's plateaus show each set whole",
+            "20 °C is a third of the paper's −10…45 °C cycle; wider, the sets would never be seen whole",
+        ),
     )
 
     def bound(self, context: SensorContext) -> Callable[..., Any]:
@@ -183,7 +194,7 @@ class RateSensitivity(SensorTerm):
         gain_x, gain_y, gain_z = gains["x"], gains["y"], gains["z"]
 
         def error(
-            drift_set: str, reported_c: float, rate: float, dt_s: float, mounting: int
+            warming_share: float, reported_c: float, rate: float, dt_s: float, mounting: int
         ) -> tuple[float, float, float]:
             return gain_x * rate, gain_y * rate, gain_z * rate
 
@@ -284,7 +295,7 @@ class Noise(SensorTerm):
         draw = context.normal
 
         def error(
-            drift_set: str, reported_c: float, rate: float, dt_s: float, mounting: int
+            warming_share: float, reported_c: float, rate: float, dt_s: float, mounting: int
         ) -> tuple[float, float, float]:
             return sigma_x * draw(), sigma_y * draw(), sigma_z * draw()
 
@@ -298,7 +309,7 @@ class Noise(SensorTerm):
         normals = context.normals
 
         def error(
-            drift_set: str, reported_c: np.ndarray, rate: np.ndarray, dt_s: np.ndarray, mounting: int
+            warming_share: np.ndarray, reported_c: np.ndarray, rate: np.ndarray, dt_s: np.ndarray, mounting: int
         ) -> np.ndarray:
             # x, y, z per step, the order the scalar form draws them in.
             return sigma[:, None] * normals(3 * len(dt_s)).reshape(-1, 3).T
@@ -317,8 +328,9 @@ class MeasuringOffset(SensorTerm):
     name = "measuring_offset"
     stage = "error"
     summary = (
-        "a constant offset of the reading per axis, one set while warming (W), one while "
-        "cooling (C); the drift surfaces do not remove it"
+        "a constant offset of the reading per axis, one while warming (W), one while cooling "
+        "(C), and between them after a reversal as far as the sensor's warming share "
+        "(`[drift] set_transition_c`); the paper's drift surfaces do not remove it"
     )
     parameters = (
         Parameter(
@@ -338,15 +350,18 @@ class MeasuringOffset(SensorTerm):
     )
 
     def bound(self, context: SensorContext) -> Callable[..., Any]:
-        by_set = {
-            "W": tuple(self.values["warming_lsb"][axis] for axis in "xyz"),
-            "C": tuple(self.values["cooling_lsb"][axis] for axis in "xyz"),
-        }
+        warming_x, warming_y, warming_z = (self.values["warming_lsb"][axis] for axis in "xyz")
+        cooling_x, cooling_y, cooling_z = (self.values["cooling_lsb"][axis] for axis in "xyz")
 
         def error(
-            drift_set: str, reported_c: float, rate: float, dt_s: float, mounting: int
+            warming_share: float, reported_c: float, rate: float, dt_s: float, mounting: int
         ) -> tuple[float, float, float]:
-            return by_set[drift_set]
+            cooling_share = 1.0 - warming_share
+            return (
+                warming_share * warming_x + cooling_share * cooling_x,
+                warming_share * warming_y + cooling_share * cooling_y,
+                warming_share * warming_z + cooling_share * cooling_z,
+            )
 
         return error
 
@@ -382,7 +397,7 @@ class DriftRepeatability(SensorTerm):
         slope_x = slope_y = slope_z = 0.0
 
         def error(
-            drift_set: str, reported_c: float, rate: float, dt_s: float, mounting: int
+            warming_share: float, reported_c: float, rate: float, dt_s: float, mounting: int
         ) -> tuple[float, float, float]:
             nonlocal drawn, slope_x, slope_y, slope_z
             # Mounting k always takes the k-th draw, however many were skipped.
@@ -496,7 +511,7 @@ class BiasInstability(SensorTerm):
         step = blocks.next
 
         def error(
-            drift_set: str, reported_c: float, rate: float, dt_s: float, mounting: int
+            warming_share: float, reported_c: float, rate: float, dt_s: float, mounting: int
         ) -> tuple[float, float, float]:
             return step(dt_s)
 
@@ -509,7 +524,7 @@ class BiasInstability(SensorTerm):
         blocks = _FlickerBlocks(np.array([floors["x"], floors["y"], floors["z"]]), context.generator(self.name))
 
         def error(
-            drift_set: str, reported_c: np.ndarray, rate: np.ndarray, dt_s: np.ndarray, mounting: int
+            warming_share: np.ndarray, reported_c: np.ndarray, rate: np.ndarray, dt_s: np.ndarray, mounting: int
         ) -> np.ndarray:
             return blocks.take(dt_s)
 

@@ -52,8 +52,8 @@ class Hysteresis(SensorTerm):
     stage = "error"
     enabled_by_default = False
     summary = (
-        "a per-axis offset added while the sensor's own trend set is cooling (C), beyond the "
-        "surfaces' and `measuring_offset`'s two sets"
+        "a per-axis offset added as far as the sensor is in its cooling state (1 − the warming "
+        "share of `[drift] set_transition_c`), beyond the surfaces' and `measuring_offset`'s two sets"
     )
     parameters = (
         Parameter(
@@ -66,13 +66,13 @@ class Hysteresis(SensorTerm):
     )
 
     def bound(self, context: SensorContext) -> Callable[..., Any]:
-        cooling = tuple(self.values["cooling_offset_lsb"][axis] for axis in "xyz")
-        warming = (0.0, 0.0, 0.0)
+        cooling_x, cooling_y, cooling_z = (self.values["cooling_offset_lsb"][axis] for axis in "xyz")
 
         def error(
-            drift_set: str, reported_c: float, rate: float, dt_s: float, mounting: int
+            warming_share: float, reported_c: float, rate: float, dt_s: float, mounting: int
         ) -> tuple[float, float, float]:
-            return cooling if drift_set == "C" else warming
+            cooling_share = 1.0 - warming_share
+            return cooling_share * cooling_x, cooling_share * cooling_y, cooling_share * cooling_z
 
         return error
 
