@@ -1,5 +1,5 @@
 // libthermotilt_host.so (firmware_algorithms.h): lib/Program's staircase,
-// lib/Compensation's trend detector, surface, coefficient block and sensor
+// lib/Compensation's trend detector, set blend, surface, coefficient block and sensor
 // ID rule, lib/ChamberControl's drive law, for the host.
 #include "firmware_algorithms.h"
 
@@ -38,6 +38,18 @@ extern "C" int thermotilt_trend_sets(size_t count, const float* temperatureC, fl
     TrendDetector trend(hysteresisC);
     for (size_t i = 0; i < count; ++i) {
         set[i] = (uint8_t)trend.update(temperatureC[i]);
+    }
+    return 0;
+}
+
+extern "C" int thermotilt_set_blend_shares(size_t count, const float* temperatureC, float transitionC, float* share)
+{
+    if (count > 0 && !(temperatureC && share)) {
+        return THERMOTILT_HOST_BAD_ARGUMENT;
+    }
+    SetBlend blend(transitionC);
+    for (size_t i = 0; i < count; ++i) {
+        share[i] = blend.update(temperatureC[i]);
     }
     return 0;
 }

@@ -1,7 +1,7 @@
 /* libthermotilt_host.so: single algorithms of the firmware's libraries, each
  * over arrays of count inputs, compiled for the host from the same sources.
  * The host keeps Python copies of some (a scenario's staircase, the physics
- * model's trend and drift surfaces); host/tests/test_firmware_differential.py
+ * model's trend, set blend and drift surfaces); host/tests/test_firmware_differential.py
  * checks each copy against them. The chamber's drive law has no copy: the
  * physics tests that close the loop around the chamber model call it. Each returns 0, or
  * THERMOTILT_HOST_BAD_ARGUMENT (a NULL array with count > 0) and writes
@@ -30,6 +30,11 @@ int thermotilt_program_steps(size_t count, const float *start_c, const float *ma
  * temperature_c in order; set[i] is what update(temperature_c[i]) returned,
  * 0 warming, 1 cooling. */
 int thermotilt_trend_sets(size_t count, const float *temperature_c, float hysteresis_c, uint8_t *set);
+
+/* lib/Compensation: one SetBlend(transition_c), starting warming, fed
+ * temperature_c in order; share[i] is what update(temperature_c[i])
+ * returned, the warming share 0..1. */
+int thermotilt_set_blend_shares(size_t count, const float *temperature_c, float transition_c, float *share);
 
 /* lib/Compensation: surfaceCorrection f(T, a) of the surface p (p00, p10,
  * p01, p20, p11, p02) at T = temperature_c[i], a = accel_lsb[i]. */

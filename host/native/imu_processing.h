@@ -14,7 +14,8 @@
  * reset may be NULL (no resets). coefficients: 36 float32 in the EEPROM
  * block's order, set (warming, cooling) x axis (X, Y, Z) x term (p00, p10,
  * p01, p20, p11, p02), or NULL for the firmware's defaults. compensated is
- * written for every sample with the set in force then; the firmware computes
+ * written for every sample with the sets blended as far as the sensor has
+ * crossed then (lib/Compensation SetBlend); the firmware computes
  * it only where frame_due[i] is 1, with the same function and inputs.
  * set[i]: 0 warming, 1 cooling. at: NULL, or at_count sample indices in
  * order (repeats allowed); then only those samples are written, sample at[k]
@@ -32,7 +33,7 @@
 extern "C" {
 #endif
 
-#define THERMOTILT_HOST_ABI_VERSION 6
+#define THERMOTILT_HOST_ABI_VERSION 7
 #define THERMOTILT_HOST_BAD_ARGUMENT (-1)
 
 int thermotilt_host_abi_version(void);

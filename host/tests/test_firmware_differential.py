@@ -5,6 +5,8 @@ build/native/libthermotilt_host.so), input for input:
 - scenarios.program_steps, lib/Program's staircase;
 - the physics model's trend (physics.sensor.Trend), lib/Compensation's
   TrendDetector;
+- set_blend (the physics model's set state and validate's compensation),
+  lib/Compensation's SetBlend;
 - Surface.evaluate and the drift term's _surface, lib/Compensation's
   surfaceCorrection;
 - wire.coefficients' EEPROM block (encode_block, decode_block) and sensor
@@ -19,6 +21,9 @@ does, and the trend and surface copies are given float32 values.
 
 from __future__ import annotations
 
+import re
+from pathlib import Path
+
 import numpy as np
 import pytest
 from hypothesis import assume, example, given, settings
@@ -30,6 +35,7 @@ from thermotilt.physics import Model
 from thermotilt.physics.sensor import Trend
 from thermotilt.physics.terms.sensor import INT16_MAX, INT16_MIN, OPERATING_C, SURFACE_TERM_BOUNDS, _surface
 from thermotilt.program import CALIBRATION_MAX_C, CALIBRATION_MIN_C
+from thermotilt.set_blend import FIRMWARE_TRANSITION_C, warming_shares
 from thermotilt.surfaces import AXES, PAPER_DEFAULTS, SETS, Surface, table_from_values
 from thermotilt.twin.scenarios import program_steps
 from thermotilt.wire.coefficients import (
@@ -224,6 +230,38 @@ def test_trend_differs_from_the_firmware_only_where_float32_rounds_the_excursion
     exact = extreme - temperature if state == "W" else temperature - extreme
     single = np.float32(extreme) - series[first + 1] if state == "W" else series[first + 1] - np.float32(extreme)
     assert (exact > band) != (single > np.float32(band))
+
+
+# --- Set blend --------------------------------------------------------------
+
+
+def firmware_shares(temperatures_c, transition_c: float) -> np.ndarray:
+    """The warming share after each update of one lib/Compensation SetBlend."""
+    (temperatures,) = _singles(temperatures_c)
+    shares = np.zeros(temperatures.size, np.float32)
+    _call("thermotilt_set_blend_shares", temperatures.size, temperatures.ctypes.data, transition_c, shares.ctypes.data)
+    return shares
+
+
+def test_the_hosts_transition_is_the_firmwares():
+    header = (Path(__file__).resolve().parents[2] / "lib/Compensation/src/Compensation.h").read_text()
+    (declared,) = re.findall(r"const float COMP_SET_TRANSITION_C = ([0-9.]+)f;", header)
+    assert float(declared) == FIRMWARE_TRANSITION_C
+
+
+@PROPERTY
+@given(arrays(np.float32, st.integers(1, 400), elements=st.floats(OPERATING_C.low, OPERATING_C.high, width=32)))
+def test_set_blend_agrees_with_the_firmware_within_float32_rounding(series):
+    """The firmware steps in float32: each update rounds the change, its
+    quotient by the transition and the sum, each at most u = 2^-24 of its
+    size (the share is at most 1), and the clamp to 0..1 never widens a
+    difference; so after k updates the two differ by at most the sum of
+    u (1 + 3 |change| / transition) over them."""
+    python = warming_shares(FIRMWARE_TRANSITION_C, float(series[0]), series.astype(float))
+    firmware = firmware_shares(series, FIRMWARE_TRANSITION_C)
+    changes = np.abs(np.diff(series.astype(float), prepend=float(series[0])))
+    bound = np.cumsum(2.0**-24 * (1.0 + 3.0 * changes / FIRMWARE_TRANSITION_C))
+    assert np.all(np.abs(python - firmware) <= bound)
 
 
 # --- Surface ----------------------------------------------------------------

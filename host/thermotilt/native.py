@@ -38,7 +38,7 @@ temperature to 0.001 degC; these are the float32 values before that rounding.
 
 The library also holds single firmware algorithms the host keeps Python
 copies of (``host/native/firmware_algorithms.h``: lib/Program's staircase,
-lib/Compensation's trend detector, surface, coefficient block and sensor ID
+lib/Compensation's trend detector, set blend, surface, coefficient block and sensor ID
 rule); ``library()`` declares them,
 and ``host/tests/test_firmware_differential.py`` checks each copy against them.
 ``chamber_drive`` is lib/ChamberControl's drive law, for whatever closes a
@@ -72,7 +72,7 @@ COEFFICIENT_COUNT = 36
 DECIMATION_RANGE = range(1, 256)  # SETDEC's
 OUTPUTS = ("ax_filt", "ay_filt", "az_filt", "temp_c", "set", "ax_comp", "ay_comp", "az_comp", "frame_due")
 
-_ABI_VERSION = 6  # THERMOTILT_HOST_ABI_VERSION
+_ABI_VERSION = 7  # THERMOTILT_HOST_ABI_VERSION
 _OK = 0
 
 
@@ -115,6 +115,7 @@ def _load_library(path: Path) -> ctypes.CDLL:
         "thermotilt_kalman_estimates": (ctypes.c_int, [size, pointer, pointer, pointer, size, pointer]),
         "thermotilt_program_steps": (ctypes.c_int, [size, pointer, pointer, pointer, pointer, pointer]),
         "thermotilt_trend_sets": (ctypes.c_int, [size, pointer, single, pointer]),
+        "thermotilt_set_blend_shares": (ctypes.c_int, [size, pointer, single, pointer]),
         "thermotilt_surface_corrections": (ctypes.c_int, [size, pointer, pointer, pointer, pointer]),
         "thermotilt_coefficient_block_encode": (ctypes.c_int, [pointer, pointer, ctypes.c_char_p, pointer]),
         "thermotilt_coefficient_block_decode": (

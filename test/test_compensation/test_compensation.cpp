@@ -262,6 +262,54 @@ static void test_non_finite_outputs_do_not_fit(void)
     TEST_ASSERT_FALSE(surfaceOutputFitsFrame(overflowing));
 }
 
+static void test_blend_crosses_over_the_transition(void)
+{
+    // Up to 30 degC (wholly warming), down 0.75 (half of 1.5) and 0.75 more
+    // (wholly cooling), further down (held at 0), then up 0.375 (a quarter).
+    SetBlend blend;
+    TEST_ASSERT_FLOAT_WITHIN(0.0f, 1.0f, blend.update(20.0f));
+    TEST_ASSERT_FLOAT_WITHIN(0.0f, 1.0f, blend.update(30.0f));
+    TEST_ASSERT_FLOAT_WITHIN(0.0f, 0.5f, blend.update(29.25f));
+    TEST_ASSERT_FLOAT_WITHIN(0.0f, 0.0f, blend.update(28.5f));
+    TEST_ASSERT_FLOAT_WITHIN(0.0f, 0.0f, blend.update(25.0f));
+    TEST_ASSERT_FLOAT_WITHIN(0.0f, 0.25f, blend.update(25.375f));
+    TEST_ASSERT_FLOAT_WITHIN(0.0f, 0.25f, blend.warmingShare());
+}
+
+static void test_blend_plateau_noise_moves_it_in_proportion(void)
+{
+    // test_trend_plateau's +-0.25 degC of 1/8 degC noise about 30 degC after
+    // a rise: the share never leaves 1 - 0.5 / 1.5 (the noise's full span
+    // over the transition), so the compensation blends, it does not chatter
+    // between the sets' surfaces.
+    SetBlend blend;
+    blend.update(25.0f);
+    blend.update(30.0f);
+    uint32_t seed = 12345u;
+    float lowest = 1.0f;
+    for (uint16_t i = 0; i < 500; ++i) {
+        seed = seed * 1664525u + 1013904223u;
+        int16_t noise = (int16_t)((seed >> 24) % 5u) - 2;
+        float share = blend.update(eighths((int16_t)(240 + noise)));
+        lowest = share < lowest ? share : lowest;
+    }
+    TEST_ASSERT(lowest >= 1.0f - 0.5f / COMP_SET_TRANSITION_C - 1e-6f);
+}
+
+static void test_blended_compensation_is_each_set_at_the_ends(void)
+{
+    Coefficients c;
+    loadDefaultCoefficients(c);
+    const AxisSurface& warming = c.set[0].axis[0];
+    const AxisSurface& cooling = c.set[1].axis[0];
+    const float t = 38.0f;
+    const float raw = -1900.0f;
+    TEST_ASSERT_FLOAT_WITHIN(0.0f, compensate(warming, t, raw), compensateBlended(warming, cooling, 1.0f, t, raw));
+    TEST_ASSERT_FLOAT_WITHIN(0.0f, compensate(cooling, t, raw), compensateBlended(warming, cooling, 0.0f, t, raw));
+    float half = 0.5f * (compensate(warming, t, raw) + compensate(cooling, t, raw));
+    TEST_ASSERT_FLOAT_WITHIN(0.01f, half, compensateBlended(warming, cooling, 0.5f, t, raw));
+}
+
 int runUnityTests(void)
 {
     UNITY_BEGIN();
@@ -275,6 +323,9 @@ int runUnityTests(void)
     RUN_TEST(test_trend_ramps);
     RUN_TEST(test_trend_plateau);
     RUN_TEST(test_trend_threshold);
+    RUN_TEST(test_blend_crosses_over_the_transition);
+    RUN_TEST(test_blend_plateau_noise_moves_it_in_proportion);
+    RUN_TEST(test_blended_compensation_is_each_set_at_the_ends);
     RUN_TEST(test_default_surfaces_fit_the_frame);
     RUN_TEST(test_output_limit_includes_the_raw_reading);
     RUN_TEST(test_output_peaks_between_the_corners_are_found);

@@ -18,6 +18,7 @@ static KalmanFilter referenceAccel[IMU_AXES];
 static KalmanFilter referenceTemperature;
 static Decimator referenceDecimator(IMU_DEFAULT_DECIMATION);
 static TrendDetector referenceTrend;
+static SetBlend referenceBlend;
 
 void setUp(void)
 {
@@ -123,7 +124,7 @@ static void test_decimation_and_hysteresis_settings(void)
     TEST_ASSERT_TRUE(processing.update(raw, 0, coefficients, out));
 }
 
-// The firmware before the class, with a RESEED at 150 and STOP..START over
+// The firmware's steps written out, with a RESEED at 150 and STOP..START over
 // 400..450: the same filtered values, sets, frames and compensated values.
 static void test_matches_the_firmware_code_it_replaced(void)
 {
@@ -154,12 +155,13 @@ static void test_matches_the_firmware_code_it_replaced(void)
             expected.filtered[axis] = referenceAccel[axis].update(raw[axis]);
         }
         expected.set = referenceTrend.update(expected.temperatureC);
+        float share = referenceBlend.update(expected.temperatureC);
         bool expectedDue = streaming && referenceDecimator.push();
         if (expectedDue) {
-            const CoefficientSet& surfaces = coefficients.forTrend(expected.set);
             for (uint8_t axis = 0; axis < IMU_AXES; ++axis) {
-                expected.compensated[axis] = compensate(surfaces.axis[axis], expected.temperatureC,
-                                                        expected.filtered[axis]);
+                expected.compensated[axis] = compensateBlended(coefficients.set[0].axis[axis],
+                                                               coefficients.set[1].axis[axis], share,
+                                                               expected.temperatureC, expected.filtered[axis]);
             }
         }
         ImuOutput out;

@@ -9,6 +9,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from ..set_blend import SetBlend, blend, warming_shares
 from .model import Model
 from .terms import SENSOR_STAGES, SensorContext, SensorTerm
 from .terms.sensor import INT16_MAX, INT16_MIN
@@ -180,41 +181,6 @@ def drift_sets(band_c: float, start_c: float, die_c: np.ndarray) -> np.ndarray:
     return sets
 
 
-class SetState:
-    """How far the sensor is in its warming state: 1 holds the warming set's
-    surfaces and measuring offset (W), 0 the cooling set's (C), and between
-    them the sensor is that share of the way. Prandtl's stop operator on the
-    die temperature (`[drift] set_transition_c`): every change of the die
-    temperature moves the share by change / transition, held within 0..1,
-    so a reversal crosses from one set to the other over that much
-    temperature, at any rate. Starts warming, as the paper's cycles do."""
-
-    __slots__ = ("_transition_c", "warming_share")
-
-    def __init__(self, transition_c: float) -> None:
-        self._transition_c = transition_c
-        self.warming_share = 1.0
-
-    def update(self, change_c: float) -> float:
-        share = self.warming_share + change_c / self._transition_c
-        self.warming_share = share = 1.0 if share > 1.0 else 0.0 if share < 0.0 else share
-        return share
-
-
-def warming_shares(transition_c: float, start_c: float, die_c: np.ndarray) -> np.ndarray:
-    """SetState(transition_c) updated with each change of the die temperature
-    from start_c on, as an array: the same floats as SetState.update, whose
-    clipping a cumulative sum cannot follow, so a loop over the steps."""
-    state = SetState(transition_c)
-    return np.array([state.update(change) for change in np.diff(die_c, prepend=start_c).tolist()])
-
-
-def _blend(warming_share: Any, warming: Any, cooling: Any) -> Any:
-    """The share of the way from the cooling set's value to the warming
-    set's; at a share of 1 or 0 exactly that set's value."""
-    return warming_share * warming + (1.0 - warming_share) * cooling
-
-
 class Sensor:
     """The LSM9DS0 accelerometer and temperature sensor on the tilt table."""
 
@@ -264,7 +230,7 @@ class Sensor:
         # The warming/cooling choice runs whether or not the drift is on: the
         # sample always says which set the firmware would pick.
         self._trend = Trend(model.terms["drift"]["schmitt_band_c"], self._die_c)
-        self._set_state = SetState(model.terms["drift"]["set_transition_c"])
+        self._set_state = SetBlend(model.terms["drift"]["set_transition_c"])
         self._angles: tuple[float, float] | None = None
         self._acceleration = (0.0, 0.0, 0.0)
         # A table move is a new mounting of the sensor; the first position is 0.
@@ -358,9 +324,9 @@ class Sensor:
         warming_x, warming_y, warming_z = self._drift("W", temperature_c, ideal_x, ideal_y, ideal_z)
         cooling_x, cooling_y, cooling_z = self._drift("C", temperature_c, ideal_x, ideal_y, ideal_z)
         return (
-            _blend(warming_share, warming_x, cooling_x),
-            _blend(warming_share, warming_y, cooling_y),
-            _blend(warming_share, warming_z, cooling_z),
+            blend(warming_share, warming_x, cooling_x),
+            blend(warming_share, warming_y, cooling_y),
+            blend(warming_share, warming_z, cooling_z),
         )
 
 
@@ -514,7 +480,7 @@ def _drift_series(
         if state:
             drift[:, part] = surfaces(state, *arguments)
         else:
-            drift[:, part] = _blend(
+            drift[:, part] = blend(
                 warming_share[part], np.array(surfaces("W", *arguments)), np.array(surfaces("C", *arguments))
             )
     return drift

@@ -55,6 +55,33 @@ float compensate(const AxisSurface& surface, float tempC, float rawLsb)
     return rawLsb - surfaceCorrection(surface, tempC, rawLsb);
 }
 
+float compensateBlended(const AxisSurface& warming, const AxisSurface& cooling, float warmingShare, float tempC,
+                        float rawLsb)
+{
+    if (warmingShare >= 1.0f) {
+        return compensate(warming, tempC, rawLsb);
+    }
+    if (warmingShare <= 0.0f) {
+        return compensate(cooling, tempC, rawLsb);
+    }
+    float correction = warmingShare * surfaceCorrection(warming, tempC, rawLsb) +
+                       (1.0f - warmingShare) * surfaceCorrection(cooling, tempC, rawLsb);
+    return rawLsb - correction;
+}
+
+SetBlend::SetBlend(float transitionC) : transitionC_(transitionC), lastC_(0.0f), share_(1.0f), haveSample_(false) {}
+
+float SetBlend::update(float tempC)
+{
+    if (haveSample_) {
+        float share = share_ + (tempC - lastC_) / transitionC_;
+        share_ = share > 1.0f ? 1.0f : (share < 0.0f ? 0.0f : share);
+    }
+    lastC_ = tempC;
+    haveSample_ = true;
+    return share_;
+}
+
 namespace {
 
 float clampTo(float value, float low, float high)

@@ -58,6 +58,40 @@ const float COMP_TEMPERATURE_MAX_C = 85.0f;
 const float COMP_ACCEL_MIN_LSB = -32768.0f;
 const float COMP_ACCEL_MAX_LSB = 32767.0f;
 
+// How far the sensor is from its cooling set toward its warming set after a
+// reversal, from 1 (warming: the warming surfaces whole) to 0 (cooling):
+// Prandtl's stop operator on the filtered temperature. Each change of the
+// temperature moves the share by change / transitionC, held within 0..1, so
+// a reversal crosses from one set to the other over transitionC degC at any
+// rate, and a wiggle of w degC moves it by at most w / transitionC (no
+// chatter: a plateau's noise blends, it never switches). The sensor's own
+// crossing is gradual: its offset and drift move from one set's to the
+// other's as the package relaxes (docs/physics-model.md); 1.5 degC is an
+// assumption, less than the paper's 2 degC calibration step (section 3.2),
+// on whose plateaus each set shows whole. Starts warming, as TrendDetector.
+const float COMP_SET_TRANSITION_C = 1.5f;
+
+class SetBlend {
+public:
+    explicit SetBlend(float transitionC = COMP_SET_TRANSITION_C);
+
+    // The warming share after the filtered temperature tempC.
+    float update(float tempC);
+    float warmingShare() const { return share_; }
+
+private:
+    float transitionC_;
+    float lastC_;
+    float share_;
+    bool haveSample_;
+};
+
+// raw - (s f_W(T, raw) + (1 - s) f_C(T, raw)) for the warming share s: the
+// surfaces blended as far as the sensor has crossed; at s = 1 or 0 exactly
+// compensate() with that set's surface.
+float compensateBlended(const AxisSurface& warming, const AxisSurface& cooling, float warmingShare, float tempC,
+                        float rawLsb);
+
 // Largest |raw - f(T, raw)| an IMU frame carries. The longest IMU line of
 // protocol 2 has 89 characters besides the three compensated values
 // ("$IMU", seq 65535, t_ms 4294967295, raws -32768, filtered -32768.0,

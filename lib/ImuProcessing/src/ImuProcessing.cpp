@@ -51,6 +51,7 @@ bool ImuProcessing::finish(const Coefficients& coefficients, ImuOutput& out, boo
 {
     out.temperatureC = temperatureFilter_.estimate();
     out.set = trend_.update(out.temperatureC);
+    out.warmingShare = blend_.update(out.temperatureC);
     if (!counting || !decimator_.push()) {
         return false;
     }
@@ -68,9 +69,11 @@ void ImuProcessing::readFiltered(ImuOutput& out) const
 
 void ImuProcessing::compensate(const Coefficients& coefficients, ImuOutput& out)
 {
-    const CoefficientSet& surfaces = coefficients.forTrend(out.set);
+    const CoefficientSet& warming = coefficients.forTrend(CompSet::Warming);
+    const CoefficientSet& cooling = coefficients.forTrend(CompSet::Cooling);
     for (uint8_t axis = 0; axis < IMU_AXES; ++axis) {
-        out.compensated[axis] = ::compensate(surfaces.axis[axis], out.temperatureC, out.filtered[axis]);
+        out.compensated[axis] = compensateBlended(warming.axis[axis], cooling.axis[axis], out.warmingShare,
+                                                  out.temperatureC, out.filtered[axis]);
     }
 }
 

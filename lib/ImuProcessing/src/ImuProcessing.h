@@ -1,10 +1,11 @@
 // The IMU reader's processing of one 100 Hz sample, as firmware/imu_reader
 // runs it and as the host replays it (host/native, thermotilt.native): the
 // temperature and each axis through their Kalman filters, the filtered
-// temperature into the trend detector (which set, warming or cooling), the
-// decimator (whether this sample is a frame), and for a frame the
-// compensated acceleration a - f(T, a) of the filtered values with the
-// surfaces of the set in force.
+// temperature into the trend detector (which set, warming or cooling, the
+// frame reports) and the set blend (how far the sensor has crossed between
+// the sets), the decimator (whether this sample is a frame), and for a frame
+// the compensated acceleration a - f(T, a) of the filtered values with the
+// two sets' surfaces blended by that share.
 #ifndef THERMOTILT_IMU_PROCESSING_H
 #define THERMOTILT_IMU_PROCESSING_H
 
@@ -25,7 +26,8 @@ struct ImuOutput {
     float filtered[IMU_AXES];  // LSB
     float temperatureC;        // filtered, degC
     CompSet set;
-    float compensated[IMU_AXES];  // LSB, filtered - f(temperatureC, filtered) of `set`
+    float warmingShare;           // SetBlend's: 1 the warming surfaces, 0 the cooling ones
+    float compensated[IMU_AXES];  // LSB, filtered - f(temperatureC, filtered), the sets blended by warmingShare
 };
 
 class ImuProcessing {
@@ -49,12 +51,13 @@ public:
     // out.filtered: the axes' filters' estimates, after any sample.
     void readFiltered(ImuOutput& out) const;
 
-    // out.compensated from out.filtered, out.temperatureC and out.set.
+    // out.compensated from out.filtered, out.temperatureC and out.warmingShare.
     static void compensate(const Coefficients& coefficients, ImuOutput& out);
 
     // RESEED and a (re)connected sensor: the filters forget their state, so the
     // next sample seeds them, and the decimation count starts again. The trend
-    // keeps its state: the temperature history is still the sensor's.
+    // and the blend keep their state: the temperature history is still the
+    // sensor's.
     void reset();
 
     // START/STOP: the next frame is `decimation` counted samples away.
@@ -75,6 +78,7 @@ private:
     KalmanFilter temperatureFilter_;
     Decimator decimator_;
     TrendDetector trend_;
+    SetBlend blend_;
 };
 
 #endif

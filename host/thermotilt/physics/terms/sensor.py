@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 from scipy.signal import lfilter
 
+from ...set_blend import blend
 from ...surfaces import AXES, PAPER_DEFAULTS, REFERENCE_C, SETS, CoefficientTable, Surface
 from ..parameters import Bounds, Parameter, PerAxis, Surfaces
 from . import Section, SensorContext, SensorTerm, hardware, register
@@ -356,11 +357,10 @@ class MeasuringOffset(SensorTerm):
         def error(
             warming_share: float, reported_c: float, rate: float, dt_s: float, mounting: int
         ) -> tuple[float, float, float]:
-            cooling_share = 1.0 - warming_share
             return (
-                warming_share * warming_x + cooling_share * cooling_x,
-                warming_share * warming_y + cooling_share * cooling_y,
-                warming_share * warming_z + cooling_share * cooling_z,
+                blend(warming_share, warming_x, cooling_x),
+                blend(warming_share, warming_y, cooling_y),
+                blend(warming_share, warming_z, cooling_z),
             )
 
         return error
