@@ -33,8 +33,8 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     )
     simulate.add_argument(
         "scenario",
-        help="fig8, cycle, campaign, field-warming, field-cooling, "
-        "field-alternating or idle (both boards, no commands: for --pty)",
+        help="fig8, cycle, campaign, field-warming, field-cooling, field-alternating, "
+        "field-days (days of weather, seeded by --seed) or idle (both boards, no commands: for --pty)",
     )
     simulate.add_argument("--out", help="output folder (default runs/SCENARIO-DATE-TIME)")
     simulate.add_argument("--force", action="store_true", help="overwrite an earlier run in --out")
@@ -46,7 +46,14 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     simulate.add_argument(
         "--duration",
         type=board_seconds,
-        help="field scenarios: compress the day's profile into this many seconds; idle: run this long (default 3600)",
+        help="field scenarios: compress the day's profile (field-days: all its --days) into this many seconds; "
+        "idle: run this long (default 3600)",
+    )
+    simulate.add_argument(
+        "--days",
+        type=float,
+        help="field-days: days of weather from local midnight, fractions allowed, up to 49 (default 2); "
+        "DAYS x 86400 simulated seconds, or compressed into --duration seconds when that is given",
     )
     simulate.add_argument(
         "--fault",
@@ -144,7 +151,7 @@ def _model_and_scenario(args: argparse.Namespace) -> tuple[Model, Scenario]:
     """The model (--model, --sensor, --enable, --disable, --fault) and the
     scenario the options ask for."""
     from ..physics import Model, ModelError, parse_fault
-    from .scenarios import ScenarioError, ScenarioOptions, build
+    from .scenarios import DRAWS_WEATHER, ScenarioError, ScenarioOptions, build
 
     try:
         model = Model.load(args.model)
@@ -164,6 +171,8 @@ def _model_and_scenario(args: argparse.Namespace) -> tuple[Model, Scenario]:
                 duration_s=args.duration,
                 hold_start=args.hold_start,
                 controller=args.controller,
+                days=args.days,
+                seed=args.seed if args.scenario in DRAWS_WEATHER else 0,
             ),
         )
     except (ModelError, ScenarioError) as error:

@@ -27,7 +27,7 @@ from ..program import (
     REACHED_BAND_C,
 )
 from ..run.log import RunColumns
-from . import figures
+from . import figures, weather
 
 # The firmware prints its version and reads its thermistors first; commands
 # are sent once it runs, as a host would after opening the port.
@@ -114,6 +114,12 @@ class ScenarioOptions:
     duration_s: float | None = None
     hold_start: str = DEFAULT_HOLD_START
     controller: str = DEFAULT_CONTROLLER
+    # field-days only: how many days of weather (None: DEFAULT_FIELD_DAYS),
+    # drawn from seed (the run's; 0 for a scenario not in DRAWS_WEATHER, so
+    # that its options read as before). A summary.json from before these
+    # two builds without them.
+    days: float | None = None
+    seed: int = 0
 
 
 def program_steps(
@@ -349,6 +355,30 @@ def field_alternating(options: ScenarioOptions) -> Scenario:
     )
 
 
+DEFAULT_FIELD_DAYS = 2.0
+# The scenarios whose profile is drawn from ScenarioOptions.seed.
+DRAWS_WEATHER = frozenset({"field-days"})
+
+
+def field_days(options: ScenarioOptions) -> Scenario:
+    """Days of weather at a site, from local midnight: the IMU in a closed
+    box outdoors, its air following the days' diurnal swings, gusts, sun
+    and clouds (twin/weather.py), drawn from options.seed."""
+    days = DEFAULT_FIELD_DAYS if options.days is None else options.days
+    if not 0.0 < days <= weather.MAX_DAYS:
+        raise ScenarioError(f"--days must be more than 0 and at most {weather.MAX_DAYS:g}, got {days:g}")
+    drawn = weather.draw_weather(days, options.seed)
+    scenario = _field(
+        "field-days",
+        f"field days: {days:g} days of weather from midnight (seed {options.seed}), the IMU in a closed box outdoors",
+        days * weather.SECONDS_PER_DAY,
+        options,
+        drawn.ambient_c,
+    )
+    seconds_per_day = scenario.duration_s / days
+    return replace(scenario, paper_figures=lambda columns: weather.day_lines(columns, seconds_per_day))
+
+
 # Long enough for a session at the pseudo-terminals; Ctrl-C ends it sooner.
 IDLE_DURATION_S = 3600.0
 
@@ -376,6 +406,7 @@ SCENARIOS: dict[str, Callable[[ScenarioOptions], Scenario]] = {
     "field-warming": field_warming,
     "field-cooling": field_cooling,
     "field-alternating": field_alternating,
+    "field-days": field_days,
     "idle": idle,
 }
 
@@ -391,6 +422,8 @@ def build(name: str, options: ScenarioOptions) -> Scenario:
         raise ScenarioError(f"unknown controller {options.controller!r}; choose from {', '.join(CONTROLLERS)}")
     if options.duration_s is not None and options.duration_s <= 0:
         raise ScenarioError("--duration must be positive")
+    if options.days is not None and name != "field-days":
+        raise ScenarioError(f"--days is for field-days, not {name}")
     for angle in (options.incl_x_deg, options.incl_y_deg):
         if not -90.0 <= angle <= 90.0:
             raise ScenarioError(f"inclination {angle:g} deg is outside -90..90")
