@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 SETS = ("W", "C")
+SET_NAMES = {"W": "warming", "C": "cooling"}
 # The manufacturer's reference temperature, at which the paper takes each
 # position's reading as free of drift (section 3.3).
 REFERENCE_C = 25.0

@@ -269,7 +269,8 @@ def compare_section(fit: Path) -> list[str]:
 def field_section(fit: Path, runs: dict[str, Path]) -> list[str]:
     """`thermotilt validate --coefficients FIT` on each field run, beside
     section 4.3 and the fit's certificate."""
-    certificate = json.loads((fit / "certificate.json").read_text())
+    # `fit` issues a certificate only for an identified item; the single-sensor twin campaign records no ID.
+    certificate = json.loads((fit / "certificate.json").read_text()) if (fit / "certificate.json").is_file() else None
     rows, runs_read, firmware, tilt = [], [], [], []
     for name, run in runs.items():
         validation = validate(run, load_coefficients(str(fit)))
@@ -312,8 +313,14 @@ def field_section(fit: Path, runs: dict[str, Path]) -> list[str]:
         "The IMU ran the same surfaces from its EEPROM after `thermotilt upload`; its own compensated "
         f"output is within {' and '.join(firmware)} of the host's.",
         "",
-        f"The fit's certificate states U = {certificate['tilt_u95_deg']:.4f}° (95 %) for the compensated "
-        'tilt over the calibrated domain (docs/calibration.md, "The certificate"); the field runs\' 95th '
+        (
+            f"The fit's certificate states U = {certificate['tilt_u95_deg']:#.2g}° (k = "
+            f"{certificate['coverage_factor']:.2f}, 95 %) as the largest over the calibrated domain"
+            if certificate
+            else "The campaign's IMU has no sensor ID, so `fit` issued no certificate (the batch below has one "
+            "per sensor)"
+        )
+        + ' (docs/calibration.md, "The certificate"); the field runs\' 95th '
         f"percentile of the tilt error: {' and '.join(tilt)}.",
     ]
 
@@ -354,7 +361,7 @@ def batch_section(out: Path, refusal: str) -> list[str]:
                 f"{gaps[sensor]:.2f}",
                 f"{mounting_miss(batch_model.for_sensor(sensor), campaign['positions']):.1f}",
                 f"{min(gap for truth, gap in gaps.items() if truth != sensor):.0f}",
-                f"{certificate['tilt_u95_deg']:.4f}",
+                f"{certificate['tilt_u95_deg']:#.2g}",
                 f"{field['tilt_error_p95_deg']:.4f}",
             )
         )

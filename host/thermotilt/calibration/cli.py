@@ -80,7 +80,9 @@ def _add_compare(commands: argparse._SubParsersAction) -> None:
 
 def _add_validate(commands: argparse._SubParsersAction) -> None:
     validate = commands.add_parser(
-        "validate", help="the paper's field check: RMS about the 25 degC reading before and after compensation"
+        "validate",
+        help="a field run as a monitoring user reads it: the change of tilt from the installation reading, "
+        "against the certificate's U; --paper adds the paper's RMS about the 25 degC reading",
     )
     validate.add_argument(
         "run_path",
@@ -93,6 +95,23 @@ def _add_validate(commands: argparse._SubParsersAction) -> None:
         metavar="FIT_DIR",
         help="compensate here with a fit's surfaces (a folder from thermotilt fit) or "
         "'paper'; default: the firmware's own compensated output",
+    )
+    validate.add_argument(
+        "--baseline",
+        metavar="TIME",
+        type=within(float, 0.0, unit="s"),
+        help="the installation reading is the minute from this run time (run.csv's time_s); "
+        "default: the first settled minute",
+    )
+    validate.add_argument(
+        "--certificate",
+        metavar="PATH",
+        help="hold each row against this certificate.json (or a fit folder's); default: the --coefficients fit's",
+    )
+    validate.add_argument(
+        "--paper",
+        action="store_true",
+        help="also print the paper's measure (section 4.3): each set about its own 25 degC reading",
     )
     validate.add_argument("--out", help="folder for report.md and its figures (default RUN/validation)")
     validate.set_defaults(run=_validate)
@@ -150,10 +169,17 @@ def _compare(args: argparse.Namespace) -> int:
 
 def _validate(args: argparse.Namespace) -> int:
     from .dataset import CalibrationDataError
-    from .validate import validate_run
+    from .validate import ValidateOptions, validate_run
 
+    options = ValidateOptions(
+        args.coefficients,
+        Path(args.out) if args.out else None,
+        args.baseline,
+        Path(args.certificate) if args.certificate else None,
+        args.paper,
+    )
     with as_usage_error(CalibrationDataError):
-        validation = validate_run(Path(args.run_path), args.coefficients, Path(args.out) if args.out else None)
+        validation = validate_run(Path(args.run_path), options)
         validation.write()
     print(validation.summary())
     return 0

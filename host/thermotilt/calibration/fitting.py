@@ -1,6 +1,10 @@
 """``thermotilt fit``'s workflow: a campaign folder (one sensor's, or a
 batch's, a folder per sensor) fitted, certified and, if asked, scored by
-surface family; the result writes its files and says what it did."""
+surface family; the result writes its files and says what it did.
+
+A certificate is issued only for an identified item (ISO/IEC 17025
+7.8.2.1 e): a fit without a sensor ID writes its coefficients and report,
+and no certificate."""
 
 from __future__ import annotations
 
@@ -10,6 +14,9 @@ from typing import Any
 
 from .campaign.folder import CampaignFolder
 from .dataset import FIT_AXES, CalibrationDataError
+
+CERTIFICATE_FILES = ("certificate.json", "certificate.html", "certificate.pdf")
+NO_ID_REASON = "the item has no sensor ID (a campaign.json that records it, or --sensor-id, gives one)"
 
 
 @dataclass(frozen=True)
@@ -29,14 +36,14 @@ class SensorFit:
     out_dir: Path
     campaign: Any
     fits: list[Any]
-    certificate: dict
-    errors: Any
+    # The certification, or why there is none (no_certificate).
+    certificate: Any
+    no_certificate: str | None
     families: list[Any] | None
     fitted_for: str
     report: Path | None = None
 
     def write(self) -> None:
-        from .certificate import write_certificate
         from .families import format_families, write_families
         from .fit import write_outputs
         from .report import write_fit_report
@@ -47,9 +54,34 @@ class SensorFit:
                 write_families(self.families, self.out_dir)
             families = format_families(self.families) if self.families else None
             self.report = write_fit_report(self.out_dir, self.fits, self.campaign, families)
-            write_certificate(self.out_dir, self.certificate, self.errors)
+            self._write_certificate()
         except OSError as error:
             raise CalibrationDataError(f"cannot write {self.out_dir}: {error.strerror or error}") from None
+
+    def _write_certificate(self) -> None:
+        """The certificate, after coefficients.bin (it states the block's
+        sha256); without one, a previous fit's certificate files in out_dir
+        go, since they describe other coefficients."""
+        if self.certificate is None:
+            for name in CERTIFICATE_FILES:
+                (self.out_dir / name).unlink(missing_ok=True)
+            return
+        from .certificate import write_certificate
+
+        write_certificate(self.out_dir, self.certificate)
+
+    def uncertainty_line(self) -> str:
+        """U to two significant digits with k and p, or the one line that says no certificate was issued."""
+        if self.certificate is None:
+            return f"no certificate issued: {self.no_certificate}"
+        from .certificate.budget import two_significant_text
+
+        document = self.certificate.document
+        axes = ", ".join(f"{axis} {two_significant_text(u)}" for axis, u in document["u95_max_deg"].items())
+        return (
+            f"tilt uncertainty, the largest over the calibrated domain: U = {two_significant_text(document['tilt_u95_deg'])} "
+            f"deg (k = {document['coverage_factor']:.2f}, p = {document['coverage_probability'] * 100:g} %); per axis {axes} deg"
+        )
 
     def summary(self) -> str:
         from .families import format_families
@@ -77,20 +109,18 @@ class SensorFit:
             if self.fitted_for
             else "fitted for no particular sensor (no sensor ID)"
         )
-        uncertainty = self.certificate["uncertainty"]
-        lines += [
-            f"tilt uncertainty over the calibrated domain: U = {self.certificate['tilt_u95_deg']:.4f} deg "
-            f"(95 %, k = {uncertainty['coverage_factor']:.2f}; {uncertainty['rows']} rows worth "
-            f"{uncertainty['effective_rows']:.0f} independent values)",
-            f"wrote {self.out_dir / 'coefficients.json'}, coefficients.bin (EEPROM block), coefficients.h, "
-            f"{self.report.name} with figures, certificate.json and certificate.html",
-        ]
+        written = f"wrote {self.out_dir / 'coefficients.json'}, coefficients.bin (EEPROM block), coefficients.h, "
+        written += f"{self.report.name} with figures"
+        if self.certificate is not None:
+            number = self.certificate.document.get("certificate_number")
+            written += f", certificate {number}: certificate.json, .html and .pdf" if number else ", certificate.*"
+        lines += [self.uncertainty_line(), written]
         return "\n".join(lines)
 
 
 def fit_sensor(campaign_dir: Path, out_dir: Path, options: FitOptions) -> SensorFit:
     """One sensor's campaign fitted and certified (nothing written yet)."""
-    from .certificate import certify
+    from .certificate import NotCertifiable, certify
     from .dataset import load
     from .families import compare_families
     from .fit import fit_campaign
@@ -104,9 +134,14 @@ def fit_sensor(campaign_dir: Path, out_dir: Path, options: FitOptions) -> Sensor
                 f"--sensor-id {options.sensor_id}: the campaign in {campaign_dir} was logged with sensor {fitted_for}"
             )
         fitted_for = options.sensor_id
-    certificate, errors = certify(campaign, fits, campaign_dir, fitted_for)
+    certificate, no_certificate = None, NO_ID_REASON
+    if fitted_for:
+        try:
+            certificate, no_certificate = certify(campaign, fits, campaign_dir, fitted_for), None
+        except NotCertifiable as error:
+            no_certificate = str(error)
     families = compare_families(campaign, options.axes) if options.compare_families else None
-    return SensorFit(campaign_dir, out_dir, campaign, fits, certificate, errors, families, fitted_for)
+    return SensorFit(campaign_dir, out_dir, campaign, fits, certificate, no_certificate, families, fitted_for)
 
 
 @dataclass
@@ -129,10 +164,7 @@ class FolderFit:
         for sensor, fit in self.sensors.items():
             lines += [f"== sensor {sensor}", fit.summary()]
         lines.append(f"{len(self.sensors)} sensors fitted, one folder each in {self.out_dir}:")
-        lines += [
-            f"  {sensor:<8}  U = {fit.certificate['tilt_u95_deg']:.4f} deg  -> {fit.out_dir}"
-            for sensor, fit in self.sensors.items()
-        ]
+        lines += [f"  {sensor:<8}  {fit.uncertainty_line()}  -> {fit.out_dir}" for sensor, fit in self.sensors.items()]
         return "\n".join(lines)
 
 

@@ -1,11 +1,14 @@
-"""``thermotilt validate``: the paper's field check (section 4.3).
+"""``thermotilt validate``: a field run as a monitoring user reads it, and
+the paper's field check (section 4.3).
 
-The paper's measure: the RMS, over a field run, of each axis's reading minus
-its reading at 25 degC — before compensation (284 and 161 LSB for X and Y
-while warming 9 -> 48 degC; 122 and 70 while cooling 26 -> 16 degC) and after
-(11, 8; 4, 4). Here, per axis and per set the device chose (warming rows
-with the warming surfaces, cooling rows with the cooling ones, as the paper
-did), on the filtered acceleration the firmware compensates:
+First the change of each axis's compensated reading from the installation
+reading, across both sets, against the certificate's U where there is one
+(tilt_change). Then the paper's measure: the RMS, over a field run, of each
+axis's reading minus its reading at 25 degC — before compensation (284 and
+161 LSB for X and Y while warming 9 -> 48 degC; 122 and 70 while cooling
+26 -> 16 degC) and after (11, 8; 4, 4) — per axis and per set the device
+chose (the paper's own reference per set), on the filtered acceleration the
+firmware compensates:
 
     before: ax_filt - ax_filt(25 degC)
     after:  ax_comp - ax_comp(25 degC)
@@ -16,13 +19,15 @@ that never comes that near 25 degC has no reference and no RMS.
 
 ``after`` is the firmware's own output (``ax_comp``) unless coefficients
 are given: then the run's filtered readings are compensated here with
-those surfaces, which is the paper's post-processing of raw field data.
+those surfaces, blended between the sets as the firmware blends them,
+which is the paper's post-processing of raw field data.
 
 The coefficients cover a temperature and acceleration range (a fit's, or
-the paper's -10..45 degC and +-45 deg); rows outside it are counted and
-reported, because a surface is not known there. Coefficients the board
-loaded from its EEPROM carry their own temperature range, which the host
-does not know: then the board's flag on each row (``temp_domain``, the
+the paper's -10..45 degC and +-45 deg); rows outside it (or outside the
+certificate's domain, given one) are counted, reported and left out of
+every percentile, because a surface is not known there. Coefficients the
+board loaded from its EEPROM carry their own temperature range, which the
+host does not know: then the board's flag on each row (``temp_domain``, the
 IMU frame's) counts the rows outside it.
 """
 
@@ -34,30 +39,25 @@ from pathlib import Path
 
 import numpy as np
 
-from ..lsm9ds0 import LSB_PER_G, MG_PER_LSB
+from ..lsm9ds0 import LSB_PER_G, MG_PER_LSB, tilt_deg
+from ..run import SETTLE_S
 from ..run.folder import RunFolder, RunFolderError
 from ..run.log import RunLogError, read_run_columns
-from ..surfaces import AXES, PAPER_DEFAULTS, REFERENCE_C, SETS, ZERO_SURFACE, CoefficientTable
+from ..set_blend import FIRMWARE_TRANSITION_C, blend, warming_shares
+from ..surfaces import AXES, PAPER_DEFAULTS, REFERENCE_C, SET_NAMES, SETS, ZERO_SURFACE, CoefficientTable
+from .certificate import in_domain, read_certificate, u95_at
 from .compare import CALIBRATED_C, read_fit
 from .dataset import FIT_AXES, REFERENCE_BAND_C, CalibrationDataError, reading_at_25
+from .tilt_change import INSTALLATION_WINDOW_S, SetSwitch, TiltChange, format_tilt_change, set_switches, tilt_change
 
 # The paper's calibration covered +-45 deg of tilt.
 CALIBRATED_INCLINATION_DEG = 45.0
 TILT_PERCENTILE = 95.0
 PAPER_ACCELERATION_LSB = LSB_PER_G * math.sin(math.radians(CALIBRATED_INCLINATION_DEG))
-SET_NAMES = {"W": "warming", "C": "cooling"}
 # temp_domain (docs/protocol.md, IMU): inside or outside the block's range.
 DOMAIN_FLAGS = ("I", "O")
 OUTSIDE_FLAG = "O"
 BOARD_DOMAIN = "the block the board loaded (run.csv's temp_domain)"
-# A switch between the sets is measured as the change of the compensated
-# reading from the median of the SWITCH_WINDOW_S before it to the median of
-# the SWITCH_WINDOW_S after it, each SWITCH_GAP_S away from the switch
-# (where the Kalman filter's ~10 s settle), with at least SWITCH_MIN_ROWS rows
-# on each side and no other switch in between.
-SWITCH_WINDOW_S = 60.0
-SWITCH_GAP_S = 30.0
-SWITCH_MIN_ROWS = 10
 _NEEDED = (
     "time_s",
     "imu_temp_c",
@@ -98,17 +98,6 @@ class AxisResult:
 
 
 @dataclass(frozen=True)
-class SetSwitch:
-    """The device changed its set at time_s: the compensated reading's step
-    there per axis (after minus before), in LSB and in degrees of tilt."""
-
-    time_s: float
-    to_set: str
-    step_lsb: dict[str, float]
-    step_deg: dict[str, float]
-
-
-@dataclass(frozen=True)
 class Validation:
     run: str
     rows: int
@@ -125,6 +114,8 @@ class Validation:
     # per axis "X before", "X after"...
     series: dict[str, np.ndarray] = field(default_factory=dict)
     switches: list[SetSwitch] = field(default_factory=list)
+    # The change of tilt from the installation reading (tilt_change).
+    change: TiltChange | None = None
 
     def largest_switch_step(self, unit: str) -> dict[str, float] | None:
         """Per axis, the largest size of a switch's step ("lsb" or "deg"); None without a measured switch."""
@@ -162,6 +153,9 @@ class Validation:
             "temperature_range_c": list(self.temperature_range_c),
             "after_from": self.after_from,
             "domain": self.domain_source,
+            "tilt_change_p95_deg": self.change.p95_deg if self.change else None,
+            "rows_within_u_share": self.change.within_u_share if self.change else None,
+            "tilt_change": self.change.document() if self.change else None,
             "tilt_error_p95_deg": self.tilt_error_p95_deg,
             "results": [
                 {
@@ -260,7 +254,16 @@ def _usable_rows(run: Path) -> _Rows:
     )
 
 
-def validate(run: Path, coefficients: Coefficients | None = None) -> Validation:
+def validate(
+    run: Path,
+    coefficients: Coefficients | None = None,
+    baseline_s: float | None = None,
+    certificate: dict | None = None,
+) -> Validation:
+    """The run checked as a monitoring user reads it (the change from the
+    installation reading, tilt_change) and as the paper did (each set about
+    its 25 degC reading); rows outside the certificate's domain, or the
+    coefficients' range without one, are left out of every percentile."""
     rows = _usable_rows(run)
     board_outside = None
     if coefficients is None:
@@ -271,16 +274,21 @@ def validate(run: Path, coefficients: Coefficients | None = None) -> Validation:
     else:
         after_from = f"compensated here with {coefficients.source}"
         domain = coefficients.domain
+    after = {axis: _compensated(rows, axis, coefficients) for axis in FIT_AXES}
+    outside, inside_what = _outside_rows(rows, after, domain, board_outside, certificate)
     series = {"time_s": rows.time_s, "temperature_c": rows.temperature, "set": rows.sets}
     results = [
-        _axis_result(rows, set_name, axis, coefficients, domain, board_outside, series)
+        _axis_result(rows, set_name, axis, after[axis], outside[axis], series)
         for set_name in SETS
         if (rows.sets == set_name).any()
         for axis in FIT_AXES
     ]
     difference = None
     if coefficients is not None:
-        difference = max(float(np.nanmax(np.abs(series[f"{axis} after"] - rows.firmware[axis]))) for axis in FIT_AXES)
+        difference = max(float(np.nanmax(np.abs(after[axis] - rows.firmware[axis]))) for axis in FIT_AXES)
+    u95 = None
+    if certificate is not None:
+        u95 = {axis: u95_at(certificate, axis, rows.temperature, after[axis]) for axis in FIT_AXES}
     return Validation(
         str(rows.path),
         rows.count,
@@ -292,75 +300,79 @@ def validate(run: Path, coefficients: Coefficients | None = None) -> Validation:
         results,
         difference,
         series,
-        set_switches(rows.time_s, rows.sets, {axis: series[f"{axis} after"] for axis in FIT_AXES}),
+        set_switches(rows.time_s, rows.sets, after),
+        tilt_change(rows.time_s, rows.temperature, after, outside, baseline_s, u95, inside_what),
     )
 
 
-def set_switches(time_s: np.ndarray, sets: np.ndarray, compensated: dict[str, np.ndarray]) -> list[SetSwitch]:
-    """Each change of the device's set that has SWITCH_MIN_ROWS rows in both
-    of its windows and no other change between them, with the compensated
-    reading's step there (SWITCH_WINDOW_S, SWITCH_GAP_S)."""
-    changes = np.flatnonzero(sets[1:] != sets[:-1]) + 1
-    change_times = time_s[changes]
-    reach = SWITCH_GAP_S + SWITCH_WINDOW_S
-    switches = []
-    for index, at in zip(changes, change_times):
-        if np.count_nonzero(np.abs(change_times - at) <= reach) > 1:
-            continue
-        before = (time_s >= at - reach) & (time_s < at - SWITCH_GAP_S)
-        after = (time_s > at + SWITCH_GAP_S) & (time_s <= at + reach)
-        if min(np.count_nonzero(before), np.count_nonzero(after)) < SWITCH_MIN_ROWS:
-            continue
-        levels = {axis: (np.median(values[before]), np.median(values[after])) for axis, values in compensated.items()}
-        switches.append(
-            SetSwitch(
-                float(at),
-                str(sets[index]),
-                {axis: float(late - early) for axis, (early, late) in levels.items()},
-                {
-                    axis: float(tilt_deg(np.array(late)) - tilt_deg(np.array(early)))
-                    for axis, (early, late) in levels.items()
-                },
-            )
+def _compensated(rows: _Rows, axis: str, coefficients: Coefficients | None) -> np.ndarray:
+    """The axis's compensated reading on every row: the firmware's, or
+    computed here as the firmware does, the two sets' surfaces blended by
+    the warming share of the logged filtered temperature (set_blend)."""
+    if coefficients is None:
+        return rows.firmware[axis]
+    temperature, before = rows.temperature, rows.filtered[axis]
+    share = warming_shares(FIRMWARE_TRANSITION_C, float(temperature[0]), temperature)
+    warming = coefficients.table.surface("W", axis).evaluate(temperature, before)
+    cooling = coefficients.table.surface("C", axis).evaluate(temperature, before)
+    return before - blend(share, warming, cooling)
+
+
+def _outside_rows(
+    rows: _Rows,
+    after: dict[str, np.ndarray],
+    domain: Domain | None,
+    board_outside: np.ndarray | None,
+    certificate: dict | None,
+) -> tuple[dict[str, np.ndarray], str]:
+    """Per axis, the rows outside the certificate's domain, or else the
+    coefficients' fitted range (or the board's flag); and whose it is."""
+    if certificate is not None:
+        masks = {axis: ~in_domain(certificate, axis, rows.temperature, after[axis]) for axis in FIT_AXES}
+        return masks, "the certificate's domain"
+    if domain is None:
+        nowhere = np.zeros(rows.count, dtype=bool)
+        return {axis: nowhere if board_outside is None else board_outside for axis in FIT_AXES}, (
+            "every row (the coefficients' range is unknown)" if board_outside is None else BOARD_DOMAIN
         )
-    return switches
+    masks = {}
+    for axis in FIT_AXES:
+        masks[axis] = np.zeros(rows.count, dtype=bool)
+        for set_name in SETS:
+            in_set = rows.sets == set_name
+            masks[axis][in_set] = _outside(
+                domain, set_name, axis, rows.temperature[in_set], rows.filtered[axis][in_set]
+            )
+    return masks, domain.source
 
 
 def _axis_result(
-    rows: _Rows,
-    set_name: str,
-    axis: str,
-    coefficients: Coefficients | None,
-    domain: Domain | None,
-    board_outside: np.ndarray | None,
-    series: dict[str, np.ndarray],
+    rows: _Rows, set_name: str, axis: str, after: np.ndarray, outside: np.ndarray, series: dict[str, np.ndarray]
 ) -> AxisResult:
-    """One set's and axis's figures; its rows' before, after and tilt error go into series."""
+    """One set's and axis's figures about its 25 degC reading, its
+    percentiles of the rows inside the domain; its rows' before, after and
+    tilt error go into series."""
     in_set = rows.sets == set_name
     t = rows.temperature[in_set]
-    before = rows.filtered[axis][in_set]
-    if coefficients is None:
-        after = rows.firmware[axis][in_set]
-    else:
-        after = before - coefficients.table.surface(set_name, axis).evaluate(t, before)
+    before, after = rows.filtered[axis][in_set], after[in_set]
+    inside = ~outside[in_set]
     series.setdefault(f"{axis} before", np.full(rows.count, np.nan))[in_set] = before
     series.setdefault(f"{axis} after", np.full(rows.count, np.nan))[in_set] = after
     rms_before, tilt_before = _about_25(t, before)
     rms_after, tilt_after = _about_25(t, after)
     if tilt_after is not None:
-        series.setdefault(f"{axis} tilt error after", np.full(rows.count, np.nan))[in_set] = tilt_after
-    outside = (
-        int(board_outside[in_set].sum()) if board_outside is not None else _outside(domain, set_name, axis, t, before)
-    )
+        series.setdefault(f"{axis} tilt error after", np.full(rows.count, np.nan))[in_set] = np.where(
+            inside, tilt_after, np.nan
+        )
     return AxisResult(
         set_name,
         axis,
         int(in_set.sum()),
         rms_before,
         rms_after,
-        outside,
-        _percentile_of_size(tilt_before),
-        _percentile_of_size(tilt_after),
+        int(np.count_nonzero(~inside)),
+        _percentile_of_size(None if tilt_before is None else tilt_before[inside]),
+        _percentile_of_size(None if tilt_after is None else tilt_after[inside]),
     )
 
 
@@ -373,28 +385,61 @@ def _about_25(temperature: np.ndarray, values: np.ndarray) -> tuple[float | None
     return float(np.sqrt(np.mean((values - reference) ** 2))), tilt_deg(values) - tilt_deg(np.array(reference))
 
 
-def tilt_deg(acceleration_lsb: np.ndarray) -> np.ndarray:
-    """The tilt about one axis from that axis's reading alone (the paper
-    compensates X and Y, section 5): asin of its share of 1 g."""
-    return np.degrees(np.arcsin(np.clip(acceleration_lsb / LSB_PER_G, -1.0, 1.0)))
-
-
 def _percentile_of_size(errors: np.ndarray | None) -> float | None:
-    return None if errors is None else float(np.percentile(np.abs(errors), TILT_PERCENTILE))
+    if errors is None or not len(errors):
+        return None
+    return float(np.percentile(np.abs(errors), TILT_PERCENTILE))
 
 
-def _outside(domain: Domain | None, set_name: str, axis: str, temperature: np.ndarray, acceleration: np.ndarray) -> int:
+def _outside(domain: Domain, set_name: str, axis: str, temperature: np.ndarray, acceleration: np.ndarray) -> np.ndarray:
     key = f"{set_name}{axis}"
-    if domain is None or key not in domain.temperature_c:
-        return 0
+    if key not in domain.temperature_c:
+        return np.zeros(len(temperature), dtype=bool)
     (t_low, t_high), (a_low, a_high) = domain.temperature_c[key], domain.acceleration_lsb[key]
-    outside = (temperature < t_low) | (temperature > t_high) | (acceleration < a_low) | (acceleration > a_high)
-    return int(outside.sum())
+    return (temperature < t_low) | (temperature > t_high) | (acceleration < a_low) | (acceleration > a_high)
 
 
-def format_validation(validation: Validation, paper: dict[tuple[str, str], tuple[float, float]] | None) -> str:
-    """The RMS table, with the paper's figures beside it when the run is one
-    of its field tests (``paper`` maps (set, axis) -> (before, after))."""
+def format_validation(
+    validation: Validation, paper: dict[tuple[str, str], tuple[float, float]] | None, paper_table: bool = True
+) -> str:
+    """The change from the installation reading and the set switches; with
+    paper_table, the paper's RMS table too, with its figures beside it when
+    the run is one of its field tests (``paper`` maps (set, axis) -> (before,
+    after))."""
+    low, high = validation.temperature_range_c
+    lines = [
+        f"{validation.run}: {validation.rows} rows, IMU temperature {low:.1f}..{high:.1f} degC"
+        + (f" ({validation.skipped_rows} rows with empty cells skipped)" if validation.skipped_rows else ""),
+        f"compensated = {validation.after_from}",
+    ]
+    if validation.change is not None:
+        lines.append(format_tilt_change(validation.change))
+    else:
+        lines.append(
+            f"no change from an installation reading: the run has no settled minute "
+            f"({SETTLE_S:g}..{SETTLE_S + INSTALLATION_WINDOW_S:g} s after its first row); --baseline TIME names one"
+        )
+    largest = validation.largest_switch_step("lsb")
+    if largest is not None:
+        degrees_step = validation.largest_switch_step("deg")
+        lines.append(
+            f"warming<->cooling switches measured: {len(validation.switches)}; the largest step of the "
+            "compensated reading: "
+            + ", ".join(f"{axis} {largest[axis]:.1f} LSB ({degrees_step[axis]:.4f} deg)" for axis in FIT_AXES)
+        )
+    if paper_table:
+        lines += _paper_table(validation, paper)
+    if validation.firmware_difference_lsb is not None:
+        lines.append(
+            f"the firmware's own compensated output ({validation.sources}) differs from this "
+            f"by at most {validation.firmware_difference_lsb:.2f} LSB"
+        )
+    return "\n".join(lines)
+
+
+def _paper_table(validation: Validation, paper: dict[tuple[str, str], tuple[float, float]] | None) -> list[str]:
+    """Section 4.3's measure: per set and axis, the RMS about the set's own
+    25 degC reading and the 95th percentile of the tilt error about it."""
 
     def lsb(value: float | None) -> str:
         return "n/a" if value is None else f"{value:.1f}"
@@ -402,12 +447,9 @@ def format_validation(validation: Validation, paper: dict[tuple[str, str], tuple
     def degrees(value: float | None) -> str:
         return "n/a" if value is None else f"{value:.4f}"
 
-    low, high = validation.temperature_range_c
     lines = [
-        f"{validation.run}: {validation.rows} rows, IMU temperature {low:.1f}..{high:.1f} degC"
-        + (f" ({validation.skipped_rows} rows with empty cells skipped)" if validation.skipped_rows else ""),
-        f"after = {validation.after_from}",
-        "RMS about the 25 degC reading (LSB) and the 95th percentile of the tilt error about it (deg):",
+        "the paper's measure (section 4.3): RMS about each set's 25 degC reading (LSB) and the 95th "
+        "percentile of the tilt error about it (deg):",
         f"{'set':<8}{'axis':<6}{'rows':>8}{'before':>10}{'after':>10}{'deg before':>12}{'deg after':>11}"
         + (f"{'paper before':>14}{'paper after':>13}" if paper else ""),
     ]
@@ -426,19 +468,6 @@ def format_validation(validation: Validation, paper: dict[tuple[str, str], tuple
             f"tilt error after compensation, X and Y: {validation.tilt_error_p95_deg:.4f} deg "
             f"({TILT_PERCENTILE:g}th percentile)"
         )
-    largest = validation.largest_switch_step("lsb")
-    if largest is not None:
-        degrees_step = validation.largest_switch_step("deg")
-        lines.append(
-            f"warming<->cooling switches measured: {len(validation.switches)}; the largest step of the "
-            "compensated reading: "
-            + ", ".join(f"{axis} {largest[axis]:.1f} LSB ({degrees_step[axis]:.4f} deg)" for axis in FIT_AXES)
-        )
-    if validation.firmware_difference_lsb is not None:
-        lines.append(
-            f"the firmware's own compensated output ({validation.sources}) differs from this "
-            f"by at most {validation.firmware_difference_lsb:.2f} LSB"
-        )
     for result in validation.results:
         if result.rms_before_lsb is None:
             lines.append(
@@ -446,7 +475,7 @@ def format_validation(validation: Validation, paper: dict[tuple[str, str], tuple
                 f"within {REFERENCE_BAND_C:g} degC of {REFERENCE_C:g} degC: no reference, no RMS"
             )
             break
-    return "\n".join(lines)
+    return lines
 
 
 def range_warnings(validation: Validation) -> list[str]:
@@ -478,6 +507,8 @@ class ValidationRun:
     coefficients: Coefficients | None
     paper: dict[tuple[str, str], tuple[float, float]] | None
     out_dir: Path
+    # Print the paper's per-set table (section 4.3) too.
+    paper_table: bool = False
     written: list[Path] = field(default_factory=list)
 
     def write(self) -> None:
@@ -496,25 +527,54 @@ class ValidationRun:
         self.written = [report, document]
 
     def summary(self) -> str:
-        lines = [format_validation(self.validation, self.paper)]
+        lines = [format_validation(self.validation, self.paper, self.paper_table)]
         lines += [f"warning: {warning}" for warning in range_warnings(self.validation)]
         if self.written:
             lines.append(f"wrote {' and '.join(map(str, self.written))}")
         return "\n".join(lines)
 
 
-def validate_run(run_path: Path, coefficients: str | None, out_dir: Path | None) -> ValidationRun:
+@dataclass(frozen=True)
+class ValidateOptions:
+    # "paper" or a fit folder; None: the firmware's own compensated output.
+    coefficients: str | None = None
+    out_dir: Path | None = None
+    # The installation reading's time (run.csv's time_s); None: the first settled minute.
+    baseline_s: float | None = None
+    # A certificate.json or the fit folder holding it; None: the fit's, if coefficients names one.
+    certificate: Path | None = None
+    paper_table: bool = False
+
+
+def certificate_for(options: ValidateOptions) -> dict | None:
+    """The certificate the run is held against: the one named, or the
+    coefficients' fit folder's where it has one with a U table."""
+    if options.certificate is not None:
+        return read_certificate(options.certificate)
+    if options.coefficients in (None, "paper"):
+        return None
+    try:
+        return read_certificate(Path(options.coefficients))
+    except CalibrationDataError:
+        # No certificate, or one from before certificates had a U table.
+        return None
+
+
+def validate_run(run_path: Path, options: ValidateOptions) -> ValidationRun:
     """The run validated with the firmware's output or the named coefficients
-    ("paper" or a fit folder); out_dir defaults to RUN/validation."""
+    ("paper" or a fit folder), against a certificate where there is one;
+    out_dir defaults to RUN/validation."""
     from ..run.summary import RunSummaryError
     from .paper import field_rms_lsb
 
     run = RunFolder.of(run_path)
-    loaded = load_coefficients(coefficients) if coefficients else None
-    validation = validate(run.log, loaded)
+    loaded = load_coefficients(options.coefficients) if options.coefficients else None
+    validation = validate(run.log, loaded, options.baseline_s, certificate_for(options))
     try:
         summary = run.summary()
     except RunSummaryError as error:
         raise CalibrationDataError(str(error)) from None
     paper = field_rms_lsb(summary.scenario if summary is not None else None)
-    return ValidationRun(run, validation, loaded, paper, out_dir or run.path / "validation")
+    return ValidationRun(
+        run, validation, loaded, paper, options.out_dir or run.path / "validation", options.paper_table
+    )
