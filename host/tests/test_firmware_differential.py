@@ -252,15 +252,15 @@ def test_the_hosts_transition_is_the_firmwares():
 @PROPERTY
 @given(arrays(np.float32, st.integers(1, 400), elements=st.floats(OPERATING_C.low, OPERATING_C.high, width=32)))
 def test_set_blend_agrees_with_the_firmware_within_float32_rounding(series):
-    """The firmware steps in float32: each update rounds the change, its
-    quotient by the transition and the sum, each at most u = 2^-24 of its
-    size (the share is at most 1), and the clamp to 0..1 never widens a
-    difference; so after k updates the two differ by at most the sum of
-    u (1 + 3 |change| / transition) over them."""
+    """The firmware steps in float32: each update rounds the change, the
+    product with its rounded 1 / transition (two roundings) and the sum,
+    each at most u = 2^-24 of its size (the share is at most 1), and the
+    clamp to 0..1 never widens a difference; so after k updates the two
+    differ by at most the sum of u (1 + 4 |change| / transition) over them."""
     python = warming_shares(FIRMWARE_TRANSITION_C, float(series[0]), series.astype(float))
     firmware = firmware_shares(series, FIRMWARE_TRANSITION_C)
     changes = np.abs(np.diff(series.astype(float), prepend=float(series[0])))
-    bound = np.cumsum(2.0**-24 * (1.0 + 3.0 * changes / FIRMWARE_TRANSITION_C))
+    bound = np.cumsum(2.0**-24 * (1.0 + 4.0 * changes / FIRMWARE_TRANSITION_C))
     assert np.all(np.abs(python - firmware) <= bound)
 
 

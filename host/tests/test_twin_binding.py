@@ -291,7 +291,9 @@ def test_a_command_longer_than_the_receive_fifo_arrives_at_line_rate():
         board.read_uart()
         board.write_uart(command + build_frame("GETCOE", 10, ["W", "X"]).encode())
         answered_after_ms = None
-        for ms in range(1, 40):
+        # In 0.1 ms steps: the answer is timed to that, not rounded up to a whole ms.
+        for tenth in range(1, 400):
+            ms = tenth / 10
             board.run_until(0.5 + ms / 1000)
             frames = reader.feed(board.read_uart())
             if any(f.type == "ACK" and f["cmd_seq"] == 9 for f in frames):

@@ -69,13 +69,21 @@ float compensateBlended(const AxisSurface& warming, const AxisSurface& cooling, 
     return rawLsb - correction;
 }
 
-SetBlend::SetBlend(float transitionC) : transitionC_(transitionC), lastC_(0.0f), share_(1.0f), haveSample_(false) {}
+SetBlend::SetBlend(float transitionC) : sharePerC_(1.0f / transitionC), lastC_(0.0f), share_(1.0f), haveSample_(false)
+{
+}
 
 float SetBlend::update(float tempC)
 {
     if (haveSample_) {
-        float share = share_ + (tempC - lastC_) / transitionC_;
-        share_ = share > 1.0f ? 1.0f : (share < 0.0f ? 0.0f : share);
+        float change = tempC - lastC_;
+        // At an end and still going its way, the clamp would undo the sum:
+        // the Nano skips it on every sample of a steady warming or cooling.
+        bool held = (share_ >= 1.0f && change >= 0.0f) || (share_ <= 0.0f && change <= 0.0f);
+        if (!held) {
+            float share = share_ + change * sharePerC_;
+            share_ = share > 1.0f ? 1.0f : (share < 0.0f ? 0.0f : share);
+        }
     }
     lastC_ = tempC;
     haveSample_ = true;

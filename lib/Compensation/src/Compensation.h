@@ -80,7 +80,7 @@ public:
     float warmingShare() const { return share_; }
 
 private:
-    float transitionC_;
+    float sharePerC_;  // 1 / transitionC: a multiplication per sample, not the AVR's division
     float lastC_;
     float share_;
     bool haveSample_;
