@@ -94,11 +94,18 @@ def same_temperatures(on, off):
         )
 
 
-def surfaces(drift_set, temperature_c, acceleration):
-    return tuple(
-        PAPER_DEFAULTS.surface(drift_set, axis.upper()).evaluate(temperature_c, a)
-        for axis, a in zip(AXES, acceleration)
-    )
+def surfaces(sample, temperature_c, acceleration):
+    """The paper's drift at the sample's set state: its warming share of the
+    way from the cooling surfaces to the warming ones (physics/sensor.py)."""
+
+    def of(set_name):
+        return [
+            PAPER_DEFAULTS.surface(set_name, axis.upper()).evaluate(temperature_c, a)
+            for axis, a in zip(AXES, acceleration)
+        ]
+
+    share = sample.warming_share
+    return tuple(share * w + (1.0 - share) * c for w, c in zip(of("W"), of("C")))
 
 
 # --- registration -------------------------------------------------------------
@@ -238,11 +245,11 @@ def test_sensor_lag_evaluates_the_drift_at_a_lagged_reported_temperature(seed, p
         assert with_lag.drift_temperature_c == pytest.approx(structure, abs=1e-9)
         assert without.drift_temperature_c == without.reported_c
         assert ideal(with_lag) == ideal(without)
-        expected = surfaces(with_lag.drift_set, with_lag.drift_temperature_c, ideal(with_lag))
+        expected = surfaces(with_lag, with_lag.drift_temperature_c, ideal(with_lag))
         assert drift(with_lag) == pytest.approx(expected, rel=1e-12, abs=EXACT)
         added = tuple(a - b for a, b in zip(unrounded(with_lag), unrounded(without)))
         lagged_minus_reported = tuple(
-            a - b for a, b in zip(expected, surfaces(with_lag.drift_set, with_lag.reported_c, ideal(with_lag)))
+            a - b for a, b in zip(expected, surfaces(with_lag, with_lag.reported_c, ideal(with_lag)))
         )
         assert added == pytest.approx(lagged_minus_reported, rel=1e-9, abs=EXACT)
         assert errors(with_lag) == pytest.approx(errors(without), abs=EXACT)
@@ -259,27 +266,25 @@ def test_sensor_lag_is_first_order_and_leaves_the_register_alone():
 
 @PROPERTY
 @given(seed=seeds, path=paths, offset=st.fixed_dictionaries({axis: st.floats(-32768.0, 32768.0) for axis in AXES}))
-def test_hysteresis_adds_its_offset_while_the_trend_set_is_cooling(seed, path, offset):
+def test_hysteresis_adds_its_offset_as_far_as_the_sensor_is_cooling(seed, path, offset):
     on = run(model_with("hysteresis", cooling_offset_lsb=offset), seed, path)
     off = run(Model.load(), seed, path)
     same_temperatures(on, off)
     for with_term, without in zip(on, off):
         assert (ideal(with_term), drift(with_term)) == (ideal(without), drift(without))
         added = tuple(a - b for a, b in zip(unrounded(with_term), unrounded(without)))
-        if with_term.drift_set == "C":
-            expected = tuple(offset[axis] for axis in AXES)
-        else:
-            expected = (0.0, 0.0, 0.0)
+        expected = tuple((1.0 - with_term.warming_share) * offset[axis] for axis in AXES)
         assert added == pytest.approx(expected, rel=1e-12, abs=EXACT)
 
 
 def test_hysteresis_follows_the_sets_of_a_warming_then_cooling_path():
-    # 25 -> 26 warms; 25 and 24 are more than the 0.5 degC band below the peak.
+    # 25 -> 26 warms; 25.25 is 0.75 degC below the peak, half of
+    # set_transition_c (1.5 degC): half the offset; 24 is past it.
     quiet = Model.load().with_terms(SENSOR_EFFECTS_OFF | {"hysteresis": True})
     sensor = Sensor(quiet, 1, 25.0)
-    samples = [sensor.step(0.01, t, 0.0, 0.0) for t in (25.0, 26.0, 25.0, 24.0)]
-    assert [s.drift_set for s in samples] == ["W", "W", "C", "C"]
-    assert [(s.ax, s.ay, s.az) for s in samples] == [(0, 0, 16393), (0, 0, 16393), (20, 20, 16393), (20, 20, 16393)]
+    samples = [sensor.step(0.01, t, 0.0, 0.0) for t in (25.0, 26.0, 25.25, 24.0)]
+    assert [s.warming_share for s in samples] == [1.0, 1.0, 0.5, 0.0]
+    assert [(s.ax, s.ay, s.az) for s in samples] == [(0, 0, 16393), (0, 0, 16393), (10, 10, 16393), (20, 20, 16393)]
 
 
 @PROPERTY
@@ -318,7 +323,7 @@ def test_cross_axis_mixes_in_a_share_of_another_axis(seed, path, share):
         assert ideal(with_term) == pytest.approx(expected, rel=1e-15, abs=1e-9)
         # The drift sees the mixed acceleration; what follows it is unchanged.
         assert drift(with_term) == pytest.approx(
-            surfaces(with_term.drift_set, with_term.reported_c, ideal(with_term)), rel=1e-12, abs=EXACT
+            surfaces(with_term, with_term.reported_c, ideal(with_term)), rel=1e-12, abs=EXACT
         )
         assert errors(with_term) == pytest.approx(errors(without), abs=EXACT)
 

@@ -275,7 +275,9 @@ def emulated_field(model, seed, name):
     is in the warming set for the first 0.5 degC of the cooling run)."""
     scenario = build(name, ScenarioOptions())
     quiet = model.with_terms({"noise": False})
-    sensor = Sensor(quiet, seed=seed, environment_c=scenario.ambient_c(0.0))
+    sensor = Sensor(
+        quiet, seed=seed, environment_c=scenario.ambient_c(0.0), warming_share=scenario.sensor_warming_share
+    )
     times = np.arange(FIELD_STEP_S, scenario.duration_s + FIELD_STEP_S / 2, FIELD_STEP_S)
     samples = [sensor.step(FIELD_STEP_S, scenario.ambient_c(t), 0.0, 0.0) for t in times]
     keep = np.array([s.drift_set == FIELD_SET[name] for s in samples])

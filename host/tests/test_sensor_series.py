@@ -18,8 +18,8 @@ CANDIDATES = ("sensor_lag", "hysteresis", "scale_tempco", "cross_axis")
 SCATTER = ("noise", "bias_instability", "drift_repeatability")
 
 
-def stepped(model: Model, seed: int, start_c: float, *inputs: np.ndarray) -> list[tuple]:
-    sensor = Sensor(model, seed, start_c)
+def stepped(model: Model, seed: int, start_c: float, share: float, *inputs: np.ndarray) -> list[tuple]:
+    sensor = Sensor(model, seed, start_c, share)
     return [sensor.step(*step) for step in zip(*(values.tolist() for values in inputs))]
 
 
@@ -53,13 +53,14 @@ def runs(draw) -> tuple[np.ndarray, ...]:
     candidates=st.sets(st.sampled_from(CANDIDATES)),
     scatter=st.sets(st.sampled_from(SCATTER)),
     quantised=st.booleans(),
+    share=st.sampled_from([1.0, 0.0, 0.25]),
 )
-def test_a_series_gives_the_steps_samples(run, seed, candidates, scatter, quantised):
+def test_a_series_gives_the_steps_samples(run, seed, candidates, scatter, quantised, share):
     switches = {name: name in candidates for name in CANDIDATES}
     switches.update({name: name in scatter for name in SCATTER}, temperature_quantisation=quantised)
     model = Model.load().with_terms(switches)
     start_c = float(run[1][0]) + 0.3
-    assert_same(sensor_series(model, seed, start_c, *run), stepped(model, seed, start_c, *run))
+    assert_same(sensor_series(model, seed, start_c, *run, share), stepped(model, seed, start_c, share, *run))
 
 
 def test_a_series_refuses_a_step_that_does_not_advance():

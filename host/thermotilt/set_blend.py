@@ -23,13 +23,14 @@ FIRMWARE_TRANSITION_C = 1.5
 
 class SetBlend:
     """The operator stepped one temperature change at a time. Starts
-    warming, as the paper's cycles and the firmware's trend do."""
+    warming unless told where it is, as the paper's cycles and the
+    firmware's trend do (a device has no history at power-up)."""
 
     __slots__ = ("_transition_c", "warming_share")
 
-    def __init__(self, transition_c: float) -> None:
+    def __init__(self, transition_c: float, warming_share: float = 1.0) -> None:
         self._transition_c = transition_c
-        self.warming_share = 1.0
+        self.warming_share = warming_share
 
     def update(self, change_c: float) -> float:
         share = self.warming_share + change_c / self._transition_c
@@ -37,11 +38,14 @@ class SetBlend:
         return share
 
 
-def warming_shares(transition_c: float, start_c: float, temperature_c: np.ndarray) -> np.ndarray:
-    """SetBlend(transition_c) updated with each change of the temperature
-    from start_c on, as an array: the same floats as SetBlend.update, whose
-    clipping a cumulative sum cannot follow, so a loop over the steps."""
-    state = SetBlend(transition_c)
+def warming_shares(
+    transition_c: float, start_c: float, temperature_c: np.ndarray, warming_share: float = 1.0
+) -> np.ndarray:
+    """SetBlend(transition_c, warming_share) updated with each change of the
+    temperature from start_c on, as an array: the same floats as
+    SetBlend.update, whose clipping a cumulative sum cannot follow, so a
+    loop over the steps."""
+    state = SetBlend(transition_c, warming_share)
     changes = np.diff(np.asarray(temperature_c, dtype=float), prepend=start_c)
     return np.array([state.update(change) for change in changes.tolist()])
 

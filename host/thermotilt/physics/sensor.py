@@ -32,7 +32,11 @@ class SensorSample(NamedTuple):
     die_c: float
     reported_c: float
     rate_c_per_s: float
+    # The set the firmware's trend rule would pick on the die temperature.
     drift_set: str
+    # How far the sensor itself is in its warming set (set_blend): 1 its
+    # warming surfaces and offset, 0 its cooling ones.
+    warming_share: float
     ideal_ax: float
     ideal_ay: float
     ideal_az: float
@@ -205,7 +209,10 @@ class Sensor:
         "_mounting",
     )
 
-    def __init__(self, model: Model, seed: int, environment_c: float) -> None:
+    def __init__(self, model: Model, seed: int, environment_c: float, warming_share: float = 1.0) -> None:
+        """warming_share: the sensor's set state at the start (set_blend),
+        where its history put it: 1 warming, as the paper's cycles start, 0
+        after hours of cooling."""
         constants = model.constants["sensor"]
         self._temperature_lsb_per_c = constants["temperature_lsb_per_c"]
         self._temperature_zero_c = constants["temperature_zero_c"]
@@ -230,7 +237,7 @@ class Sensor:
         # The warming/cooling choice runs whether or not the drift is on: the
         # sample always says which set the firmware would pick.
         self._trend = Trend(model.terms["drift"]["schmitt_band_c"], self._die_c)
-        self._set_state = SetBlend(model.terms["drift"]["set_transition_c"])
+        self._set_state = SetBlend(model.terms["drift"]["set_transition_c"], warming_share)
         self._angles: tuple[float, float] | None = None
         self._acceleration = (0.0, 0.0, 0.0)
         # A table move is a new mounting of the sensor; the first position is 0.
@@ -301,6 +308,7 @@ class Sensor:
             reported,
             rate,
             drift_set,
+            warming_share,
             ideal_x,
             ideal_y,
             ideal_z,
@@ -341,6 +349,7 @@ class SensorSeries(NamedTuple):
     reported_c: np.ndarray
     rate_c_per_s: np.ndarray
     drift_set: np.ndarray
+    warming_share: np.ndarray
     ideal_ax: np.ndarray
     ideal_ay: np.ndarray
     ideal_az: np.ndarray
@@ -367,7 +376,7 @@ def _clip_round_array(values: np.ndarray, low: int, high: int) -> np.ndarray:
     return np.clip(np.floor(values + 0.5), low, high).astype(np.int64)
 
 
-def sensor_series(
+def sensor_series(  # noqa: PLR0913 - Sensor's arguments and the steps' inputs, each by name
     model: Model,
     seed: int,
     start_c: float,
@@ -375,8 +384,9 @@ def sensor_series(
     environment_c: np.ndarray,
     incl_x_deg: np.ndarray,
     incl_y_deg: np.ndarray,
+    warming_share: float = 1.0,
 ) -> SensorSeries:
-    """Sensor(model, seed, start_c) stepped through every (dt_s,
+    """Sensor(model, seed, start_c, warming_share) stepped through every (dt_s,
     environment_c, incl_x_deg, incl_y_deg), as arrays: the same samples as
     the steps (test_sensor_series), each stage run on whole arrays but the
     lags and the trend, which go step by step."""
@@ -390,7 +400,7 @@ def sensor_series(
     die = _lagged(stages["die"], float(start_c), environment_c, dt_s)
     rate = np.diff(die, prepend=float(start_c)) / dt_s
     drift_set = drift_sets(model.terms["drift"]["schmitt_band_c"], float(start_c), die)
-    warming_share = warming_shares(model.terms["drift"]["set_transition_c"], float(start_c), die)
+    shares = warming_shares(model.terms["drift"]["set_transition_c"], float(start_c), die, warming_share)
     reported, structure_start = die, float(start_c)
     for offset in stages["reported"]:
         reported = offset(reported)
@@ -401,9 +411,9 @@ def sensor_series(
     moved[1:] = (incl_x_deg[1:] != incl_x_deg[:-1]) | (incl_y_deg[1:] != incl_y_deg[:-1])
     mounting = np.cumsum(moved) - 1
     ideal = _ideal_series(stages, incl_x_deg, incl_y_deg, moved, mounting)
-    runs = _runs(moved, warming_share, mounting)
-    drift = _drift_series(stages, runs, warming_share, structure, ideal)
-    raw = _raw_series(stages, runs, ideal, drift, (warming_share, reported, rate, dt_s))
+    runs = _runs(moved, shares, mounting)
+    drift = _drift_series(stages, runs, shares, structure, ideal)
+    raw = _raw_series(stages, runs, ideal, drift, (shares, reported, rate, dt_s))
 
     temperature_lsb = (reported - constants["temperature_zero_c"]) * constants["temperature_lsb_per_c"]
     for register in stages["register"]:
@@ -418,6 +428,7 @@ def sensor_series(
         reported,
         rate,
         drift_set,
+        shares,
         *ideal,
         *drift,
         mounting,

@@ -55,6 +55,7 @@ TRUE_COLUMNS: tuple[str, ...] = (
     "true_reported_c",
     "true_rate_c_per_s",
     "true_drift_set",
+    "true_warming_share",
     "true_ax",
     "true_ay",
     "true_az",
@@ -70,11 +71,15 @@ ALL_COLUMNS: tuple[str, ...] = COLUMNS + TRUE_COLUMNS
 # Logs written before the IMU frame carried temp_domain read as they are,
 # without that column.
 _BEFORE_TEMP_DOMAIN = tuple(column for column in COLUMNS if column != "temp_domain")
+# Twin logs written before the model's set state was logged, likewise.
+_BEFORE_WARMING_SHARE = tuple(column for column in TRUE_COLUMNS if column != "true_warming_share")
 HEADERS: tuple[tuple[str, ...], ...] = (
     COLUMNS,
     ALL_COLUMNS,
+    COLUMNS + _BEFORE_WARMING_SHARE,
     _BEFORE_TEMP_DOMAIN,
     _BEFORE_TEMP_DOMAIN + TRUE_COLUMNS,
+    _BEFORE_TEMP_DOMAIN + _BEFORE_WARMING_SHARE,
 )
 
 

@@ -190,6 +190,7 @@ def _truth(sample: SensorSample, chamber: Chamber | None, drive: Drive | None) -
         "true_reported_c": format_number(sample.reported_c, 4),
         "true_rate_c_per_s": format_number(sample.rate_c_per_s, 5),
         "true_drift_set": sample.drift_set,
+        "true_warming_share": format_number(sample.warming_share, 4),
         "true_ax": format_number(sample.ideal_ax, 2),
         "true_ay": format_number(sample.ideal_ay, 2),
         "true_az": format_number(sample.ideal_az, 2),
@@ -333,7 +334,8 @@ def _imu_unit(scenario: Scenario, imu: ImuRun, folder: RunFolder, open_files: Ex
         RunLogWriter(csv_stream, with_truth=True, flush_each_row=False),
         watch_program=scenario.ends_with_program,
     )
-    return ImuUnit(link, Sensor(imu.model, imu.seed, scenario.ambient_c(0.0)), recorder)
+    sensor = Sensor(imu.model, imu.seed, scenario.ambient_c(0.0), scenario.sensor_warming_share)
+    return ImuUnit(link, sensor, recorder)
 
 
 def _load_eeprom(board: Board, imu: ImuRun) -> None:
