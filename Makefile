@@ -19,7 +19,7 @@ VENV_READY := $(VENV)/.installed
 SCENARIO ?= fig8
 RUNS ?= runs
 
-.PHONY: all firmware simulate demo test test-long deps system-deps python-deps build native avr bench bench-discovery fuzz fuzz-build lint lint-cpp lint-python clean
+.PHONY: all firmware simulate demo test test-long deps system-deps python-deps build native avr bench bench-discovery bench-field fuzz fuzz-build lint lint-cpp lint-python clean
 
 all: demo
 
@@ -89,6 +89,15 @@ bench: build python-deps
 # docs/discovery.md and docs/benchmarks/discovery-rates.png.
 bench-discovery: build python-deps
 	THERMOTILT_BUILD_DIR=$(abspath $(BUILD)) $(VENV)/bin/python host/tools/bench_discovery.py $(if $(SCHEDULER),--scheduler $(SCHEDULER))
+
+# Whether each sensor's certificate bounds what a monitoring user reads in the
+# field: sensors drawn from the batch population, calibrated through one twin
+# campaign (kept in build/bench-field) and replayed through the field profiles
+# on a Dask cluster (a LocalCluster of this machine's cores, or
+# SCHEDULER=tcp://HOST:8786); runs what docs/benchmarks/field-runs.csv lacks,
+# then writes docs/benchmarks/field-accuracy.md and its figure.
+bench-field: build python-deps
+	THERMOTILT_BUILD_DIR=$(abspath $(BUILD)) $(VENV)/bin/python host/tools/bench_field.py $(if $(SCHEDULER),--scheduler $(SCHEDULER))
 
 fuzz-build: system-deps
 	cmake -S fuzz -B $(FUZZ) -DCMAKE_CXX_COMPILER=clang++
