@@ -59,6 +59,12 @@ BATCH_SENSORS = 3
 # The field tests' 3 h and 9 h, compressed so that the demo stays short; the
 # warming ramp is then 3x faster than the paper's, the cooling one 9x.
 FIELD_SECONDS = 3600
+# Figure 17's 12 h alternation compressed into 3 h: its fastest change is
+# then 0.6 degC/min, within the certificate's field rates (1 degC/min).
+ALTERNATING_SECONDS = 3 * 3600
+# The tilt the issue's field-alternating check uses, on X.
+ALTERNATING_INCL_X_DEG = 20
+FIGURES = generated_page.DOCS / "figures"
 DEFAULT_MODEL = Path(__file__).resolve().parents[1] / "thermotilt" / "models" / "default.toml"
 PAGE = generated_page.DOCS / "paper-comparison.md"
 # Generous bounds: the twin announces its ports once both boards are up and
@@ -167,15 +173,17 @@ def simulate_in_parallel(runs: dict[Path, tuple[str, ...]]) -> None:
     """`thermotilt simulate SCENARIO ... --duration FIELD_SECONDS --out RUN`
     for each run folder, two at a time; each one's output printed after its command."""
 
+    def command(run: Path, arguments: tuple[str, ...]) -> list[str]:
+        duration = [] if "--duration" in arguments else ["--duration", str(FIELD_SECONDS)]
+        return ["simulate", *arguments, *duration, "--out", str(run), "--force"]
+
     def simulate(item: tuple[Path, tuple[str, ...]]) -> subprocess.CompletedProcess:
-        run, arguments = item
-        command = ["simulate", *arguments, "--duration", str(FIELD_SECONDS), "--out", str(run), "--force"]
-        return subprocess.run([*THERMOTILT, *command], capture_output=True, text=True)
+        return subprocess.run([*THERMOTILT, *command(*item)], capture_output=True, text=True)
 
     with ThreadPoolExecutor(2) as pool:
         results = list(pool.map(simulate, runs.items()))
     for (run, arguments), result in zip(runs.items(), results):
-        print(f"$ thermotilt simulate {' '.join(arguments)} --duration {FIELD_SECONDS} --out {run}")
+        print("$ thermotilt " + " ".join(command(run, arguments)))
         print(result.stdout, end="")
         if result.returncode != 0:
             sys.exit(f"demo: simulate {arguments[0]} failed: {result.stderr.strip()}")
@@ -325,6 +333,69 @@ def field_section(fit: Path, runs: dict[str, Path]) -> list[str]:
     ]
 
 
+def reading_section(out: Path, sensor: str) -> list[str]:
+    """What a monitoring user reads from a batch sensor through Figure 17's
+    alternation: the change from the installation reading, the set switches
+    and the figure, and the sensor's certificate."""
+    run, fit = out / f"field-alternating-{sensor}", out / "batch-fit" / sensor
+    validation = json.loads((run / "validation.json").read_text())
+    certificate = json.loads((fit / "certificate.json").read_text())
+    FIGURES.mkdir(exist_ok=True)
+    figure = FIGURES / "field-alternating-change.png"
+    figure.write_bytes((run / "validation" / "change.png").read_bytes())
+    change, switches = validation["tilt_change"], validation["set_switches"]
+    rows = [
+        (
+            axis["axis"],
+            axis["rows"],
+            axis["outside_rows"],
+            f"{axis['p95_lsb']:.1f}",
+            f"{axis['p95_mg']:.2f}",
+            f"{axis['p95_deg']:.4f}",
+            f"{axis['max_deg']:.4f}",
+            f"{axis['u95_max_deg']:#.2g}" if axis["u95_max_deg"] is not None else "—",
+            f"{100 * axis['within_u_share']:.1f} %" if axis["within_u_share"] is not None else "—",
+        )
+        for axis in change["axes"]
+    ]
+    largest = switches["largest_step_lsb"] or {}
+    bands = []
+    for axis, table in certificate["uncertainty_table"].items():
+        for tilt_band, column in zip(table["tilt_bands_deg"], zip(*table["u95_deg"])):
+            bands.append((axis, "{:g}…{:g}".format(*tilt_band), f"{min(column):#.2g}…{max(column):#.2g}"))
+    return [
+        "## The reading a monitoring user takes",
+        "",
+        f"Batch sensor {sensor} at X {ALTERNATING_INCL_X_DEG}° through Figure 17's alternation "
+        f"(`simulate field-alternating`, its 12 h in {ALTERNATING_SECONDS // 3600} h), compensated with its "
+        "own fit and read as a monitoring user reads a node: the change of each axis from the installation "
+        "reading (the first settled minute), whichever set the device is in (`validate`, docs/calibration.md, "
+        "\"Field check\"), held row by row against the certificate's U at the row's temperature and tilt.",
+        "",
+        *generated_page.table(
+            ("axis", "rows", "outside", "p95, LSB", "p95, mg", "p95, °", "max, °", "U there, °", "rows within U"),
+            rows,
+        ),
+        "",
+        f"The device switched between its sets {switches['count']} times; the largest step of the "
+        "compensated reading there (60 s medians either side, 30 s away): "
+        + (", ".join(f"{axis} {step:.1f} LSB" for axis, step in largest.items()) or "none measured")
+        + ". The compensation blends the sets' surfaces over 1.5 °C after each reversal (lib/Compensation "
+        "`SetBlend`) while the twin's sensor crosses over 1.5 °C of its die temperature (docs/physics-model.md).",
+        "",
+        f"![the change of tilt from the installation reading](figures/{figure.name})",
+        "",
+        f"Its certificate {certificate['certificate_number']}: U = {certificate['tilt_u95_deg']:#.2g}° "
+        f"(k = {certificate['coverage_factor']:.2f}, p = 95 %) as the largest over the domain; by band of "
+        "|nominal tilt| (the range over its IMU-temperature bands):",
+        "",
+        *generated_page.table(("axis", "|tilt|, °", "U (95 %), °"), bands),
+        "",
+        "The budget behind each band, its Type B rows and how the mounting-to-mounting part is taken out of "
+        'sample are in the sensor\'s certificate.html/.pdf (docs/calibration.md, "The certificate").',
+    ]
+
+
 def mounting_miss(model: Model, positions: list[dict]) -> float:
     """What the sensor's drift_repeatability alone leaves a fit over these
     positions off its drift, expected; the worse of X and Y."""
@@ -433,6 +504,8 @@ def write_paper_comparison(
             *field_section(out / "fit", runs),
             "",
             *batch_section(out, refusal),
+            "",
+            *reading_section(out, json.loads((out / "batch" / "batch.json").read_text())["sensors"][0]),
         ],
     )
 
@@ -469,13 +542,24 @@ def main() -> None:
     for sensor in sensors:
         thermotilt("compare", str(out / "batch-fit" / sensor), "--reference", str(out / "batch" / "model.toml"))
     field_runs = {sensor: out / f"field-warming-{sensor}" for sensor in sensors}
+    batch_model = ("--model", str(out / "batch" / "model.toml"))
+    alternating = out / f"field-alternating-{sensors[0]}"
     simulate_in_parallel(
         {
-            run: ("field-warming", "--model", str(out / "batch" / "model.toml"), "--sensor", sensor)
-            for sensor, run in field_runs.items()
+            **{run: ("field-warming", *batch_model, "--sensor", sensor) for sensor, run in field_runs.items()},
+            alternating: (
+                "field-alternating",
+                *batch_model,
+                "--sensor",
+                sensors[0],
+                "--incl-x",
+                str(ALTERNATING_INCL_X_DEG),
+                "--duration",
+                str(ALTERNATING_SECONDS),
+            ),
         }
     )
-    for sensor, run in field_runs.items():
+    for sensor, run in [*field_runs.items(), (sensors[0], alternating)]:
         thermotilt("validate", str(run), "--coefficients", str(out / "batch-fit" / sensor))
 
     step("7. sensor IDs: a board refuses another sensor's fit and takes its own")
