@@ -10,12 +10,11 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from statsmodels.stats.proportion import proportion_confint
 
+from ..record import Share as RunShare
 from .field_bench import NO, YES
 from .field_replay import FIELD_PROFILES
 
@@ -31,27 +30,9 @@ END = "<!-- /bench-field -->"
 Row = dict[str, str]
 
 
-@dataclass(frozen=True)
-class Share:
-    count: int
-    runs: int
-
-    @property
-    def value(self) -> float:
-        return self.count / self.runs if self.runs else float("nan")
-
-    @property
-    def interval(self) -> tuple[float, float]:
-        if not self.runs:
-            return float("nan"), float("nan")
-        low, high = proportion_confint(self.count, self.runs, alpha=0.05, method="wilson")
-        return float(low), float(high)
-
+class Share(RunShare):
     def __str__(self) -> str:
-        if not self.runs:
-            return "–"
-        low, high = self.interval
-        return f"{self.count}/{self.runs} = {_percent(self.value)} ({_percent(low)}–{_percent(high)})"
+        return self.shown(_percent)
 
 
 def _percent(share: float, decimals: int = 1) -> str:
@@ -100,9 +81,9 @@ def _met(share: Share) -> str:
     if not share.runs:
         return "–"
     low, high = RUNS_WITHIN_TARGET
-    if share.value < low:
+    if share.share < low:
         return "**missed: below**"
-    return "**missed: above**" if share.value > high else "met"
+    return "**missed: above**" if share.share > high else "met"
 
 
 def _groups(rows: list[Row], key: Callable[[Row], str], order: Iterable[str]) -> list[tuple[str, list[Row]]]:
@@ -156,7 +137,7 @@ def _cell_table(rows: list[Row], profiles: list[str], tilts: list[str]) -> list[
         for tilt in tilts:
             share = runs_within([row for row in rows if row["profile"] == profile and row["tilt_deg"] == tilt])
             low = RUNS_WITHIN_TARGET[0]
-            cells.append(f"**{share}**" if share.runs and share.value < low else str(share))
+            cells.append(f"**{share}**" if share.runs and share.share < low else str(share))
         lines.append(f"| {profile} | " + " | ".join(cells) + " |")
     return lines + [""]
 

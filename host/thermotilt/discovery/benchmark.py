@@ -14,7 +14,6 @@ from __future__ import annotations
 import csv
 import functools
 import hashlib
-import json
 import subprocess
 import sys
 import tempfile
@@ -288,19 +287,9 @@ def method_digest() -> str:
     change to the firmware's processing counts and a change that computes
     the same does not. Rows made by another method are stale and run again."""
     from .. import native
-    from ..physics import Model
-    from ..physics.document import model_document
+    from ..record import sources_digest
 
-    package = Path(__file__).resolve().parents[1]
-    digest = hashlib.blake2b(digest_size=6)
-    for source in METHOD_SOURCES:
-        path = package / source
-        files = sorted(path.rglob("*")) if path.is_dir() else [path]
-        for file in files:
-            if file.suffix in (".py", ".toml") and file.is_file():
-                digest.update(file.relative_to(package).as_posix().encode())
-                digest.update(file.read_bytes())
-    digest.update(json.dumps(model_document(Model.load()), sort_keys=True).encode())
+    digest = sources_digest(METHOD_SOURCES)
     rng = np.random.default_rng(0)
     samples = 6000
     ramp_c = 20.0 + 10.0 * np.sin(np.linspace(0.0, 3.0 * np.pi, samples))

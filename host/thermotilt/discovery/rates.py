@@ -7,12 +7,11 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from statsmodels.stats.proportion import proportion_confint
 
+from ..record import Share
 from .benchmark import (
     AMBIGUOUS,
     COLLINEAR,
@@ -47,27 +46,9 @@ END = "<!-- /bench-discovery -->"
 Row = dict[str, str]
 
 
-@dataclass(frozen=True)
-class Rate:
-    count: int
-    runs: int
-
-    @property
-    def share(self) -> float:
-        return self.count / self.runs if self.runs else float("nan")
-
-    @property
-    def interval(self) -> tuple[float, float]:
-        if not self.runs:
-            return float("nan"), float("nan")
-        low, high = proportion_confint(self.count, self.runs, alpha=0.05, method="wilson")
-        return float(low), float(high)
-
+class Rate(Share):
     def __str__(self) -> str:
-        if not self.runs:
-            return "–"
-        low, high = self.interval
-        return f"{self.count}/{self.runs} = {_percent(self.share)} ({_percent(low)}–{_percent(high)})"
+        return self.shown(_percent)
 
 
 def _percent(share: float) -> str:
