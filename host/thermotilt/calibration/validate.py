@@ -274,7 +274,7 @@ def validate(
     else:
         after_from = f"compensated here with {coefficients.source}"
         domain = coefficients.domain
-    after = {axis: _compensated(rows, axis, coefficients) for axis in FIT_AXES}
+    after = _compensated(rows, coefficients)
     outside, inside_what = _outside_rows(rows, after, domain, board_outside, certificate)
     series = {"time_s": rows.time_s, "temperature_c": rows.temperature, "set": rows.sets}
     results = [
@@ -305,17 +305,22 @@ def validate(
     )
 
 
-def _compensated(rows: _Rows, axis: str, coefficients: Coefficients | None) -> np.ndarray:
-    """The axis's compensated reading on every row: the firmware's, or
+def _compensated(rows: _Rows, coefficients: Coefficients | None) -> dict[str, np.ndarray]:
+    """Each axis's compensated reading on every row: the firmware's, or
     computed here as the firmware does, the two sets' surfaces blended by
-    the warming share of the logged filtered temperature (set_blend)."""
+    the warming share of the logged filtered temperature (set_blend), one
+    share for every axis."""
     if coefficients is None:
-        return rows.firmware[axis]
-    temperature, before = rows.temperature, rows.filtered[axis]
+        return {axis: rows.firmware[axis] for axis in FIT_AXES}
+    temperature = rows.temperature
     share = warming_shares(FIRMWARE_TRANSITION_C, float(temperature[0]), temperature)
-    warming = coefficients.table.surface("W", axis).evaluate(temperature, before)
-    cooling = coefficients.table.surface("C", axis).evaluate(temperature, before)
-    return before - blend(share, warming, cooling)
+    after = {}
+    for axis in FIT_AXES:
+        before = rows.filtered[axis]
+        warming = coefficients.table.surface("W", axis).evaluate(temperature, before)
+        cooling = coefficients.table.surface("C", axis).evaluate(temperature, before)
+        after[axis] = before - blend(share, warming, cooling)
+    return after
 
 
 def _outside_rows(
