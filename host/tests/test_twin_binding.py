@@ -368,6 +368,17 @@ def test_run_until_stops_at_the_requested_time():
         assert board.seconds == pytest.approx(0.25, abs=1e-6)
 
 
+def test_run_until_reaches_a_deadline_between_two_cycles():
+    # A client waits "while now < deadline": a run that stopped at the cycle
+    # before a deadline 0.3 cycles past it would never end (rounding to the
+    # nearest cycle did, once in these 39 on a sleeping chamber).
+    with Board.thermal_chamber() as board:
+        for k in range(1, 40):
+            deadline = 0.25 + 0.01 * k + 0.3 / board.frequency_hz
+            board.run_until(deadline)
+            assert board.seconds >= deadline
+
+
 def test_invalid_arguments_are_refused():
     with Board.thermal_chamber() as board:
         for call in (

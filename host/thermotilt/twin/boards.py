@@ -308,10 +308,15 @@ class Board:
         return self.cycles / self.frequency_hz
 
     def run_until(self, seconds: float) -> None:
-        """Runs the firmware until this much simulated time has passed since start."""
+        """Runs the firmware until at least this much simulated time has
+        passed since start (self.seconds >= seconds after it: a caller that
+        waits for a deadline must reach it, not stop a cycle short)."""
         if not math.isfinite(seconds) or seconds < 0:
             raise ValueError(f"seconds must be a finite time >= 0, not {seconds!r}")
-        state = self._lib.twin_run_until(self._live(), round(seconds * self.frequency_hz))
+        until = math.ceil(seconds * self.frequency_hz)
+        if until / self.frequency_hz < seconds:  # the product rounded down
+            until += 1
+        state = self._lib.twin_run_until(self._live(), until)
         if state == _CRASHED:
             raise TwinError(f"{self.elf.name} crashed at {self.seconds:.6f} s simulated")
         if state == _DONE:
