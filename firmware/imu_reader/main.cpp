@@ -21,7 +21,7 @@ namespace Frame = Protocol::Frame;
 namespace Error = Protocol::Error;
 namespace Detail = Protocol::ErrorDetail;
 
-const char FIRMWARE_VERSION[] = "0.4.0";
+const char FIRMWARE_VERSION[] = "0.4.1";
 // CTRL_REG1_XM runs the accelerometer at 100 Hz, and sampling follows the
 // sensor's own clock: a sample is read when INT2_XM says it is ready or,
 // where that line is not wired or not trusted (DataReadyLine), when

@@ -35,7 +35,7 @@ from thermotilt.physics import Model
 from thermotilt.physics.sensor import Trend
 from thermotilt.physics.terms.sensor import INT16_MAX, INT16_MIN, OPERATING_C, SURFACE_TERM_BOUNDS, _surface
 from thermotilt.program import CALIBRATION_MAX_C, CALIBRATION_MIN_C
-from thermotilt.set_blend import FIRMWARE_TRANSITION_C, warming_shares
+from thermotilt.set_blend import FIRMWARE_POWER_UP_SHARE, FIRMWARE_TRANSITION_C, warming_shares
 from thermotilt.surfaces import AXES, PAPER_DEFAULTS, SETS, Surface, table_from_values
 from thermotilt.twin.scenarios import program_steps
 from thermotilt.wire.coefficients import (
@@ -243,10 +243,11 @@ def firmware_shares(temperatures_c, transition_c: float) -> np.ndarray:
     return shares
 
 
-def test_the_hosts_transition_is_the_firmwares():
+def test_the_hosts_transition_and_power_up_share_are_the_firmwares():
     header = (Path(__file__).resolve().parents[2] / "lib/Compensation/src/Compensation.h").read_text()
-    (declared,) = re.findall(r"const float COMP_SET_TRANSITION_C = ([0-9.]+)f;", header)
-    assert float(declared) == FIRMWARE_TRANSITION_C
+    (transition,) = re.findall(r"const float COMP_SET_TRANSITION_C = ([0-9.]+)f;", header)
+    (power_up,) = re.findall(r"const float COMP_SET_POWER_UP_SHARE = ([0-9.]+)f;", header)
+    assert (float(transition), float(power_up)) == (FIRMWARE_TRANSITION_C, FIRMWARE_POWER_UP_SHARE)
 
 
 @PROPERTY
@@ -257,7 +258,7 @@ def test_set_blend_agrees_with_the_firmware_within_float32_rounding(series):
     each at most u = 2^-24 of its size (the share is at most 1), and the
     clamp to 0..1 never widens a difference; so after k updates the two
     differ by at most the sum of u (1 + 4 |change| / transition) over them."""
-    python = warming_shares(FIRMWARE_TRANSITION_C, float(series[0]), series.astype(float))
+    python = warming_shares(FIRMWARE_TRANSITION_C, float(series[0]), series.astype(float), FIRMWARE_POWER_UP_SHARE)
     firmware = firmware_shares(series, FIRMWARE_TRANSITION_C)
     changes = np.abs(np.diff(series.astype(float), prepend=float(series[0])))
     bound = np.cumsum(2.0**-24 * (1.0 + 4.0 * changes / FIRMWARE_TRANSITION_C))

@@ -17,6 +17,7 @@ from pathlib import Path
 import pytest
 from firmware_helpers import divider_millivolts, of_type
 
+from thermotilt.set_blend import FIRMWARE_POWER_UP_SHARE, blend
 from thermotilt.surfaces import PAPER_DEFAULTS
 from thermotilt.wire.protocol import PROTOCOL_VERSION, FrameReader, build_frame
 
@@ -105,9 +106,11 @@ def test_imu_reader_streams_filtered_and_compensated_frames_at_10_hz():
     assert (last["ax_filt"], last["ay_filt"], last["az_filt"]) == (-1700.0, -400.0, 16000.0)
     assert last["temp_c"] == 25.0
     assert (last["comp_set"], last["coef_source"]) == ("W", "D")
-    # compensated = filtered - f(T, filtered), f from Table 2/3 (warming).
+    # compensated = filtered - f(T, filtered), f from Tables 2 and 3 blended
+    # halfway: a still temperature leaves the power-up share (set_blend).
     for axis, name in (("X", "ax"), ("Y", "ay")):
-        expected = last[f"{name}_filt"] - PAPER_DEFAULTS.surfaces[("W", axis)].evaluate(25.0, last[f"{name}_filt"])
+        surfaces = [PAPER_DEFAULTS.surfaces[(s, axis)].evaluate(25.0, last[f"{name}_filt"]) for s in ("W", "C")]
+        expected = last[f"{name}_filt"] - blend(FIRMWARE_POWER_UP_SHARE, *surfaces)
         assert last[f"{name}_comp"] == pytest.approx(expected, abs=0.06)
     assert last["az_comp"] == 16000.0
 

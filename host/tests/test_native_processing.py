@@ -39,6 +39,7 @@ import pytest
 
 from thermotilt import native
 from thermotilt.physics import Model
+from thermotilt.set_blend import FIRMWARE_POWER_UP_SHARE, blend
 from thermotilt.surfaces import PAPER_DEFAULTS, CoefficientTable, Surface
 from thermotilt.twin import simulate
 from thermotilt.twin.boards import Board
@@ -257,15 +258,16 @@ def test_unrounded_equals_the_firmware_path_on_integer_inputs():
 @pytest.mark.twin
 def test_outputs_are_the_firmware_arithmetic():
     """The first sample seeds the filters (output = input), the temperature is
-    raw / 8 + 21, and the compensated values are filtered - f(T, filtered)."""
+    raw / 8 + 21, and the compensated values are filtered - f(T, filtered),
+    the sets' surfaces blended halfway at power-up (set_blend)."""
     result = native.imu_process([-1700, -1600], [400, 400], [16000, 16000], [32, 40], decimation=2)
     assert result["ax_filt"][0] == -1700.0 and result["temp_c"][0] == 25.0
     # The second sample gets a gain of (R + Q) / (2R + Q), about 1/2.
     assert result["ax_filt"][1] == pytest.approx(-1650.0, abs=1e-3)
     assert result["frame_due"].tolist() == [False, True]
     assert result["set"].tolist() == [native.WARMING, native.WARMING]
-    surface = PAPER_DEFAULTS.surface("W", "Y")
-    expected = 400.0 - surface.evaluate(25.0, 400.0)
+    surfaces = [PAPER_DEFAULTS.surface(set_name, "Y").evaluate(25.0, 400.0) for set_name in ("W", "C")]
+    expected = 400.0 - blend(FIRMWARE_POWER_UP_SHARE, *surfaces)
     assert result["ay_comp"][0] == pytest.approx(expected, abs=1e-3)
     assert result["az_comp"][0] == 16000.0  # Z uncorrected
 

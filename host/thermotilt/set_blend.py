@@ -17,14 +17,15 @@ from typing import Any
 
 import numpy as np
 
-# lib/Compensation's COMP_SET_TRANSITION_C.
+# lib/Compensation's COMP_SET_TRANSITION_C and COMP_SET_POWER_UP_SHARE: a
+# device does not know its sensor's history at power-up, so it starts halfway.
 FIRMWARE_TRANSITION_C = 1.5
+FIRMWARE_POWER_UP_SHARE = 0.5
 
 
 class SetBlend:
     """The operator stepped one temperature change at a time. Starts
-    warming unless told where it is, as the paper's cycles and the
-    firmware's trend do (a device has no history at power-up)."""
+    warming unless told where it is, as the paper's cycles do."""
 
     __slots__ = ("_transition_c", "warming_share")
 

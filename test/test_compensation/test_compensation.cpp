@@ -262,12 +262,24 @@ static void test_non_finite_outputs_do_not_fit(void)
     TEST_ASSERT_FALSE(surfaceOutputFitsFrame(overflowing));
 }
 
+static void test_blend_is_undecided_until_the_temperature_moves(void)
+{
+    // Halfway at power-up; half the transition either way settles the set.
+    SetBlend falling;
+    TEST_ASSERT_FLOAT_WITHIN(0.0f, 0.5f, falling.update(20.0f));
+    TEST_ASSERT_FLOAT_WITHIN(1e-6f, 0.25f, falling.update(20.0f - 0.25f * COMP_SET_TRANSITION_C));
+    TEST_ASSERT_FLOAT_WITHIN(0.0f, 0.0f, falling.update(20.0f - 0.5f * COMP_SET_TRANSITION_C));
+    SetBlend rising;
+    TEST_ASSERT_FLOAT_WITHIN(0.0f, 0.5f, rising.update(20.0f));
+    TEST_ASSERT_FLOAT_WITHIN(0.0f, 1.0f, rising.update(20.0f + 0.5f * COMP_SET_TRANSITION_C));
+}
+
 static void test_blend_crosses_over_the_transition(void)
 {
     // Up to 30 degC (wholly warming), down 0.75 (half of 1.5) and 0.75 more
     // (wholly cooling), further down (held at 0), then up 0.375 (a quarter).
     SetBlend blend;
-    TEST_ASSERT_FLOAT_WITHIN(0.0f, 1.0f, blend.update(20.0f));
+    TEST_ASSERT_FLOAT_WITHIN(0.0f, COMP_SET_POWER_UP_SHARE, blend.update(20.0f));
     TEST_ASSERT_FLOAT_WITHIN(0.0f, 1.0f, blend.update(30.0f));
     TEST_ASSERT_FLOAT_WITHIN(0.0f, 0.5f, blend.update(29.25f));
     TEST_ASSERT_FLOAT_WITHIN(0.0f, 0.0f, blend.update(28.5f));
@@ -323,6 +335,7 @@ int runUnityTests(void)
     RUN_TEST(test_trend_ramps);
     RUN_TEST(test_trend_plateau);
     RUN_TEST(test_trend_threshold);
+    RUN_TEST(test_blend_is_undecided_until_the_temperature_moves);
     RUN_TEST(test_blend_crosses_over_the_transition);
     RUN_TEST(test_blend_plateau_noise_moves_it_in_proportion);
     RUN_TEST(test_blended_compensation_is_each_set_at_the_ends);

@@ -60,7 +60,9 @@ static void test_unrounded_takes_fractions(void)
     // The second sample gets a gain of about 1/2 (test_kalman).
     TEST_ASSERT_FLOAT_WITHIN(0.001f, -1700.0f, out.filtered[0]);
     ImuProcessing::compensate(coefficients, out);
-    assertSameFloat(compensate(coefficients.set[0].axis[0], out.temperatureC, out.filtered[0]), out.compensated[0]);
+    assertSameFloat(compensateBlended(coefficients.set[0].axis[0], coefficients.set[1].axis[0], COMP_SET_POWER_UP_SHARE,
+                                      out.temperatureC, out.filtered[0]),
+                    out.compensated[0]);
 }
 
 int runUnityTests(void)

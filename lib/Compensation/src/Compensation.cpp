@@ -69,7 +69,8 @@ float compensateBlended(const AxisSurface& warming, const AxisSurface& cooling, 
     return rawLsb - correction;
 }
 
-SetBlend::SetBlend(float transitionC) : sharePerC_(1.0f / transitionC), lastC_(0.0f), share_(1.0f), haveSample_(false)
+SetBlend::SetBlend(float transitionC)
+    : sharePerC_(1.0f / transitionC), lastC_(0.0f), share_(COMP_SET_POWER_UP_SHARE), haveSample_(false)
 {
 }
 

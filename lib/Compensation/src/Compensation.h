@@ -68,8 +68,12 @@ const float COMP_ACCEL_MAX_LSB = 32767.0f;
 // crossing is gradual: its offset and drift move from one set's to the
 // other's as the package relaxes (docs/physics-model.md); 1.5 degC is an
 // assumption, less than the paper's 2 degC calibration step (section 3.2),
-// on whose plateaus each set shows whole. Starts warming, as TrendDetector.
+// on whose plateaus each set shows whole.
 const float COMP_SET_TRANSITION_C = 1.5f;
+// At power-up the sensor's set is whatever its history left, which the
+// device does not know: halfway halves the worst error either way, and the
+// first transitionC / 2 degC of movement in either direction settles it.
+const float COMP_SET_POWER_UP_SHARE = 0.5f;
 
 class SetBlend {
 public:
