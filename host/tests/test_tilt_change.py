@@ -11,7 +11,7 @@ from test_validate import write_field_log
 
 from thermotilt import cli
 from thermotilt.calibration.dataset import CalibrationDataError
-from thermotilt.calibration.tilt_change import tilt_change
+from thermotilt.calibration.tilt_change import format_tilt_change, tilt_change
 from thermotilt.lsm9ds0 import LSB_PER_G, MG_PER_LSB, tilt_deg
 
 TIME_S = np.arange(0.0, 600.0, 0.1)
@@ -38,10 +38,27 @@ def test_the_change_is_taken_from_the_first_settled_minute():
     assert change.p95_deg == pytest.approx(expected)
 
 
+def test_the_installation_reading_waits_for_the_device_to_decide_its_set():
+    # Still for 300 s, then 0.01 degC/s: the device, halfway between its sets
+    # at power-up (COMP_SET_POWER_UP_SHARE), reaches the warming set 0.75 degC
+    # (half of COMP_SET_TRANSITION_C) later, at 375 s.
+    temperature = 20.0 + np.clip(TIME_S - 300.0, 0.0, None) * 0.01
+    still = {"X": np.zeros(len(TIME_S)), "Y": np.zeros(len(TIME_S))}
+    outside = {axis: np.zeros(len(TIME_S), dtype=bool) for axis in "XY"}
+    change = tilt_change(TIME_S, temperature, still, outside, None, None, "test")
+    assert change.installation.start_s == pytest.approx(375.0, abs=0.1) and change.installation.set_decided
+    flat = tilt_change(TIME_S, np.full(len(TIME_S), 20.0), still, outside, None, None, "test")
+    assert flat.installation.start_s == 120.0 and not flat.installation.set_decided
+    assert "it was not: the temperature had not moved 0.75 degC" in format_tilt_change(flat)
+
+
 def test_a_named_baseline_moves_the_installation_reading():
-    x = np.where(TIME_S < 300.0, -1823.0, -1723.0)
+    # X reads -1723 from 300 s to 500 s; rows before the named 400 s are no change.
+    x = np.where((TIME_S >= 300.0) & (TIME_S < 500.0), -1723.0, -1823.0)
     change = change_of({"X": x, "Y": np.zeros(len(TIME_S))}, baseline_s=400.0)
     assert change.installation.reading_lsb["X"] == -1723.0 and change.installation.named
+    assert change.before_rows == np.count_nonzero(TIME_S < 400.0)
+    assert change.axis("X").rows == np.count_nonzero(TIME_S >= 400.0)
     assert change.axis("X").p95_lsb == pytest.approx(100.0)
     with pytest.raises(CalibrationDataError, match=r"--baseline 900: 0 rows in 900\.\.960 s"):
         change_of({"X": x, "Y": x}, baseline_s=900.0)
@@ -53,7 +70,7 @@ def test_rows_outside_the_domain_are_apart_and_out_of_every_percentile():
     x = np.where(far, 0.0, -1823.0)
     change = change_of({"X": x, "Y": np.zeros(len(TIME_S))}, outside={"X": far, "Y": np.zeros(len(TIME_S), bool)})
     assert change.axis("X").outside_rows == np.count_nonzero(far)
-    assert change.axis("X").rows == len(TIME_S) - np.count_nonzero(far)
+    assert change.axis("X").rows == np.count_nonzero(TIME_S >= 120.0) - np.count_nonzero(far)
     assert change.axis("X").p95_lsb == 0.0 and change.p95_deg == 0.0
 
 
@@ -64,7 +81,9 @@ def test_the_share_within_u_is_held_row_by_row_at_its_own_u():
     x = LSB_PER_G * np.sin(np.radians(drift_deg))
     u95 = {axis: np.full(len(TIME_S), 0.05) for axis in "XY"}
     change = change_of({"X": x, "Y": np.zeros(len(TIME_S))}, u95=u95)
-    held = np.abs(tilt_deg(x) - tilt_deg(np.array(np.median(x[(TIME_S >= 120) & (TIME_S < 180)])))) <= 0.05
+    installed = TIME_S >= 120.0
+    held = np.abs(tilt_deg(x) - tilt_deg(np.array(np.median(x[installed & (TIME_S < 180)])))) <= 0.05
+    held = held[installed]
     assert change.axis("X").within_u_share == pytest.approx(np.mean(held))
     assert change.axis("Y").within_u_share == 1.0
     assert change.within_u_share == pytest.approx((np.mean(held) + 1.0) / 2.0)

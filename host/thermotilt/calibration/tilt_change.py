@@ -6,7 +6,11 @@ field tests, section 4.3, read the same sensor through warming and cooling).
 The installation reading is each axis's median compensated reading over
 INSTALLATION_WINDOW_S: the first settled minute (from ``run.SETTLE_S``
 after the first row, the time a table move takes to settle in a campaign)
-or the minute from a time the user names. A row's change is its reading
+once the device's set is decided, or the minute from a time the user names.
+The device starts halfway between its sets (lib/Compensation's
+COMP_SET_POWER_UP_SHARE) and decides when the temperature has moved half
+the transition one way; a reading taken before would carry the undecided
+half of the sets' difference into every later change. A row's change is its reading
 less that one, in LSB, mg and degrees of tilt (``tilt_deg`` of each, so the
 degrees are those of the axis's whole reading, measuring offset included).
 
@@ -25,6 +29,7 @@ import numpy as np
 
 from ..lsm9ds0 import MG_PER_LSB, tilt_deg
 from ..run import SETTLE_S
+from ..set_blend import FIRMWARE_POWER_UP_SHARE, FIRMWARE_TRANSITION_C, warming_shares
 from .dataset import FIT_AXES, CalibrationDataError
 
 # A switch between the sets is measured as the change of the compensated
@@ -51,6 +56,7 @@ class Installation:
     temperature_c: float
     reading_lsb: dict[str, float]
     named: bool  # the user named its time (--baseline)
+    set_decided: bool  # the device's warming share was at 0 or 1 by then
 
 
 @dataclass(frozen=True)
@@ -75,6 +81,7 @@ class TiltChange:
     p95_deg: float | None  # X and Y pooled
     within_u_share: float | None  # X and Y pooled
     domain: str  # what decided the rows outside
+    before_rows: int  # before the installation reading: in no figure
     # Per axis, each row's change in degrees (NaN outside the domain), and the
     # certificate's U there (None without one), for figures.
     change_deg: dict[str, np.ndarray]
@@ -92,8 +99,10 @@ class TiltChange:
                 "temperature_c": self.installation.temperature_c,
                 "reading_lsb": self.installation.reading_lsb,
                 "named": self.installation.named,
+                "set_decided": self.installation.set_decided,
             },
             "domain": self.domain,
+            "rows_before_installation": self.before_rows,
             "tilt_change_p95_deg": self.p95_deg,
             "rows_within_u_share": self.within_u_share,
             "axes": [vars(change) for change in self.axes],
@@ -141,13 +150,29 @@ def set_switches(time_s: np.ndarray, sets: np.ndarray, compensated: dict[str, np
     return switches
 
 
+def set_decided_s(time_s: np.ndarray, temperature_c: np.ndarray) -> float | None:
+    """When the device, powered up at the first row, first had its warming
+    share at 0 or 1 (lib/Compensation SetBlend on the filtered temperature);
+    None if it never had."""
+    share = warming_shares(FIRMWARE_TRANSITION_C, float(temperature_c[0]), temperature_c, FIRMWARE_POWER_UP_SHARE)
+    decided = np.flatnonzero((share <= 0.0) | (share >= 1.0))
+    return float(time_s[decided[0]]) if decided.size else None
+
+
 def installation(
-    time_s: np.ndarray, temperature_c: np.ndarray, compensated: dict[str, np.ndarray], baseline_s: float | None
+    time_s: np.ndarray,
+    temperature_c: np.ndarray,
+    compensated: dict[str, np.ndarray],
+    baseline_s: float | None,
+    decided_s: float | None = None,
 ) -> Installation | None:
     """The installation reading: the minute from baseline_s, or from
-    SETTLE_S after the first row (None where the run has no such minute;
-    a named minute without rows is an error)."""
-    start = float(time_s[0] + SETTLE_S) if baseline_s is None else float(baseline_s)
+    SETTLE_S after the first row or from decided_s (when the device's set
+    was decided; None never), whichever is later (None where the run has no
+    such minute; a named minute without rows is an error)."""
+    start = float(baseline_s) if baseline_s is not None else float(time_s[0] + SETTLE_S)
+    if baseline_s is None and decided_s is not None:
+        start = max(start, decided_s)
     end = start + INSTALLATION_WINDOW_S
     minute = (time_s >= start) & (time_s < end)
     if np.count_nonzero(minute) < INSTALLATION_MIN_ROWS:
@@ -164,6 +189,7 @@ def installation(
         float(np.median(temperature_c[minute])),
         {axis: float(np.median(values[minute])) for axis, values in compensated.items()},
         baseline_s is not None,
+        decided_s is not None and decided_s <= start,
     )
 
 
@@ -181,15 +207,18 @@ def tilt_change(
     domain: str,
 ) -> TiltChange | None:
     """The change of each axis's compensated reading from the installation
-    reading. outside: per axis, the rows outside the domain (domain says
-    whose); u95_deg: per axis, the certificate's U at each row (None
-    without a certificate). None where the run has no settled minute."""
-    reference = installation(time_s, temperature_c, compensated, baseline_s)
+    reading, over the rows from it on. outside: per axis, the rows outside
+    the domain (domain says whose); u95_deg: per axis, the certificate's U
+    at each row (None without a certificate). None where the run has no
+    settled minute."""
+    reference = installation(time_s, temperature_c, compensated, baseline_s, set_decided_s(time_s, temperature_c))
     if reference is None:
         return None
+    # The rows before the installation reading are no change a user reads.
+    installed = time_s >= reference.start_s
     axes, change_deg, pooled, pooled_within = [], {}, [], []
     for axis in FIT_AXES:
-        inside = ~outside[axis]
+        inside = ~outside[axis] & installed
         change_lsb = compensated[axis] - reference.reading_lsb[axis]
         degrees = tilt_deg(compensated[axis]) - float(tilt_deg(np.array(reference.reading_lsb[axis])))
         change_deg[axis] = np.where(inside, degrees, np.nan)
@@ -205,7 +234,7 @@ def tilt_change(
             AxisChange(
                 axis,
                 int(np.count_nonzero(inside)),
-                int(np.count_nonzero(~inside)),
+                int(np.count_nonzero(outside[axis] & installed)),
                 p95_lsb,
                 None if p95_lsb is None else p95_lsb * MG_PER_LSB,
                 _percentile(degrees[inside]),
@@ -220,6 +249,7 @@ def tilt_change(
         _percentile(np.concatenate(pooled)),
         float(np.mean(np.concatenate(pooled_within))) if pooled_within else None,
         domain,
+        int(np.count_nonzero(~installed)),
         change_deg,
         u95_deg,
     )
@@ -234,10 +264,13 @@ def format_tilt_change(change: TiltChange) -> str:
         return "n/a" if value is None else format(value, form)
 
     reference = change.installation
-    how = "named" if reference.named else "the first settled minute"
+    how = "named" if reference.named else "the first settled minute once the device's set was decided"
+    if not reference.set_decided:
+        how += f" (it was not: the temperature had not moved {FIRMWARE_POWER_UP_SHARE * FIRMWARE_TRANSITION_C:g} degC)"
     lines = [
         f"change of tilt from the installation reading ({how}: {reference.start_s:g}..{reference.end_s:g} s, "
-        f"{reference.rows} rows, IMU {reference.temperature_c:.1f} degC), rows inside {change.domain}:",
+        f"{reference.rows} rows, IMU {reference.temperature_c:.1f} degC), rows from it on ({change.before_rows} before "
+        f"it left out) inside {change.domain}:",
         f"{'axis':<6}{'rows':>8}{'outside':>9}{'p95 LSB':>10}{'p95 mg':>9}{'p95 deg':>10}{'max deg':>10}"
         f"{'U deg':>8}{'within U':>10}",
     ]

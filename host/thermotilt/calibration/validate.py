@@ -43,7 +43,7 @@ from ..lsm9ds0 import LSB_PER_G, MG_PER_LSB, tilt_deg
 from ..run import SETTLE_S
 from ..run.folder import RunFolder, RunFolderError
 from ..run.log import RunLogError, read_run_columns
-from ..set_blend import FIRMWARE_TRANSITION_C, blend, warming_shares
+from ..set_blend import FIRMWARE_POWER_UP_SHARE, FIRMWARE_TRANSITION_C, blend, warming_shares
 from ..surfaces import AXES, PAPER_DEFAULTS, REFERENCE_C, SET_NAMES, SETS, ZERO_SURFACE, CoefficientTable
 from .certificate import in_domain, read_certificate, u95_at
 from .compare import CALIBRATED_C, read_fit
@@ -274,7 +274,9 @@ def validate(
     else:
         after_from = f"compensated here with {coefficients.source}"
         domain = coefficients.domain
-    after = _compensated(rows, coefficients)
+    # The device's warming share from its power-up at the log's first row.
+    share = warming_shares(FIRMWARE_TRANSITION_C, float(rows.temperature[0]), rows.temperature, FIRMWARE_POWER_UP_SHARE)
+    after = _compensated(rows, coefficients, share)
     outside, inside_what = _outside_rows(rows, after, domain, board_outside, certificate)
     series = {"time_s": rows.time_s, "temperature_c": rows.temperature, "set": rows.sets}
     results = [
@@ -305,15 +307,14 @@ def validate(
     )
 
 
-def _compensated(rows: _Rows, coefficients: Coefficients | None) -> dict[str, np.ndarray]:
+def _compensated(rows: _Rows, coefficients: Coefficients | None, share: np.ndarray) -> dict[str, np.ndarray]:
     """Each axis's compensated reading on every row: the firmware's, or
     computed here as the firmware does, the two sets' surfaces blended by
-    the warming share of the logged filtered temperature (set_blend), one
-    share for every axis."""
+    the device's warming share (set_blend on the logged filtered
+    temperature), one share for every axis."""
     if coefficients is None:
         return {axis: rows.firmware[axis] for axis in FIT_AXES}
     temperature = rows.temperature
-    share = warming_shares(FIRMWARE_TRANSITION_C, float(temperature[0]), temperature)
     after = {}
     for axis in FIT_AXES:
         before = rows.filtered[axis]
