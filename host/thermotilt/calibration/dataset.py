@@ -58,6 +58,8 @@ class SetData:
     position: np.ndarray  # index into Campaign.positions, for grouped statistics
     # dT/dt of the filtered IMU temperature, degC/s, for model families with a rate term.
     rate_c_per_s: np.ndarray | None = None
+    # The log's time_s: with position, puts a position's rows of both sets back in time order.
+    time_s: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -124,7 +126,7 @@ def _position_groups(name: str, numbers: dict[str, np.ndarray]) -> dict[str, np.
 
 def _position_reference(label: str, by_set: dict[str, np.ndarray]) -> np.ndarray:
     """The one reading both sets' residuals are taken against, per column
-    (temperature, X, Y, rate; zero but for X and Y): the mean of the two
+    (temperature, X, Y, rate, time; zero but for X and Y): the mean of the two
     sets' readings at 25 degC. Each set's surface then carries its offset
     from the other, and a reading compensated with either set is the same."""
     references = []
@@ -138,7 +140,7 @@ def _position_reference(label: str, by_set: dict[str, np.ndarray]) -> np.ndarray
                 f"(needs {MIN_REFERENCE_ROWS} rows within {REFERENCE_BAND_C:g} degC of it)"
             )
         references.append(at_25)
-    return np.array([0.0, *np.mean(references, axis=0), 0.0])
+    return np.array([0.0, *np.mean(references, axis=0), 0.0, 0.0])
 
 
 def load(folder: Path, settle_s: float | None = None) -> Campaign:
@@ -181,6 +183,7 @@ def load(folder: Path, settle_s: float | None = None) -> Campaign:
                     numbers["ax_filt"][used_rows],
                     numbers["ay_filt"][used_rows],
                     _temperature_rates(numbers["time_s"][used_rows], numbers["imu_temp_c"][used_rows]),
+                    numbers["time_s"][used_rows],
                 ]
             )
             comp_set = texts["comp_set"][used_rows]
@@ -202,6 +205,7 @@ def load(folder: Path, settle_s: float | None = None) -> Campaign:
             residual={axis: residual[:, 1 + i] for i, axis in enumerate(FIT_AXES)},
             position=np.concatenate([np.full(len(part[1]), part[0]) for part in set_parts]),
             rate_c_per_s=data[:, 3],
+            time_s=data[:, 4],
         )
     try:
         sensor_id = CampaignFolder(folder).recorded_sensor_id()

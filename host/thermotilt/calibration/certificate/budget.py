@@ -23,6 +23,7 @@ from ...set_blend import FIRMWARE_TRANSITION_C
 from ..dataset import reading_at_25
 from ..fit import SurfaceFit, hac_lags
 from ..newey_west import hac_panel_covariance
+from .crossing import Crossing
 from .errors import AxisErrors
 
 COVERAGE_PROBABILITY = 0.95
@@ -119,6 +120,9 @@ class AxisInputs:
     offset_difference_u_lsb: float  # standard uncertainty of the W - C offset's estimate
     offset_difference_dof: float
     offset_source: str
+    # m: the share of |f_W - f_C| the device's crossing can be off by after a reversal (crossing.py)
+    set_mismatch: float
+    set_mismatch_source: str
 
 
 def rate_bound(errors: AxisErrors) -> tuple[float, str]:
@@ -176,7 +180,9 @@ def offset_difference(errors: AxisErrors) -> tuple[float, float, str]:
     )
 
 
-def axis_inputs(errors: AxisErrors, fits: list[SurfaceFit]) -> AxisInputs:
+def axis_inputs(errors: AxisErrors, fits: list[SurfaceFit], crossing: Crossing) -> AxisInputs:
+    """The axis's campaign-level inputs; crossing, the campaign's
+    set-crossing estimate over all its axes (crossing.estimate_crossing)."""
     rate_lsb, rate_source = rate_bound(errors)
     offset_u, offset_dof, offset_source = offset_difference(errors)
     return AxisInputs(
@@ -186,6 +192,8 @@ def axis_inputs(errors: AxisErrors, fits: list[SurfaceFit]) -> AxisInputs:
         offset_u,
         offset_dof,
         offset_source,
+        crossing.mismatch(),
+        crossing.source(),
     )
 
 
@@ -240,14 +248,15 @@ def type_b_components(
         ),
         rectangular(
             "set selection at turnarounds",
-            _largest_set_difference(inputs, temperature, acceleration),
+            inputs.set_mismatch * _largest_set_difference(inputs, temperature, acceleration),
             "LSB",
             slope,
-            "after a warming/cooling reversal the device blends its sets' surfaces over "
-            f"{FIRMWARE_TRANSITION_C:g} degC of its filtered temperature (lib/Compensation SetBlend); the "
-            "sensor's own crossing width is not measured (assumed below the paper's 2 degC steps, section 3.2): "
-            "a sensor that crosses at once leaves an error between 0 and |f_W - f_C| (largest in the band), "
-            "its sign unknown; uncorrected, mean and spread together give half-width |f_W - f_C| / sqrt(3)",
+            "after a warming/cooling reversal the device blends its sets' surfaces over w_d = "
+            f"{FIRMWARE_TRANSITION_C:g} degC of its filtered temperature (lib/Compensation SetBlend) and the sensor "
+            "crosses over its own width w: two stop operators crossing the same path from the same end differ "
+            "by at most m = 1 - min(w, w_d) / max(w, w_d) of the way, so the error lies between 0 and "
+            "m |f_W - f_C| (largest in the band), its sign unknown; uncorrected, mean and spread together give "
+            f"half-width m |f_W - f_C| / sqrt(3); {inputs.set_mismatch_source}",
         ),
         Component(
             "set offset estimate",

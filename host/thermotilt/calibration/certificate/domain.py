@@ -40,7 +40,7 @@ def temperature_bands(low_c: float, high_c: float) -> list[tuple[float, float]]:
 def nominal_tilt_deg(compensated_lsb: np.ndarray, zero_reading_lsb: float) -> np.ndarray:
     """The tilt a compensated reading stands for once the axis's zero
     reading (the measuring offset, paper section 4.1) is taken off:
-    asin((a - zero) / 1 g), in degrees, as ``validate.tilt_deg`` converts."""
+    asin((a - zero) / 1 g), in degrees, as ``lsm9ds0.tilt_deg`` converts."""
     return tilt_deg(np.asarray(compensated_lsb, dtype=float) - zero_reading_lsb)
 
 

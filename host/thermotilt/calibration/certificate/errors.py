@@ -44,6 +44,7 @@ class AxisErrors:
     temperature_c: np.ndarray
     acceleration_lsb: np.ndarray  # the filtered reading the surfaces take
     rate_c_per_s: np.ndarray  # NaN where the campaign has none
+    time_s: np.ndarray  # the log's time; NaN where the campaign has none
     as_found_deg: np.ndarray  # before compensation
     as_left_deg: np.ndarray  # after, the campaign's surfaces
     out_of_sample_deg: np.ndarray  # after, the surfaces fitted without the row's position
@@ -139,7 +140,9 @@ def axis_errors(campaign: Campaign, fits: list[SurfaceFit], axis: str, nominal_d
     references = _position_references(campaign, axis)
     zero = zero_reading(references, nominal_deg)
     evaluable = evaluable_positions(nominal_deg, np.isfinite(references))
-    parts: dict[str, list[np.ndarray]] = {name: [] for name in ("set", "pos", "t", "a", "rate", "r", "in", "oos")}
+    parts: dict[str, list[np.ndarray]] = {
+        name: [] for name in ("set", "pos", "t", "a", "rate", "time", "r", "in", "oos")
+    }
     for set_name in SETS:
         fit = next((f for f in fits if (f.set_name, f.axis) == (set_name, axis)), None)
         if fit is None:
@@ -147,6 +150,7 @@ def axis_errors(campaign: Campaign, fits: list[SurfaceFit], axis: str, nominal_d
         data = campaign.sets[set_name]
         temperature, acceleration = data.temperature_c, data.acceleration[axis]
         rate = data.rate_c_per_s if data.rate_c_per_s is not None else np.full(len(temperature), np.nan)
+        time = data.time_s if data.time_s is not None else np.full(len(temperature), np.nan)
         residual = data.residual[axis]
         for name, values in (
             ("set", np.full(len(temperature), set_name)),
@@ -154,6 +158,7 @@ def axis_errors(campaign: Campaign, fits: list[SurfaceFit], axis: str, nominal_d
             ("t", temperature),
             ("a", acceleration),
             ("rate", rate),
+            ("time", time),
             ("r", residual),
             ("in", residual - fit.surface.evaluate(temperature, acceleration)),
             ("oos", _out_of_sample(data, axis, evaluable, residual - fit.surface.evaluate(temperature, acceleration))),
@@ -169,6 +174,7 @@ def axis_errors(campaign: Campaign, fits: list[SurfaceFit], axis: str, nominal_d
         temperature_c=rows["t"],
         acceleration_lsb=rows["a"],
         rate_c_per_s=rows["rate"],
+        time_s=rows["time"],
         as_found_deg=_degrees(reference, rows["r"], zero),
         as_left_deg=_degrees(reference, rows["in"], zero),
         out_of_sample_deg=_degrees(reference, rows["oos"], zero),

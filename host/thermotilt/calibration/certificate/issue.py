@@ -16,6 +16,7 @@ from ..dataset import Campaign
 from ..fit import SurfaceFit
 from . import document as fields
 from .budget import COVERAGE_PROBABILITY, FIELD_RATE_LIMIT_C_PER_MIN, axis_inputs
+from .crossing import estimate_crossing
 from .errors import AxisErrors, NoNominalAngle, axis_errors, nominal_angles, tilt_allowance_deg
 from .points import axis_points, coverage
 from .uncertainty import MIN_BAND_POSITIONS, Cell, axis_cells, table
@@ -84,10 +85,13 @@ def _cell_summary(cell: Cell) -> dict:
 
 
 def _axis_results(campaign: Campaign, fits: list[SurfaceFit], angles: dict, domain_c: tuple[float, float]) -> dict:
+    errors_by_axis = {
+        axis: axis_errors(campaign, fits, axis, angles[axis]) for axis in dict.fromkeys(f.axis for f in fits)
+    }
+    crossing = estimate_crossing(errors_by_axis, fits)
     results = {}
-    for axis in dict.fromkeys(fit.axis for fit in fits):
-        errors = axis_errors(campaign, fits, axis, angles[axis])
-        cells = axis_cells(errors, axis_inputs(errors, fits), domain_c)
+    for axis, errors in errors_by_axis.items():
+        cells = axis_cells(errors, axis_inputs(errors, fits, crossing), domain_c)
         if not cells:
             raise NotCertifiable(f"{axis} axis: no band of IMU temperature and tilt holds rows of two positions")
         axis_table = table(cells, domain_c, errors)

@@ -1,0 +1,210 @@
+"""The sensor's set-crossing width read from a campaign's reversals
+(calibration/certificate/crossing.py) and the turnaround row of the
+certificate's budget it bounds: synthetic campaigns whose sensor crosses
+with a known width on the filtered temperature, and ones that cannot say."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import stats
+from test_calibration_fit import ANGLES_DEG, TRUE, cycle, smooth_noise, write_run_log
+from test_certificate import campaign_of
+
+from thermotilt.calibration.certificate import certify
+from thermotilt.calibration.certificate.crossing import (
+    MAX_WIDTH_C,
+    WIDTH_STEP_C,
+    crossing_mismatch,
+    estimate_crossing,
+    largest_mismatch,
+    stop_shares,
+)
+from thermotilt.calibration.certificate.errors import axis_errors, nominal_angles
+from thermotilt.calibration.dataset import Campaign, SetData, load
+from thermotilt.calibration.fit import fit_surface
+from thermotilt.lsm9ds0 import LSB_PER_G
+from thermotilt.set_blend import FIRMWARE_TRANSITION_C, blend, warming_shares
+
+ROW_C = 0.01  # the synthetic path's temperature step a row (10 Hz at 6 degC/min)
+ROW_S = 0.1
+# The sets differ by 2 x SET_OFFSET_LSB, as the twin's X sets do at the ends
+# of the staircase (16-31 LSB); the rows scatter as the twin's do about
+# their line before a turn (0.5-1 LSB, runs/demo/batch), correlated over 4 s.
+SET_OFFSET_LSB = 15.0
+NOISE_LSB = 1.0
+# The device's trend detector switches its label after this much excursion (lib/Compensation TrendDetector).
+LABEL_HYSTERESIS_C = 0.5
+TURNS_C = (20.0, 44.0, -10.0, 30.0)  # two reversals a position, each with long runs both sides
+TURNAROUND = "set selection at turnarounds"
+
+
+def labels_of(temperature: np.ndarray) -> np.ndarray:
+    """The device's set label: a Schmitt trigger on the excursion from the running extreme."""
+    labels, state, extreme = [], "W", temperature[0]
+    for value in temperature:
+        extreme = max(extreme, value) if state == "W" else min(extreme, value)
+        if abs(value - extreme) > LABEL_HYSTERESIS_C:
+            state, extreme = ("C" if state == "W" else "W"), value
+        labels.append(state)
+    return np.array(labels)
+
+
+def crossing_campaign(rng, width_c: float, set_offset: float = SET_OFFSET_LSB, turns=TURNS_C) -> Campaign:
+    """Every angle of ANGLES_DEG along turns, its sensor crossing between
+    the sets with a stop operator of width_c on the (filtered) temperature,
+    each mounting with its own offset and slope about the drift."""
+    temperature = np.concatenate(
+        [np.arange(a, b, ROW_C if b > a else -ROW_C) for a, b in zip(turns[:-1], turns[1:])] + [[turns[-1]]]
+    )
+    share = stop_shares(width_c, temperature[0], temperature, 1.0)
+    labels = labels_of(temperature)
+    parts: dict[str, list] = {"W": [], "C": []}
+    for index, angle in enumerate(ANGLES_DEG):
+        reading = np.full(len(temperature), LSB_PER_G * np.sin(np.radians(angle)))
+        drift = TRUE.evaluate(temperature, reading)
+        mounting = rng.normal(0.0, 3.0) + rng.normal(0.0, 0.3) * (temperature - 25.0)
+        residual = blend(share, drift + set_offset, drift - set_offset) + mounting
+        residual += smooth_noise(rng, len(temperature), NOISE_LSB, 40)
+        for set_name, rows in parts.items():
+            mine = labels == set_name
+            rows.append((temperature[mine], reading[mine], residual[mine], index, np.flatnonzero(mine) * ROW_S))
+    sets = {
+        set_name: SetData(
+            np.concatenate([part[0] for part in rows]),
+            {"X": np.concatenate([part[1] for part in rows])},
+            {"X": np.concatenate([part[2] for part in rows])},
+            np.concatenate([np.full(len(part[0]), part[3]) for part in rows]),
+            time_s=np.concatenate([part[4] for part in rows]),
+        )
+        for set_name, rows in parts.items()
+    }
+    labels_text = tuple(f"p{index} (x {angle}.00 deg, y 0.00 deg)" for index, angle in enumerate(ANGLES_DEG))
+    return Campaign(labels_text, sets, 0)
+
+
+def crossing_of(campaign: Campaign):
+    fits = [fit_surface(campaign.sets[s], s, "X") for s in ("W", "C")]
+    errors = axis_errors(campaign, fits, "X", nominal_angles(campaign.positions)["X"])
+    return estimate_crossing({"X": errors}, fits), fits
+
+
+@pytest.fixture(scope="module", params=[0.0, 1.5, 3.0])
+def measured(request):
+    width = request.param
+    return width, crossing_of(crossing_campaign(np.random.default_rng(int(width * 10) + 1), width))[0]
+
+
+def test_two_stop_operators_from_the_same_end_differ_by_at_most_one_less_their_widths_ratio():
+    # On a monotone path the narrower operator has crossed at x = min(w, w_d)
+    # while the wider is min / max of the way: exactly 1 - min / max. On
+    # paths that wander (steps of either sign) from the same saturated end
+    # the difference never exceeds it: 2000 random paths, float rounding only.
+    rise = np.linspace(0.0, 8.0, 8001)
+    for width, device in ((0.5, 1.5), (3.0, 1.5), (1.5, 1.5), (2.0, 6.0)):
+        difference = warming_shares(width, 0.0, rise, 0.0) - warming_shares(device, 0.0, rise, 0.0)
+        assert np.max(np.abs(difference)) == pytest.approx(crossing_mismatch(width, device), abs=1e-3)
+    rng = np.random.default_rng(4)
+    for _ in range(2000):
+        width, device = rng.uniform(0.05, 6.0, 2)
+        path = np.cumsum(rng.normal(rng.uniform(-0.1, 0.1), rng.uniform(0.01, 1.0), 300))
+        start = float(rng.choice([0.0, 1.0]))
+        difference = warming_shares(width, 0.0, path, start) - warming_shares(device, 0.0, path, start)
+        assert np.max(np.abs(difference)) <= crossing_mismatch(width, device) + 1e-12
+    assert crossing_mismatch(0.0) == 1.0 and crossing_mismatch(FIRMWARE_TRANSITION_C) == 0.0
+    # Largest at an end of the interval: below w_d the narrow end, above it the wide one.
+    assert largest_mismatch(1.0, 2.0) == pytest.approx(max(1 - 1.0 / 1.5, 1 - 1.5 / 2.0))
+
+
+def test_an_instant_crossing_is_the_limit_of_a_narrow_one():
+    path = np.array([1.0, 1.2, 1.2, 0.9, 0.9, 1.4, 1.3])
+    narrow = warming_shares(1e-9, 1.0, path, 0.0)
+    np.testing.assert_array_equal(stop_shares(0.0, 1.0, path, 0.0), narrow)
+    np.testing.assert_array_equal(stop_shares(0.0, 1.0, path, 0.0), [0, 1, 1, 0, 0, 1, 0])
+
+
+def test_a_known_crossing_width_lies_in_its_prediction_interval(measured):
+    width, crossing = measured
+    # Both reversals of every position: the top one after warming from
+    # 20 degC, the bottom one after cooling 54 degC.
+    assert len(crossing.reversals) == 2 * len(ANGLES_DEG) and crossing.unevaluated == 0
+    assert {r.old_set for r in crossing.reversals} == {"W", "C"}
+    low, high = crossing.prediction_interval_c()
+    assert low <= width <= high, (width, crossing.widths_c)
+    # 1 LSB of noise against a 30 LSB step reads each width to ~0.2 degC or
+    # better; an interval as wide as the device's whole width would be the
+    # method reading noise, not the crossing.
+    assert high - low < FIRMWARE_TRANSITION_C, (low, high)
+    # Unbiased: the widths' mean within its own 95 % confidence interval of
+    # the truth (t s / sqrt(n)), plus half a grid step. Without the step's
+    # scale free (crossing._profile), the fitted surfaces' share of the step
+    # reads 3.0 degC as 2.84 and fails this.
+    widths = crossing.widths_c
+    mean_half = stats.t.ppf(0.975, len(widths) - 1) * np.std(widths, ddof=1) / np.sqrt(len(widths))
+    assert abs(np.mean(widths) - width) <= mean_half + WIDTH_STEP_C / 2, (np.mean(widths), mean_half)
+
+
+def test_the_mismatch_is_small_when_the_widths_match_and_whole_for_an_instant_crossing(measured):
+    width, crossing = measured
+    m = crossing.mismatch()
+    assert m == pytest.approx(largest_mismatch(*crossing.prediction_interval_c()))
+    if width == FIRMWARE_TRANSITION_C:
+        # An interval within +-0.5 degC of 1.5 (a third of the width) gives
+        # m <= 1 - 1 / 1.5 = 1/3.
+        assert m <= 1.0 / 3.0, (m, crossing.prediction_interval_c())
+    elif width == 0.0:
+        # An interval reaching down to 0.15 degC (a tenth of w_d) gives m >= 0.9.
+        assert m >= 0.9, (m, crossing.prediction_interval_c())
+    else:
+        assert m >= crossing_mismatch(width) - 0.1, m  # 1 - 1.5 / 3 = 0.5, less a grid step's worth at each end
+
+
+def test_a_campaign_without_time_or_reversals_keeps_the_whole_difference(tmp_path):
+    untimed = campaign_of(np.random.default_rng(5))  # test_certificate's: rows without time_s
+    crossing, fits = crossing_of(untimed)
+    assert not crossing.reversals and crossing.mismatch() == 1.0
+    assert "not measured" in crossing.source() and "m = 1" in crossing.source()
+    # A reversal that comes back less than MAX_WIDTH_C cannot tell the widest
+    # candidate from a narrower one, and is said to be left out.
+    short = crossing_campaign(np.random.default_rng(7), 1.5, turns=(-10.0, 44.0, 44.0 - MAX_WIDTH_C / 2))
+    crossing = crossing_of(short)[0]
+    assert crossing.mismatch() == 1.0 and crossing.unevaluated == len(ANGLES_DEG)
+    assert "after it" in crossing.source()
+
+
+def test_sets_that_do_not_differ_cannot_show_a_width():
+    crossing = crossing_of(crossing_campaign(np.random.default_rng(8), 1.5, set_offset=0.0))[0]
+    assert not crossing.reversals and crossing.unevaluated == 2 * len(ANGLES_DEG)
+    assert crossing.mismatch() == 1.0 and "sigma" in crossing.source()
+
+
+def test_the_turnaround_row_takes_m_of_the_sets_difference(tmp_path):
+    campaign = crossing_campaign(np.random.default_rng(9), 1.5)
+    crossing, fits = crossing_of(campaign)
+    untimed = Campaign(
+        campaign.positions,
+        {name: SetData(d.temperature_c, d.acceleration, d.residual, d.position) for name, d in campaign.sets.items()},
+        0,
+    )
+    rows = {}
+    for name, each in (("timed", campaign), ("untimed", untimed)):
+        document = certify(each, fits, tmp_path, "TT-A").document
+        rows[name] = next(c for c in document["budget"]["X"]["components"] if c["name"] == TURNAROUND)
+    # The same band, the same fits: only m differs, 1 without the rows' time.
+    assert rows["timed"]["value"] == pytest.approx(crossing.mismatch() * rows["untimed"]["value"])
+    assert rows["timed"]["value"] < 0.5 * rows["untimed"]["value"]
+    assert f"measured at {2 * len(ANGLES_DEG)} reversals" in rows["timed"]["source"]
+    assert f"m = {crossing.mismatch():.2f}" in rows["timed"]["source"]
+    assert "m = 1" in rows["untimed"]["source"]
+
+
+def test_load_gives_each_row_its_time(tmp_path):
+    temperatures, sets = cycle()
+    for angle in ANGLES_DEG[:3]:
+        write_run_log(tmp_path / f"pos{angle}" / "run.csv", angle, temperatures, sets)
+    campaign = load(tmp_path)
+    for set_name in ("W", "C"):
+        data = campaign.sets[set_name]
+        written = np.flatnonzero(np.array(sets) == set_name) / 10.0  # write_run_log's time_s: a row each 0.1 s
+        for position in np.unique(data.position):
+            np.testing.assert_allclose(data.time_s[data.position == position], written, atol=1e-9)
