@@ -109,9 +109,10 @@ def test_a_field_run_stays_within_the_certificates_uncertainty(field_against_cer
 @pytest.mark.slow
 @pytest.mark.xfail(
     strict=True,
-    reason="U at the run's conditions is about 8x its p95 change: on nine positions the "
-    "leave-one-position-out component has 4 positions a band (k = 3.2) and the turnaround row keeps about "
-    "half the sets' difference (m over the measured crossing widths' prediction interval, docs/calibration.md)",
+    reason="U at the run's conditions is 4-8x its p95 change: two Type B rows the twin's field runs do not "
+    "exercise dominate it, the IMU temperature reading's assumed 0.5 degC shift between chamber and field and "
+    "the turnaround row, which keeps about half the sets' difference (the crossing widths read at the demo "
+    "campaign's compressed rates, 0.8-1.4 degC, against the device's 1.5; docs/calibration.md)",
 )
 def test_the_certificates_uncertainty_is_not_padded(field_against_certificate):
     p95, u95 = field_against_certificate

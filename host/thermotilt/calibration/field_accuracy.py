@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..record import Share as RunShare
+from .certificate.budget import two_significant_text
 from .field_bench import NO, YES
 from .field_replay import FIELD_PROFILES
 
@@ -152,7 +153,7 @@ def _sensor_table(rows: list[Row], sensors: list[str]) -> list[str]:
         misses = [binding_axis(row) for row in judged(mine) if row["within"] == NO]
         by_axis = ", ".join(f"{axis} {misses.count(axis)}" for axis in sorted(set(misses))) or "–"
         lines.append(
-            f"| {sensor} | {mine[0]['certificate_u95_deg']} | {runs_within(mine)} "
+            f"| {sensor} | {two_significant_text(float(mine[0]['certificate_u95_deg']))} | {runs_within(mine)} "
             f"| {_median([ratio(row) for row in judged(mine)])} | {by_axis} |"
         )
     return lines + [""]
