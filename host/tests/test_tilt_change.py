@@ -38,18 +38,18 @@ def test_the_change_is_taken_from_the_first_settled_minute():
     assert change.p95_deg == pytest.approx(expected)
 
 
-def test_the_installation_reading_waits_for_the_device_to_decide_its_set():
-    # Still for 300 s, then 0.01 degC/s: the device, halfway between its sets
-    # at power-up (COMP_SET_POWER_UP_SHARE), reaches the warming set 0.75 degC
-    # (half of COMP_SET_TRANSITION_C) later, at 375 s.
+def test_the_installation_reading_waits_until_the_sensors_set_is_known():
+    # Still for 300 s, then 0.01 degC/s: a sensor that was in the cooling set
+    # has crossed to the warming one 1.5 degC (COMP_SET_TRANSITION_C) later,
+    # at 450 s; the device's blend, halfway at power-up, was there at 375 s.
     temperature = 20.0 + np.clip(TIME_S - 300.0, 0.0, None) * 0.01
     still = {"X": np.zeros(len(TIME_S)), "Y": np.zeros(len(TIME_S))}
     outside = {axis: np.zeros(len(TIME_S), dtype=bool) for axis in "XY"}
     change = tilt_change(TIME_S, temperature, still, outside, None, None, "test")
-    assert change.installation.start_s == pytest.approx(375.0, abs=0.1) and change.installation.set_decided
+    assert change.installation.start_s == pytest.approx(450.0, abs=0.1) and change.installation.set_decided
     flat = tilt_change(TIME_S, np.full(len(TIME_S), 20.0), still, outside, None, None, "test")
     assert flat.installation.start_s == 120.0 and not flat.installation.set_decided
-    assert "it was not: the temperature had not moved 0.75 degC" in format_tilt_change(flat)
+    assert "it was not: the temperature had not moved 1.5 degC one way" in format_tilt_change(flat)
 
 
 def test_a_named_baseline_moves_the_installation_reading():

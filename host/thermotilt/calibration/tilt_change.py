@@ -6,11 +6,13 @@ field tests, section 4.3, read the same sensor through warming and cooling).
 The installation reading is each axis's median compensated reading over
 INSTALLATION_WINDOW_S: the first settled minute (from ``run.SETTLE_S``
 after the first row, the time a table move takes to settle in a campaign)
-once the device's set is decided, or the minute from a time the user names.
-The device starts halfway between its sets (lib/Compensation's
-COMP_SET_POWER_UP_SHARE) and decides when the temperature has moved half
-the transition one way; a reading taken before would carry the undecided
-half of the sets' difference into every later change. A row's change is its reading
+once the sensor's set is known, or the minute from a time the user names.
+Neither the device nor the host knows which set the sensor's history left
+it in at power-up; once the temperature has moved a whole transition one
+way, a sensor that started in either set has crossed to the same one, as
+has the device's blend (which starts halfway, lib/Compensation's
+COMP_SET_POWER_UP_SHARE). A reading taken before would carry the unknown
+part of the sets' difference into every later change. A row's change is its reading
 less that one, in LSB, mg and degrees of tilt (``tilt_deg`` of each, so the
 degrees are those of the axis's whole reading, measuring offset included).
 
@@ -29,7 +31,7 @@ import numpy as np
 
 from ..lsm9ds0 import MG_PER_LSB, tilt_deg
 from ..run import SETTLE_S
-from ..set_blend import FIRMWARE_POWER_UP_SHARE, FIRMWARE_TRANSITION_C, warming_shares
+from ..set_blend import FIRMWARE_TRANSITION_C, warming_shares
 from .dataset import FIT_AXES, CalibrationDataError
 
 # A switch between the sets is measured as the change of the compensated
@@ -56,7 +58,7 @@ class Installation:
     temperature_c: float
     reading_lsb: dict[str, float]
     named: bool  # the user named its time (--baseline)
-    set_decided: bool  # the device's warming share was at 0 or 1 by then
+    set_decided: bool  # the sensor's set was known by then (set_decided_s)
 
 
 @dataclass(frozen=True)
@@ -151,11 +153,14 @@ def set_switches(time_s: np.ndarray, sets: np.ndarray, compensated: dict[str, np
 
 
 def set_decided_s(time_s: np.ndarray, temperature_c: np.ndarray) -> float | None:
-    """When the device, powered up at the first row, first had its warming
-    share at 0 or 1 (lib/Compensation SetBlend on the filtered temperature);
-    None if it never had."""
-    share = warming_shares(FIRMWARE_TRANSITION_C, float(temperature_c[0]), temperature_c, FIRMWARE_POWER_UP_SHARE)
-    decided = np.flatnonzero((share <= 0.0) | (share >= 1.0))
+    """When the sensor's set became known after the device's power-up at
+    the first row: when the device's stop operator (lib/Compensation
+    SetBlend on the filtered temperature) started from the warming set and
+    from the cooling set first agree; None if they never do."""
+    start = float(temperature_c[0])
+    from_cooling = warming_shares(FIRMWARE_TRANSITION_C, start, temperature_c, 0.0)
+    from_warming = warming_shares(FIRMWARE_TRANSITION_C, start, temperature_c, 1.0)
+    decided = np.flatnonzero(from_cooling == from_warming)
     return float(time_s[decided[0]]) if decided.size else None
 
 
@@ -167,8 +172,8 @@ def installation(
     decided_s: float | None = None,
 ) -> Installation | None:
     """The installation reading: the minute from baseline_s, or from
-    SETTLE_S after the first row or from decided_s (when the device's set
-    was decided; None never), whichever is later (None where the run has no
+    SETTLE_S after the first row or from decided_s (when the sensor's set
+    became known; None never), whichever is later (None where the run has no
     such minute; a named minute without rows is an error)."""
     start = float(baseline_s) if baseline_s is not None else float(time_s[0] + SETTLE_S)
     if baseline_s is None and decided_s is not None:
@@ -264,9 +269,9 @@ def format_tilt_change(change: TiltChange) -> str:
         return "n/a" if value is None else format(value, form)
 
     reference = change.installation
-    how = "named" if reference.named else "the first settled minute once the device's set was decided"
+    how = "named" if reference.named else "the first settled minute once the sensor's set was known"
     if not reference.set_decided:
-        how += f" (it was not: the temperature had not moved {FIRMWARE_POWER_UP_SHARE * FIRMWARE_TRANSITION_C:g} degC)"
+        how += f" (it was not: the temperature had not moved {FIRMWARE_TRANSITION_C:g} degC one way)"
     lines = [
         f"change of tilt from the installation reading ({how}: {reference.start_s:g}..{reference.end_s:g} s, "
         f"{reference.rows} rows, IMU {reference.temperature_c:.1f} degC), rows from it on ({change.before_rows} before "
