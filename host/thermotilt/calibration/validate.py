@@ -274,9 +274,7 @@ def validate(
     else:
         after_from = f"compensated here with {coefficients.source}"
         domain = coefficients.domain
-    # The device's warming share from its power-up at the log's first row.
-    share = warming_shares(FIRMWARE_TRANSITION_C, float(rows.temperature[0]), rows.temperature, FIRMWARE_POWER_UP_SHARE)
-    after = _compensated(rows, coefficients, share)
+    after = _compensated(rows, coefficients)
     outside, inside_what = _outside_rows(rows, after, domain, board_outside, certificate)
     series = {"time_s": rows.time_s, "temperature_c": rows.temperature, "set": rows.sets}
     results = [
@@ -307,14 +305,15 @@ def validate(
     )
 
 
-def _compensated(rows: _Rows, coefficients: Coefficients | None, share: np.ndarray) -> dict[str, np.ndarray]:
+def _compensated(rows: _Rows, coefficients: Coefficients | None) -> dict[str, np.ndarray]:
     """Each axis's compensated reading on every row: the firmware's, or
     computed here as the firmware does, the two sets' surfaces blended by
-    the device's warming share (set_blend on the logged filtered
-    temperature), one share for every axis."""
+    the device's warming share from its power-up at the log's first row
+    (set_blend on the logged filtered temperature), one share for every axis."""
     if coefficients is None:
         return {axis: rows.firmware[axis] for axis in FIT_AXES}
     temperature = rows.temperature
+    share = warming_shares(FIRMWARE_TRANSITION_C, float(temperature[0]), temperature, FIRMWARE_POWER_UP_SHARE)
     after = {}
     for axis in FIT_AXES:
         before = rows.filtered[axis]
