@@ -24,6 +24,7 @@ from thermotilt.calibration.certificate.errors import axis_errors, nominal_angle
 from thermotilt.calibration.dataset import Campaign, SetData, load
 from thermotilt.calibration.fit import fit_surface
 from thermotilt.lsm9ds0 import LSB_PER_G
+from thermotilt.physics.sensor import drift_sets
 from thermotilt.set_blend import FIRMWARE_TRANSITION_C, blend, warming_shares
 
 ROW_C = 0.01  # the synthetic path's temperature step a row (10 Hz at 6 degC/min)
@@ -33,21 +34,11 @@ ROW_S = 0.1
 # their line before a turn (0.5-1 LSB, runs/demo/batch), correlated over 4 s.
 SET_OFFSET_LSB = 15.0
 NOISE_LSB = 1.0
-# The device's trend detector switches its label after this much excursion (lib/Compensation TrendDetector).
+# The device's trend detector switches its label after this much excursion (lib/Compensation
+# TrendDetector, whose Schmitt trigger physics.sensor.drift_sets follows).
 LABEL_HYSTERESIS_C = 0.5
 TURNS_C = (20.0, 44.0, -10.0, 30.0)  # two reversals a position, each with long runs both sides
 TURNAROUND = "set selection at turnarounds"
-
-
-def labels_of(temperature: np.ndarray) -> np.ndarray:
-    """The device's set label: a Schmitt trigger on the excursion from the running extreme."""
-    labels, state, extreme = [], "W", temperature[0]
-    for value in temperature:
-        extreme = max(extreme, value) if state == "W" else min(extreme, value)
-        if abs(value - extreme) > LABEL_HYSTERESIS_C:
-            state, extreme = ("C" if state == "W" else "W"), value
-        labels.append(state)
-    return np.array(labels)
 
 
 def crossing_campaign(rng, width_c: float, set_offset: float = SET_OFFSET_LSB, turns=TURNS_C) -> Campaign:
@@ -58,7 +49,7 @@ def crossing_campaign(rng, width_c: float, set_offset: float = SET_OFFSET_LSB, t
         [np.arange(a, b, ROW_C if b > a else -ROW_C) for a, b in zip(turns[:-1], turns[1:])] + [[turns[-1]]]
     )
     share = stop_shares(width_c, temperature[0], temperature, 1.0)
-    labels = labels_of(temperature)
+    labels = drift_sets(LABEL_HYSTERESIS_C, temperature[0], temperature)
     parts: dict[str, list] = {"W": [], "C": []}
     for index, angle in enumerate(ANGLES_DEG):
         reading = np.full(len(temperature), LSB_PER_G * np.sin(np.radians(angle)))
