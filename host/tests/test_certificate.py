@@ -85,13 +85,46 @@ def issued(tmp_path_factory):
     return campaign, fits, certification.document, out
 
 
+def _flat(nested: list) -> list:
+    return [leaf for item in nested for leaf in (_flat(item) if isinstance(item, list) else [item])]
+
+
 def test_the_headline_is_the_largest_u_of_the_table(issued):
     _, _, document, _ = issued
-    values = [v for row in document["uncertainty_table"]["X"]["u95_deg"] for v in row if v is not None]
+    values = [v for v in _flat(document["uncertainty_table"]["X"]["u95_deg"]) if v is not None]
     assert document["tilt_u95_deg"] == max(values) == document["u95_max_deg"]["X"]
     assert document["budget"]["X"]["expanded_deg"] == document["tilt_u95_deg"]
     # A bound is not an average: it is not below any band's U.
     assert all(cell["expanded_deg"] <= document["tilt_u95_deg"] for cell in document["cells"])
+
+
+def test_a_drift_both_readings_share_cancels_in_the_change(issued):
+    # The campaign's mountings drift with their own slope in T (SLOPE_SPREAD):
+    # installed and read in one band, the change carries almost none of it;
+    # installed at one end of the domain and read at the other, all of it.
+    _, _, document, _ = issued
+    bands = document["uncertainty_table"]["X"]["temperature_bands_c"]
+
+    def between(installed: list, read: list) -> float:
+        cell = next(
+            c
+            for c in document["cells"]
+            if c["installation_band_c"] == installed and c["temperature_band_c"] == read and c["tilt_band_deg"][0] > 0
+        )
+        return cell["contributions_deg"]["between positions (out of sample)"]
+
+    for read in (bands[0], bands[-1]):
+        farthest = bands[-1] if read == bands[0] else bands[0]
+        assert between(read, read) < 0.25 * between(farthest, read)
+    shifts = {
+        (tuple(c["installation_band_c"]), tuple(c["temperature_band_c"])): c["contributions_deg"][
+            "temperature reading shift"
+        ]
+        for c in document["cells"]
+        if c["tilt_band_deg"][0] > 0
+    }
+    # One shift of the temperature reading moves both readings: only the change of df/dT between them counts.
+    assert shifts[tuple(bands[0]), tuple(bands[0])] < shifts[tuple(bands[-1]), tuple(bands[0])]
 
 
 def test_the_mounting_component_rests_on_the_positions_of_its_band_less_one(issued):
@@ -99,7 +132,7 @@ def test_the_mounting_component_rests_on_the_positions_of_its_band_less_one(issu
     table = document["uncertainty_table"]["X"]
     # 0-15 deg holds 0 and +-15; 15-30 deg only +-30, too few, so it joins 30-45.
     assert table["tilt_bands_deg"] == [[0.0, 15.0], [15.0, 45.0]]
-    assert {n for row in table["positions"] for n in row} == {3, 4}
+    assert set(_flat(table["positions"])) == {3, 4}
     between = next(c for c in document["budget"]["X"]["components"] if c["name"].startswith("between"))
     assert between["degrees_of_freedom"] == document["budget"]["X"]["positions"] - 1
     assert between["kind"] == "A" and "leave-one-position-out" in between["source"]
@@ -123,9 +156,8 @@ def test_the_budget_lists_every_type_b_component_with_its_reason(issued):
 
 def test_u_is_given_to_two_significant_digits_rounded_up(issued):
     _, _, document, _ = issued
-    for row in document["uncertainty_table"]["X"]["u95_deg"]:
-        for value in row:
-            assert float(two_significant_text(value)) == value
+    for value in _flat(document["uncertainty_table"]["X"]["u95_deg"]):
+        assert float(two_significant_text(value)) == value
     assert two_significant_up(0.1234) == 0.13 and two_significant_up(0.12) == 0.12
     assert two_significant_up(0.0999) == 0.1 and two_significant_text(0.1) == "0.10"
 
@@ -154,9 +186,12 @@ def test_fresh_mountings_stay_within_the_type_a_part_of_u_about_95_percent_of_ro
         fits = [fit_surface(campaign.sets[s], s, "X") for s in ("W", "C")]
         document = certify(campaign, fits, tmp_path, "TT-A").document
         table = document["uncertainty_table"]["X"]
+        # The fresh rows' errors are about their reference at 25 degC: a change from an installation there.
+        installed = table["temperature_bands_c"][band_index(np.array([25.0]), table["temperature_bands_c"], False)[0]]
         type_a = {
             (tuple(c["temperature_band_c"]), tuple(c["tilt_band_deg"])): c["type_a_expanded_deg"]
             for c in document["cells"]
+            if c["installation_band_c"] == installed
         }
         slopes = rng.normal(0.0, SLOPE_SPREAD, len(ANGLES_DEG))
         for fit, offset in zip(fits, (SET_OFFSET_LSB, -SET_OFFSET_LSB)):
@@ -237,12 +272,14 @@ def test_u95_at_holds_the_calibration_rows_and_is_nan_outside_the_domain(issued)
     inside = (data.temperature_c >= document["domain"]["temperature_c"][0]) & (
         data.temperature_c <= document["domain"]["temperature_c"][1]
     )
-    u95 = u95_at(document, "X", data.temperature_c, compensated)
-    assert np.isfinite(u95[inside]).all() and set(np.unique(u95[inside])) <= {
-        v for row in document["uncertainty_table"]["X"]["u95_deg"] for v in row
-    }
+    u95 = u95_at(document, "X", data.temperature_c, compensated, 25.0)
+    assert np.isfinite(u95[inside]).all() and set(np.unique(u95[inside])) <= set(
+        _flat(document["uncertainty_table"]["X"]["u95_deg"])
+    )
     level = np.array([OFFSET_LSB, OFFSET_LSB + LSB_PER_G * np.sin(np.radians(60.0))])
-    assert np.isnan(u95_at(document, "X", np.array([60.0, 25.0]), level)).all()
+    assert np.isnan(u95_at(document, "X", np.array([60.0, 25.0]), level, 25.0)).all()
+    # An installation reading outside the domain: no U for any change from it.
+    assert np.isnan(u95_at(document, "X", data.temperature_c, compensated, 60.0)).all()
     assert not in_domain(document, "X", np.array([60.0, 25.0]), level).any()
 
 

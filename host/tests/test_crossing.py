@@ -177,12 +177,21 @@ def test_the_turnaround_row_takes_m_of_the_sets_difference(tmp_path):
         {name: SetData(d.temperature_c, d.acceleration, d.residual, d.position) for name, d in campaign.sets.items()},
         0,
     )
-    rows = {}
+    rows, documents = {}, {}
     for name, each in (("timed", campaign), ("untimed", untimed)):
-        document = certify(each, fits, tmp_path, "TT-A").document
-        rows[name] = next(c for c in document["budget"]["X"]["components"] if c["name"] == TURNAROUND)
-    # The same band, the same fits: only m differs, 1 without the rows' time.
-    assert rows["timed"]["value"] == pytest.approx(crossing.mismatch() * rows["untimed"]["value"])
+        documents[name] = certify(each, fits, tmp_path, "TT-A").document
+        rows[name] = next(c for c in documents[name]["budget"]["X"]["components"] if c["name"] == TURNAROUND)
+
+    def contributions(document: dict) -> list[float]:
+        return [cell["contributions_deg"][TURNAROUND] for cell in document["cells"]]
+
+    # The same cells, the same fits: only m differs, 1 without the rows' time (the cells round to 1e-6 deg).
+    np.testing.assert_allclose(
+        contributions(documents["timed"]),
+        crossing.mismatch() * np.array(contributions(documents["untimed"])),
+        rtol=1e-4,
+        atol=1e-6,
+    )
     assert rows["timed"]["value"] < 0.5 * rows["untimed"]["value"]
     assert f"measured at {2 * len(ANGLES_DEG)} reversals" in rows["timed"]["source"]
     assert f"m = {crossing.mismatch():.2f}" in rows["timed"]["source"]

@@ -79,14 +79,30 @@ def test_the_share_within_u_is_held_row_by_row_at_its_own_u():
     # is 0.05 deg: the rows after the drift passes 0.05 deg are outside it.
     drift_deg = np.linspace(0.0, 0.1, len(TIME_S))
     x = LSB_PER_G * np.sin(np.radians(drift_deg))
-    u95 = {axis: np.full(len(TIME_S), 0.05) for axis in "XY"}
-    change = change_of({"X": x, "Y": np.zeros(len(TIME_S))}, u95=u95)
+    asked = []
+
+    def u95_for(installation_c: float) -> dict[str, np.ndarray]:
+        asked.append(installation_c)
+        return {axis: np.full(len(TIME_S), 0.05) for axis in "XY"}
+
+    change = change_of({"X": x, "Y": np.zeros(len(TIME_S))}, u95=u95_for)
     installed = TIME_S >= 120.0
+    # U is the certificate's for a change from an installation reading at the installation minute's temperature.
+    assert asked == [pytest.approx(np.median(TEMPERATURE_C[installed & (TIME_S < 180.0)]))]
     held = np.abs(tilt_deg(x) - tilt_deg(np.array(np.median(x[installed & (TIME_S < 180)])))) <= 0.05
     held = held[installed]
     assert change.axis("X").within_u_share == pytest.approx(np.mean(held))
     assert change.axis("Y").within_u_share == 1.0
     assert change.within_u_share == pytest.approx((np.mean(held) + 1.0) / 2.0)
+
+
+def test_an_installation_the_certificate_states_no_u_for_is_held_to_none_and_said():
+    change = change_of(
+        {"X": np.zeros(len(TIME_S)), "Y": np.zeros(len(TIME_S))},
+        u95=lambda installation_c: {axis: np.full(len(TIME_S), np.nan) for axis in "XY"},
+    )
+    assert change.within_u_share is None and change.axis("X").u95_max_deg is None
+    assert "the certificate states no U for an installation reading at 22.5 degC" in format_tilt_change(change)
 
 
 def test_validate_writes_the_change_and_the_cli_refuses_a_baseline_without_rows(tmp_path, capsys):

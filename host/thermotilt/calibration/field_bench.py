@@ -9,7 +9,7 @@ run it (``field_replay``: the sensor model and the firmware's processing
 with that sensor's fitted coefficients), and read as ``thermotilt
 validate`` reads a run against a certificate: the change of tilt from the
 installation reading (``tilt_change``), each row held against the
-certificate's U at its conditions (``certificate.u95_at``), the rows
+certificate's U for it (``certificate.u95_at``), the rows
 outside its domain (``certificate.in_domain``) left out.
 
 The record (docs/benchmarks/field-runs.csv) is resumable, as discovery's
@@ -146,11 +146,13 @@ class Reading:
     """A field run as a monitoring user reads it against the certificate."""
 
     p95_change_deg: float | None  # X and Y pooled, in-domain rows (tilt_change)
-    u95_deg: float | None  # the largest U over the run's in-domain rows, either axis
+    u95_deg: (
+        float | None
+    )  # the largest U of a change over the run's in-domain rows from the installation on, either axis
     rows_within_share: float | None  # X and Y pooled, each row against its own U
     max_change_deg: float | None  # the largest change of an in-domain row, either axis
     p95_deg: dict[str, float | None]  # per axis
-    u95_axis_deg: dict[str, float | None]  # per axis, the largest U over its in-domain rows
+    u95_axis_deg: dict[str, float | None]  # per axis, the largest U over its in-domain rows from the installation on
     rows: int  # in-domain rows, X and Y counted apart
     outside_rows: int
     temperature_c: tuple[float, float]
@@ -166,19 +168,22 @@ class Reading:
 def read_field_run(time_s: np.ndarray, frames: dict[str, np.ndarray], certificate: dict) -> Reading:
     """The run's frames (as printed) read as `validate` reads a run against a
     certificate: the change from the installation reading over the rows
-    inside the certificate's domain, each held against U at its conditions."""
+    inside the certificate's domain, each held against the U for its change."""
     from .certificate import in_domain, u95_at
     from .tilt_change import tilt_change
 
     temperature = frames["temp_c"]
     compensated = {"X": frames["ax_comp"], "Y": frames["ay_comp"]}
-    u95 = {axis: u95_at(certificate, axis, temperature, compensated[axis]) for axis in FIT_AXES}
+
+    def u95_for(installation_c: float) -> dict[str, np.ndarray]:
+        return {axis: u95_at(certificate, axis, temperature, compensated[axis], installation_c) for axis in FIT_AXES}
+
     inside = {axis: in_domain(certificate, axis, temperature, compensated[axis]) for axis in FIT_AXES}
     outside = {axis: ~inside[axis] for axis in FIT_AXES}
-    change = tilt_change(time_s, temperature, compensated, outside, None, u95, DOMAIN)
-    largest = {axis: float(np.max(u95[axis][inside[axis]])) if inside[axis].any() else None for axis in FIT_AXES}
-    known = [value for value in largest.values() if value is not None]
+    change = tilt_change(time_s, temperature, compensated, outside, None, u95_for, DOMAIN)
     axes = {axis.axis: axis for axis in change.axes} if change is not None else {}
+    largest = {axis: axes[axis].u95_max_deg if axes else None for axis in FIT_AXES}
+    known = [value for value in largest.values() if value is not None]
     return Reading(
         p95_change_deg=change.p95_deg if change is not None else None,
         u95_deg=max(known) if known else None,
@@ -450,4 +455,9 @@ class _Session:
             return
         self.cache.mkdir(parents=True, exist_ok=True)
         (self.cache / f"{sensor}.json").write_text(calibration.to_json(), encoding="utf-8")
-        say(f"sensor {sensor} calibrated: U = {calibration.certificate.get('tilt_u95_deg')} deg at most")
+        from .certificate.budget import two_significant_text
+
+        largest = calibration.certificate.get("tilt_u95_deg")
+        say(
+            f"sensor {sensor} calibrated: U = {'n/a' if largest is None else two_significant_text(largest)} deg at most"
+        )

@@ -19,12 +19,15 @@ degrees are those of the axis's whole reading, measuring offset included).
 Rows outside the certificate's domain (or, without a certificate, outside
 the coefficients' fitted range) are counted apart and left out of every
 percentile: the certificate says nothing of them. With a certificate, each
-row's change is also held against the certificate's U at that row's own
-temperature and tilt (``certificate.u95_at``).
+row's change is also held against the certificate's U for it: at the
+installation reading's temperature and the row's own temperature and tilt
+(``certificate.u95_at``); none where the installation is outside the
+certificate's domain.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -70,7 +73,7 @@ class AxisChange:
     p95_mg: float | None
     p95_deg: float | None
     max_deg: float | None
-    # The share of the rows whose change is within the certificate's U at their conditions.
+    # The share of the rows whose change is within the certificate's U for it.
     within_u_share: float | None
     # The certificate's U at the run's rows, the largest: what the run is held to.
     u95_max_deg: float | None = None
@@ -208,17 +211,19 @@ def tilt_change(
     compensated: dict[str, np.ndarray],
     outside: dict[str, np.ndarray],
     baseline_s: float | None,
-    u95_deg: dict[str, np.ndarray] | None,
+    u95_for: Callable[[float], dict[str, np.ndarray]] | None,
     domain: str,
 ) -> TiltChange | None:
     """The change of each axis's compensated reading from the installation
     reading, over the rows from it on. outside: per axis, the rows outside
-    the domain (domain says whose); u95_deg: per axis, the certificate's U
-    at each row (None without a certificate). None where the run has no
-    settled minute."""
+    the domain (domain says whose); u95_for: given the installation
+    reading's temperature, per axis the certificate's U of each row's change
+    (None without a certificate; NaN where it states none). None where the
+    run has no settled minute."""
     reference = installation(time_s, temperature_c, compensated, baseline_s, set_decided_s(time_s, temperature_c))
     if reference is None:
         return None
+    u95_deg = u95_for(reference.temperature_c) if u95_for is not None else None
     # The rows before the installation reading are no change a user reads.
     installed = time_s >= reference.start_s
     axes, change_deg, pooled, pooled_within = [], {}, [], []
@@ -228,11 +233,12 @@ def tilt_change(
         degrees = tilt_deg(compensated[axis]) - float(tilt_deg(np.array(reference.reading_lsb[axis])))
         change_deg[axis] = np.where(inside, degrees, np.nan)
         within = largest_u95 = None
-        if u95_deg is not None and inside.any():
-            held = np.abs(degrees[inside]) <= u95_deg[axis][inside]
+        stated = inside & np.isfinite(u95_deg[axis]) if u95_deg is not None else np.zeros_like(inside)
+        if stated.any():
+            held = np.abs(degrees[stated]) <= u95_deg[axis][stated]
             pooled_within.append(held)
             within = float(np.mean(held))
-            largest_u95 = float(np.max(u95_deg[axis][inside]))
+            largest_u95 = float(np.max(u95_deg[axis][stated]))
         pooled.append(degrees[inside])
         p95_lsb = _percentile(change_lsb[inside])
         axes.append(
@@ -290,5 +296,10 @@ def format_tilt_change(change: TiltChange) -> str:
     pooled = f"X and Y: p95 {shown(change.p95_deg, '.4f')} deg"
     if change.within_u_share is not None:
         pooled += f", {100 * change.within_u_share:.1f} % of rows within the certificate's U at their conditions"
+    elif change.u95_deg is not None:
+        pooled += (
+            f"; the certificate states no U for an installation reading at {reference.temperature_c:.1f} degC "
+            "(outside its domain)"
+        )
     lines.append(pooled)
     return "\n".join(lines)

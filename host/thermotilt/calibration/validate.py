@@ -286,9 +286,12 @@ def validate(
     difference = None
     if coefficients is not None:
         difference = max(float(np.nanmax(np.abs(after[axis] - rows.firmware[axis]))) for axis in FIT_AXES)
-    u95 = None
+    u95_for = None
     if certificate is not None:
-        u95 = {axis: u95_at(certificate, axis, rows.temperature, after[axis]) for axis in FIT_AXES}
+
+        def u95_for(installation_c: float) -> dict[str, np.ndarray]:
+            return {axis: u95_at(certificate, axis, rows.temperature, after[axis], installation_c) for axis in FIT_AXES}
+
     return Validation(
         str(rows.path),
         rows.count,
@@ -301,7 +304,7 @@ def validate(
         difference,
         series,
         set_switches(rows.time_s, rows.sets, after),
-        tilt_change(rows.time_s, rows.temperature, after, outside, baseline_s, u95, inside_what),
+        tilt_change(rows.time_s, rows.temperature, after, outside, baseline_s, u95_for, inside_what),
     )
 
 

@@ -28,6 +28,8 @@ from .errors import AxisErrors
 
 COVERAGE_PROBABILITY = 0.95
 SQRT3 = math.sqrt(3.0)
+# The change is a difference of two readings with independent rate and resolution errors.
+TWO_READINGS = math.sqrt(2.0)
 # The LSM9DS0's temperature output between calibration and field: the
 # datasheet gives its scale (8 LSB/degC) but no accuracy or stability; the
 # paper found an offset it corrected by a constant (section 2) and ~0.5 degC
@@ -47,6 +49,36 @@ RESOLUTION_LSB = 1.0
 # accelerometers of that generation state as typical.
 SENSITIVITY_TOLERANCE = 0.05
 SENSITIVITY_TEMPCO_PER_C = 1e-4
+
+
+# The Type B components' sources, as the budget prints them.
+SHIFT_SOURCE = (
+    "assumed bound on the LSM9DS0 temperature output's offset shift between chamber and field (no "
+    "datasheet accuracy figure; paper sections 2, 3.1): one shift moves both readings, so the change "
+    "takes the difference of |df/dT| at the reading and at the installation (either set), largest in "
+    "the cell, x d tilt/d a"
+)
+SET_SELECTION_SOURCE = (
+    "after a warming/cooling reversal the device blends its sets' surfaces over w_d = "
+    f"{FIRMWARE_TRANSITION_C:g} degC of its filtered temperature (lib/Compensation SetBlend) and the sensor "
+    "crosses over its own width w: two stop operators crossing the same path from the same end differ "
+    "by at most m = 1 - min(w, w_d) / max(w, w_d) of the way, so the error lies between 0 and "
+    "m |f_W - f_C| (largest in the cell), its sign unknown; uncorrected, mean and spread together give "
+    "half-width m |f_W - f_C| / sqrt(3); "
+)
+RESOLUTION_SOURCE = (
+    "1 LSB of the 16-bit output (0.061 mg at +-2 g, LSM9DS0 datasheet): half-width 0.5 LSB (GUM F.2.2.1), "
+    "in the reading and in the installation reading (sensitivity x sqrt(2))"
+)
+TOLERANCE_SOURCE = (
+    "the LSB-to-degree conversion's nominal 0.061 mg/LSB (typical only in the LSM9DS0 datasheet; "
+    f"+-{SENSITIVITY_TOLERANCE:.0%} assumed) scales the tilt error: sensitivity the cell's Type A u"
+)
+TEMPCO_SOURCE = (
+    f"+-{SENSITIVITY_TEMPCO_PER_C:.2%}/degC (typical of ST's accelerometers; assumed for the LSM9DS0) "
+    "x |T - T0| x |a|, largest in the cell: not added, the surfaces' T x a term (p11) compensates it "
+    "and what they leave is in the between-positions component"
+)
 
 
 @dataclass(frozen=True)
@@ -197,11 +229,31 @@ def axis_inputs(errors: AxisErrors, fits: list[SurfaceFit], crossing: Crossing) 
     )
 
 
-def _largest_temperature_slope(inputs: AxisInputs, temperature: np.ndarray, acceleration: np.ndarray) -> float:
-    """max over the rows and sets of |df/dT| = |p10 + 2 p20 T + p11 a|, LSB/degC."""
+def _corners(*ranges: np.ndarray) -> list[np.ndarray]:
+    """Every corner of the box the values' ranges span, one array per range."""
+    grids = np.meshgrid(*[np.array([np.min(values), np.max(values)]) for values in ranges], indexing="ij")
+    return [grid.ravel() for grid in grids]
+
+
+def _largest_slope_change(
+    inputs: AxisInputs, temperature: np.ndarray, installation_c: np.ndarray, acceleration: np.ndarray
+) -> float:
+    """max over the rows and every pairing of sets of the change of df/dT =
+    p10 + 2 p20 T + p11 a between the installation reading (T0, either set)
+    and the reading (T, either set), LSB/degC: linear in T, T0 and a, so
+    largest at a corner of their ranges."""
+    t, t0, a = _corners(temperature, installation_c, acceleration)
+    surfaces = [fit.surface for fit in inputs.fits.values()]
     return max(
-        float(np.max(np.abs(s.p10 + 2.0 * s.p20 * temperature + s.p11 * acceleration)))
-        for s in (fit.surface for fit in inputs.fits.values())
+        float(
+            np.max(
+                np.abs(
+                    (late.p10 + 2.0 * late.p20 * t + late.p11 * a) - (early.p10 + 2.0 * early.p20 * t0 + early.p11 * a)
+                )
+            )
+        )
+        for late in surfaces
+        for early in surfaces
     )
 
 
@@ -223,40 +275,45 @@ def rectangular(
 
 
 def type_b_components(
-    inputs: AxisInputs, temperature: np.ndarray, acceleration: np.ndarray, deg_per_lsb: np.ndarray, type_a_deg: float
+    inputs: AxisInputs,
+    temperature: np.ndarray,
+    installation_c: np.ndarray,
+    acceleration: np.ndarray,
+    deg_per_lsb: np.ndarray,
+    type_a_deg: float,
 ) -> list[Component]:
-    """The band's Type B components (and the Type A W - C offset estimate)
-    at its rows' conditions: each a bound over the band's rows (their
-    largest value), so that the band's U is a bound too."""
+    """The cell's Type B components (and the Type A W - C offset estimate)
+    for a change from an installation reading at installation_c (its band's
+    rows' temperatures) to a reading at its rows' conditions: each a bound
+    over them (its largest value), so that the cell's U is a bound too.
+    The installation reading is taken once the set is known (tilt_change),
+    so the set selection's component is the reading's alone; rate, lag and
+    resolution act on both readings independently."""
     slope = float(np.max(deg_per_lsb))
-    offset_reach = float(np.max(np.abs(temperature - 25.0)) * np.max(np.abs(acceleration)))
+    t, t0, a = _corners(temperature, installation_c, acceleration)
+    offset_reach = float(np.max(np.abs(t - t0) * np.abs(a)))
     return [
         rectangular(
             "temperature reading shift",
             TEMPERATURE_SHIFT_C,
             "degC",
-            _largest_temperature_slope(inputs, temperature, acceleration) * slope,
-            "assumed bound on the LSM9DS0 temperature output's offset shift between chamber and field (no "
-            "datasheet accuracy figure; paper sections 2, 3.1); sensitivity |df/dT| x d tilt/d a, largest in the band",
+            _largest_slope_change(inputs, temperature, installation_c, acceleration) * slope,
+            SHIFT_SOURCE,
         ),
         rectangular(
             "rate and lag",
             inputs.rate_bound_lsb,
             "LSB",
-            slope,
-            inputs.rate_source + "; a lag of the die behind its reading shows as this rate dependence",
+            TWO_READINGS * slope,
+            inputs.rate_source + "; a lag of the die behind its reading shows as this rate dependence; "
+            "the reading's and the installation reading's, independent (sensitivity x sqrt(2))",
         ),
         rectangular(
             "set selection at turnarounds",
             inputs.set_mismatch * _largest_set_difference(inputs, temperature, acceleration),
             "LSB",
             slope,
-            "after a warming/cooling reversal the device blends its sets' surfaces over w_d = "
-            f"{FIRMWARE_TRANSITION_C:g} degC of its filtered temperature (lib/Compensation SetBlend) and the sensor "
-            "crosses over its own width w: two stop operators crossing the same path from the same end differ "
-            "by at most m = 1 - min(w, w_d) / max(w, w_d) of the way, so the error lies between 0 and "
-            "m |f_W - f_C| (largest in the band), its sign unknown; uncorrected, mean and spread together give "
-            f"half-width m |f_W - f_C| / sqrt(3); {inputs.set_mismatch_source}",
+            SET_SELECTION_SOURCE + inputs.set_mismatch_source,
         ),
         Component(
             "set offset estimate",
@@ -273,25 +330,22 @@ def type_b_components(
             "resolution",
             RESOLUTION_LSB / 2.0,
             "LSB",
-            slope,
-            "1 LSB of the 16-bit output (0.061 mg at +-2 g, LSM9DS0 datasheet): half-width 0.5 LSB (GUM F.2.2.1)",
+            TWO_READINGS * slope,
+            RESOLUTION_SOURCE,
         ),
         rectangular(
             "sensitivity tolerance",
             SENSITIVITY_TOLERANCE,
             "relative",
             type_a_deg,
-            "the LSB-to-degree conversion's nominal 0.061 mg/LSB (typical only in the LSM9DS0 datasheet; "
-            f"+-{SENSITIVITY_TOLERANCE:.0%} assumed) scales the tilt error: sensitivity the band's Type A u",
+            TOLERANCE_SOURCE,
         ),
         rectangular(
             "sensitivity change with temperature",
             SENSITIVITY_TEMPCO_PER_C * offset_reach,
             "LSB",
             slope,
-            f"+-{SENSITIVITY_TEMPCO_PER_C:.2%}/degC (typical of ST's accelerometers; assumed for the LSM9DS0) "
-            "x |T - 25| x |a|, largest in the band: not added, the surfaces' T x a term (p11) compensates it "
-            "and what they leave is in the between-positions component",
+            TEMPCO_SOURCE,
             added=False,
         ),
     ]

@@ -141,7 +141,7 @@ def procedure() -> dict:
 def conversion(zero_readings: dict[str, float]) -> dict:
     return {
         "formula": "tilt = asin((a_comp - a_zero) / S), S = 1 g = 16393.44 LSB (0.061 mg/LSB at +-2 g), as "
-        "validate.tilt_deg converts a reading once the zero reading a_zero is taken off",
+        "lsm9ds0.tilt_deg converts a reading once the zero reading a_zero is taken off",
         "lsb_per_g": LSB_PER_G,
         "mg_per_lsb": MG_PER_LSB,
         "zero_reading_lsb": zero_readings,
@@ -154,12 +154,14 @@ def validity(domain: dict, rate_limit_c_per_min: float) -> list[str]:
     tilts = "; ".join(f"{axis} {low:+g} to {high:+g} deg" for axis, (low, high) in domain["tilt_deg"].items())
     low_c, high_c = domain["temperature_c"]
     return [
-        f"IMU-indicated temperature {low_c:.1f} to {high_c:.1f} degC; nominal tilt {tilts} (the table's angles).",
+        f"IMU-indicated temperature {low_c:.1f} to {high_c:.1f} degC at the installation reading and at the "
+        f"reading; nominal tilt {tilts} (the table's angles).",
+        "The installation reading taken once the device's set is decided: after the temperature has moved "
+        "the set transition one way since power-up.",
         "Static tilt: readings of the Kalman-filtered output at rest, no vibration or shock.",
         f"IMU temperature changing at most {rate_limit_c_per_min:g} degC/min.",
         "The item compensating with the coefficients whose sha256 this certificate states.",
-        "Not covered: a change of tilt between readings (the sensitivity's scale over the change), an "
-        "installation reading taken away from 25 degC (the change then combines U at both temperatures), "
+        "Not covered: a change of tilt between readings (the sensitivity's scale over the change), "
         "long-term bias drift, hysteresis beyond the warming/cooling sets, shocks, and the Z axis.",
     ]
 

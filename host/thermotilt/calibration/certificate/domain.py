@@ -54,30 +54,14 @@ def band_index(values: np.ndarray, bands: list[list[float]], closed_above: bool)
     return np.where(inside & np.isfinite(values), index, -1)
 
 
-def u95_at(document: dict, axis: str, temperature_c: np.ndarray, compensated_lsb: np.ndarray) -> np.ndarray:
-    """The certificate's expanded uncertainty U (95 %, degrees) at each row's
-    conditions: the value of its table (``document["uncertainty_table"][axis]``)
-    at the row's IMU-temperature band and |nominal tilt| band; NaN where the
-    row is outside the certificate's domain or the axis has no table.
-
-    temperature_c: the IMU's temperature reading (degC), as run.csv's
-    ``imu_temp_c``. compensated_lsb: the device's compensated reading of that
-    axis (``ax_comp``/``ay_comp``, or a host compensation of ``a*_filt``),
-    which still carries the measuring offset (paper section 4.1: X about
-    -1823 LSB): it is converted to nominal tilt with the certificate's
-    ``zero_reading_lsb[axis]`` (``nominal_tilt_deg``). The domain is the
-    calibrated IMU temperatures ``domain["temperature_c"]`` and the axis's
-    nominal tilts ``domain["tilt_deg"][axis]`` widened by
-    ``domain["tilt_allowance_deg"][axis]`` (how far the conversion put a
-    calibration point from its nominal angle). The U is for a static tilt's
-    single reading about the position's reference reading (the measurand
-    ``document["measurand"]`` states)."""
-    temperature = np.asarray(temperature_c, dtype=float)
-    compensated = np.asarray(compensated_lsb, dtype=float)
-    result = np.full(np.broadcast(temperature, compensated).shape, np.nan)
+def _cells(document: dict, axis: str, temperature_c: np.ndarray, compensated_lsb: np.ndarray):
+    """Each row's reading band and tilt band of the axis's table, and
+    whether the row is inside the domain (None without a table)."""
     table = document.get("uncertainty_table", {}).get(axis)
     if table is None:
-        return result
+        return None
+    temperature = np.asarray(temperature_c, dtype=float)
+    compensated = np.asarray(compensated_lsb, dtype=float)
     domain = document["domain"]
     tilt = nominal_tilt_deg(compensated, document["zero_reading_lsb"][axis])
     low, high = domain["tilt_deg"][axis]
@@ -90,16 +74,64 @@ def u95_at(document: dict, axis: str, temperature_c: np.ndarray, compensated_lsb
     tilt_bands[-1][1] += allowance
     rows = band_index(np.clip(temperature, low_c, high_c), table["temperature_bands_c"], closed_above=False)
     columns = band_index(np.abs(tilt), tilt_bands, closed_above=True)
-    inside &= (rows >= 0) & (columns >= 0)
-    values = np.array(table["u95_deg"], dtype=float)
+    return rows, columns, inside & (rows >= 0) & (columns >= 0)
+
+
+def installation_band(document: dict, axis: str, installation_c: float) -> int:
+    """The axis's table's band of an installation reading's IMU temperature, -1 outside the domain."""
+    table = document.get("uncertainty_table", {}).get(axis)
+    low_c, high_c = document["domain"]["temperature_c"]
+    if table is None or not low_c <= installation_c <= high_c:
+        return -1
+    return int(band_index(np.array([installation_c]), table["temperature_bands_c"], closed_above=False)[0])
+
+
+def u95_at(
+    document: dict, axis: str, temperature_c: np.ndarray, compensated_lsb: np.ndarray, installation_c: float
+) -> np.ndarray:
+    """The certificate's expanded uncertainty U (95 %, degrees) of each row's
+    change from an installation reading at installation_c: the value of its
+    table (``document["uncertainty_table"][axis]``) at the installation's
+    IMU-temperature band, the row's and the row's |nominal tilt| band; NaN
+    where the row or the installation is outside the certificate's domain
+    or the axis has no table.
+
+    temperature_c: the IMU's temperature reading (degC), as run.csv's
+    ``imu_temp_c``. compensated_lsb: the device's compensated reading of that
+    axis (``ax_comp``/``ay_comp``, or a host compensation of ``a*_filt``),
+    which still carries the measuring offset (paper section 4.1: X about
+    -1823 LSB): it is converted to nominal tilt with the certificate's
+    ``zero_reading_lsb[axis]`` (``nominal_tilt_deg``). The domain is the
+    calibrated IMU temperatures ``domain["temperature_c"]`` and the axis's
+    nominal tilts ``domain["tilt_deg"][axis]`` widened by
+    ``domain["tilt_allowance_deg"][axis]`` (how far the conversion put a
+    calibration point from its nominal angle). The U is for a static tilt's
+    single reading less the installation reading (the measurand
+    ``document["measurand"]`` states)."""
+    shape = np.broadcast(np.asarray(temperature_c), np.asarray(compensated_lsb)).shape
+    result = np.full(shape, np.nan)
+    cells = _cells(document, axis, temperature_c, compensated_lsb)
+    early = installation_band(document, axis, installation_c)
+    if cells is None or early < 0:
+        return result
+    rows, columns, inside = cells
+    values = np.array(document["uncertainty_table"][axis]["u95_deg"], dtype=float)[early]
     result[inside] = values[rows[inside], columns[inside]]
     return result
 
 
 def in_domain(document: dict, axis: str, temperature_c: np.ndarray, compensated_lsb: np.ndarray) -> np.ndarray:
-    """Whether each row lies where the certificate states a U: True exactly
-    where ``u95_at`` is a number (same arguments, same conventions)."""
-    return np.isfinite(u95_at(document, axis, temperature_c, compensated_lsb))
+    """Whether each row lies where the certificate states a U (same
+    arguments and conventions as ``u95_at``): inside its domain, in a cell
+    of its table with a number for some installation band."""
+    cells = _cells(document, axis, temperature_c, compensated_lsb)
+    if cells is None:
+        return np.zeros(np.broadcast(np.asarray(temperature_c), np.asarray(compensated_lsb)).shape, dtype=bool)
+    rows, columns, inside = cells
+    stated = np.isfinite(np.array(document["uncertainty_table"][axis]["u95_deg"], dtype=float)).any(axis=0)
+    result = inside.copy()
+    result[inside] = stated[rows[inside], columns[inside]]
+    return result
 
 
 def read_certificate(path: Path) -> dict:

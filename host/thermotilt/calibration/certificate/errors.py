@@ -6,7 +6,7 @@ draws evaluated out of sample).
 
 The error is about the position's one reference reading (``dataset``'s
 residual reference: the mean of its warming and cooling 25 degC readings),
-converted to degrees as ``validate.tilt_deg`` converts a reading, after the
+converted to degrees as ``lsm9ds0.tilt_deg`` converts a reading, after the
 axis's zero reading: tilt = asin((a - zero) / 1 g).
 """
 

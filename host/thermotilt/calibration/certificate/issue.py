@@ -26,19 +26,23 @@ CERTIFICATE_HTML = "certificate.html"
 CERTIFICATE_PDF = "certificate.pdf"
 COEFFICIENTS_BIN = "coefficients.bin"
 MEASURAND = (
-    "The change of tilt about the axis (X or Y) from an installation reading: the compensated tilt's error "
-    "about the position's reference reading (the mean of its warming and cooling readings at 25 degC), for "
-    "a single reading at an IMU-indicated temperature in the band, the tilt static."
+    "The change of tilt about the axis (X or Y) from an installation reading: a single compensated reading at "
+    "an IMU-indicated temperature in the reading's band less the installation reading, taken at an "
+    "IMU-indicated temperature in the installation's band once the device's set is decided (the temperature "
+    "has moved its set transition one way since power-up), the tilt static."
 )
 METHOD = (
-    "Per axis, U is tabulated by bands of IMU temperature (5 degC) and of |nominal tilt| (0-15, 15-30, 30-45 "
-    f"deg, a band of fewer than {MIN_BAND_POSITIONS} positions merged with its neighbour). The mounting-to-"
-    "mounting component is evaluated out of sample: each position's rows compensated with surfaces fitted "
-    "without it; per band the RMS over positions of their mean error (positions - 1 degrees of freedom, GUM "
-    "H.5, F.1.1.2) and the rows' scatter about it (their effective count, Newey-West). Type B components "
-    "(GUM 4.3) as the budget lists them, each a bound over its band. u_c is their root sum of squares, "
-    "nu_eff by Welch-Satterthwaite (G.4.1), k from Student's t at p = 95 %, U = k u_c rounded up to two "
-    "significant digits; tilt_u95_deg is the largest U of the table, a bound over the domain."
+    "Per axis, U is tabulated by bands of the installation reading's IMU temperature, of the reading's (5 "
+    "degC each) and of |nominal tilt| (0-15, 15-30, 30-45 deg, a band of fewer than "
+    f"{MIN_BAND_POSITIONS} positions merged with its neighbour). The mounting-to-mounting component is "
+    "evaluated out of sample: each position's rows compensated with surfaces fitted without it; per cell the "
+    "RMS over positions of the difference of their mean errors in the two temperature bands (positions - 1 "
+    "degrees of freedom, GUM H.5, F.1.1.2) and the rows' scatter about each mean (their effective count, "
+    "Newey-West). Type B components (GUM 4.3) as the budget lists them, each a bound over its cell. u_c is "
+    "their root sum of squares, nu_eff by Welch-Satterthwaite (G.4.1), k from Student's t at p = 95 %, "
+    "U = k u_c rounded up to two significant digits; tilt_u95_deg is the largest U of the table, a bound "
+    "over the domain. The calibration points' errors are about their reference reading at 25 degC: they "
+    "are held against U for an installation in the band of 25 degC."
 )
 
 
@@ -62,6 +66,7 @@ def _temperature_domain(fits: list[SurfaceFit]) -> tuple[float, float]:
 def _budget(cell: Cell) -> dict:
     return {
         "axis": cell.axis,
+        "installation_band_c": list(cell.installation_band_c),
         "temperature_band_c": list(cell.temperature_band_c),
         "tilt_band_deg": list(cell.tilt_band_deg),
         "positions": cell.positions,
@@ -76,9 +81,10 @@ def _budget(cell: Cell) -> dict:
 def _cell_summary(cell: Cell) -> dict:
     return {
         "axis": cell.axis,
+        "installation_band_c": list(cell.installation_band_c),
         "temperature_band_c": list(cell.temperature_band_c),
         "tilt_band_deg": list(cell.tilt_band_deg),
-        "contributions_deg": {c.name: c.contribution_deg for c in cell.components},
+        "contributions_deg": {c.name: round(c.contribution_deg, 6) for c in cell.components},
         "type_a_expanded_deg": cell.type_a.expanded_deg,
         "expanded_deg": cell.expanded_deg,
     }

@@ -1,7 +1,8 @@
 """The certificate's results per calibration point (a position's rows of
 one set, on one axis): its nominal angle, the error as found (before
 compensation) and as left (after), out of sample, and U there; and how
-many points' errors the table's U holds."""
+many points' errors the table's U holds (U for an installation reading
+at the points' reference temperature)."""
 
 from __future__ import annotations
 
@@ -12,6 +13,9 @@ from .domain import band_index
 from .errors import AxisErrors
 
 PERCENTILE = 95.0
+# A point's errors are about its reference reading at 25 degC (dataset.reading_at_25):
+# a change from an installation there.
+REFERENCE_C = 25.0
 
 
 def _p95(values: np.ndarray) -> float | None:
@@ -42,9 +46,17 @@ def _band_checks(errors: AxisErrors, mine: np.ndarray, table: dict, lookup: dict
 
 def axis_points(errors: AxisErrors, labels: tuple[str, ...], table: dict) -> list[dict]:
     """Each calibration point of the axis, in campaign order, W before C."""
-    lookup = {
-        (i, j): value for i, row in enumerate(table["u95_deg"]) for j, value in enumerate(row) if value is not None
-    }
+    at_reference = int(band_index(np.array([REFERENCE_C]), table["temperature_bands_c"], closed_above=False)[0])
+    lookup = (
+        {}
+        if at_reference < 0
+        else {
+            (i, j): value
+            for i, row in enumerate(table["u95_deg"][at_reference])
+            for j, value in enumerate(row)
+            if value is not None
+        }
+    )
     points = []
     for position in np.unique(errors.position):
         for set_name in ("W", "C"):

@@ -11,8 +11,10 @@ import html
 import io
 
 from .budget import two_significant_text
+from .domain import installation_band
 from .errors import AxisErrors
-from .tables import budget_rows, field_rows, point_rows, u_table_rows
+from .points import REFERENCE_C
+from .tables import budget_rows, field_rows, point_rows, u_table_rows, u_table_title
 
 BAND_COLOURS = ("tab:green", "tab:orange", "tab:red")
 # The budget's columns on a landscape A4 page, the source widest.
@@ -20,9 +22,11 @@ BUDGET_WIDTHS_MM = (38, 10, 24, 20, 14, 20, 20, 10, 111)
 
 
 def figure_png(document: dict, errors: dict[str, AxisErrors]) -> bytes:
-    """Per axis: U (95 %) against temperature, a step line per tilt band,
-    and each calibration point's 95th percentile of |error| per band, as
-    left (dots) and out of sample (crosses), coloured by its tilt band."""
+    """Per axis: U (95 %) against the reading's temperature, per tilt band a
+    step line for an installation at the points' reference temperature
+    (solid) and the largest over installation bands (dashed), and each
+    calibration point's 95th percentile of |error| per band, as left (dots)
+    and out of sample (crosses), coloured by its tilt band."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -32,13 +36,17 @@ def figure_png(document: dict, errors: dict[str, AxisErrors]) -> bytes:
     figure, panels = plt.subplots(1, len(axes_names), figsize=(5.5 * len(axes_names), 4.0), squeeze=False)
     for panel, axis in zip(panels[0], axes_names):
         table = document["uncertainty_table"][axis]
-        for j, band in enumerate(table["tilt_bands_deg"]):
-            colour = BAND_COLOURS[j % len(BAND_COLOURS)]
+        at_reference = installation_band(document, axis, REFERENCE_C)
+        for k, band in enumerate(table["tilt_bands_deg"]):
+            colour = BAND_COLOURS[k % len(BAND_COLOURS)]
             for i, t_band in enumerate(table["temperature_bands_c"]):
-                value = table["u95_deg"][i][j]
-                if value is not None:
-                    label = f"U, |tilt| {band[0]:g}-{band[1]:g}°" if i == 0 else None
+                values = [installation[i][k] for installation in table["u95_deg"] if installation[i][k] is not None]
+                if at_reference >= 0 and (value := table["u95_deg"][at_reference][i][k]) is not None:
+                    label = f"U, |tilt| {band[0]:g}-{band[1]:g}°, installed at {REFERENCE_C:g} °C" if i == 0 else None
                     panel.plot(t_band, [value, value], color=colour, linewidth=2, label=label)
+                if values:
+                    label = f"largest over installations, |tilt| {band[0]:g}-{band[1]:g}°" if i == 0 else None
+                    panel.plot(t_band, [max(values)] * 2, color=colour, linewidth=1, linestyle="--", label=label)
             for point in document["points"]:
                 if point["axis"] != axis or not band[0] <= abs(point["nominal_deg"]) <= band[1]:
                     continue
@@ -48,11 +56,11 @@ def figure_png(document: dict, errors: dict[str, AxisErrors]) -> bytes:
                         panel.plot(middle, check["as_left_p95_deg"], ".", color=colour, markersize=4)
                     if check["out_of_sample_p95_deg"] is not None:
                         panel.plot(middle + 0.6, check["out_of_sample_p95_deg"], "x", color=colour, markersize=4)
-        panel.set_xlabel("IMU temperature (°C)")
-        panel.set_ylabel("tilt error (°)")
+        panel.set_xlabel("reading's IMU temperature (°C)")
+        panel.set_ylabel("tilt change error (°)")
         panel.set_title(f"{axis}: U (lines); points' p95 as left (·), out of sample (×)", fontsize=9)
         panel.set_ylim(bottom=0.0)
-        panel.legend(fontsize=7, loc="upper center")
+        panel.legend(fontsize=6, loc="upper center")
     figure.tight_layout()
     buffer = io.BytesIO()
     figure.savefig(buffer, format="png", dpi=110)
@@ -68,16 +76,24 @@ def _html_table(rows: list[list[str]], header: bool = True) -> str:
     return "<table>" + "".join(cells) + "</table>"
 
 
+def _cell_text(budget: dict) -> str:
+    installed, read, tilt = budget["installation_band_c"], budget["temperature_band_c"], budget["tilt_band_deg"]
+    return (
+        f"installed at {installed[0]:g} to {installed[1]:g} °C, read at {read[0]:g} to {read[1]:g} °C, "
+        f"|tilt| {tilt[0]:g}-{tilt[1]:g}°"
+    )
+
+
 def html_page(document: dict, png: bytes) -> str:
     number = html.escape(document["certificate_number"])
     budgets = "".join(
-        f"<h3>Budget of the largest U on {axis}: {b['temperature_band_c'][0]:g} to {b['temperature_band_c'][1]:g} "
-        f"°C, |tilt| {b['tilt_band_deg'][0]:g}-{b['tilt_band_deg'][1]:g}°</h3>" + _html_table(budget_rows(b))
+        f"<h3>Budget of the largest U on {axis}: {_cell_text(b)}</h3>" + _html_table(budget_rows(b))
         for axis, b in document["budget"].items()
     )
     u_tables = "".join(
-        f"<h3>{axis} axis</h3>" + _html_table(u_table_rows(table))
+        f"<h3>{html.escape(u_table_title(axis, table, k))}</h3>" + _html_table(u_table_rows(table, k))
         for axis, table in document["uncertainty_table"].items()
+        for k in range(len(table["tilt_bands_deg"]))
     )
     statements = "".join(f"<p>{html.escape(text)}</p>" for text in document["statements"])
     return f"""<!DOCTYPE html>
@@ -92,7 +108,7 @@ td,th{{border:1px solid #ccc;padding:2px 6px;font-size:85%;vertical-align:top}}.
 <p class="big">Largest expanded uncertainty over the domain: <b>U = {two_significant_text(document["tilt_u95_deg"])}°</b>
 (k = {document["coverage_factor"]:.2f}, coverage probability {document["coverage_probability"]:.0%});
 per axis: {", ".join(f"{axis} {two_significant_text(value)}°" for axis, value in document["u95_max_deg"].items())}.</p>
-<h2>Expanded uncertainty U (°, k from the band's effective degrees of freedom, p = 95 %)</h2>{u_tables}
+<h2>Expanded uncertainty U of the change (°, k from the cell's effective degrees of freedom, p = 95 %)</h2>{u_tables}
 <img src="data:image/png;base64,{base64.b64encode(png).decode()}" alt="U and the calibration points' errors" width="100%">
 <h2>Uncertainty budget</h2>{budgets}
 <p><small>{html.escape(document["method"])}</small></p>
@@ -147,14 +163,17 @@ def pdf_document(document: dict, png: bytes) -> bytes:
         )
     )
     for axis, u_table in document["uncertainty_table"].items():
-        story += [
-            Paragraph(f"Expanded uncertainty U (°), {axis} axis", styles["Heading3"]),
-            table(u_table_rows(u_table)),
-        ]
+        for k in range(len(u_table["tilt_bands_deg"])):
+            story += [
+                Paragraph(
+                    f"Expanded uncertainty U of the change (°), {u_table_title(axis, u_table, k)}", styles["Heading3"]
+                ),
+                table(u_table_rows(u_table, k)),
+            ]
     story += [Image(io.BytesIO(png), width=250 * mm, height=250 * mm * 4.0 / 11.0)]
     for axis, budget in document["budget"].items():
         story += [
-            Paragraph(f"Uncertainty budget of the largest U on {axis}", styles["Heading3"]),
+            Paragraph(f"Uncertainty budget of the largest U on {axis}: {_cell_text(budget)}", styles["Heading3"]),
             table(budget_rows(budget), [width * mm for width in BUDGET_WIDTHS_MM]),
         ]
     story += [Paragraph(html.escape(document["method"]), small)]

@@ -45,20 +45,27 @@ def field_rows(document: dict) -> list[list[str]]:
     ]
 
 
-def u_table_rows(table: dict) -> list[list[str]]:
-    """U per temperature band (rows) and |nominal tilt| band (columns), with k and positions."""
-    header = ["IMU °C \\ |tilt|"] + [f"{low:g}-{high:g}°" for low, high in table["tilt_bands_deg"]]
-    rows = [header]
-    for i, (low, high) in enumerate(table["temperature_bands_c"]):
-        cells = [f"{low:.1f} to {high:.1f}"]
-        for j in range(len(table["tilt_bands_deg"])):
-            value = table["u95_deg"][i][j]
-            cells.append(
-                "not certified"
-                if value is None
-                else f"{two_significant_text(value)} (k {table['coverage_factor'][i][j]:.2f}, {table['positions'][i][j]} positions)"
-            )
-        rows.append(cells)
+def u_table_title(axis: str, table: dict, tilt_index: int) -> str:
+    """The heading of one tilt band's U table: the axis, the band, its positions and k."""
+    low, high = table["tilt_bands_deg"][tilt_index]
+    factors = [
+        k
+        for installation in table["coverage_factor"]
+        for reading in installation
+        if (k := reading[tilt_index]) is not None
+    ]
+    positions = max(reading[tilt_index] for installation in table["positions"] for reading in installation)
+    k_range = f"k {min(factors):.2f} to {max(factors):.2f}" if factors else "no cell evaluated"
+    return f"{axis} axis, |tilt| {low:g}-{high:g}° ({positions} positions; {k_range})"
+
+
+def u_table_rows(table: dict, tilt_index: int) -> list[list[str]]:
+    """U (°) of one tilt band: per reading temperature band (rows) and installation band (columns)."""
+    bands = table["temperature_bands_c"]
+    rows = [["reading °C \\ installation °C"] + [f"{low:.1f} to {high:.1f}" for low, high in bands]]
+    for i, (low, high) in enumerate(bands):
+        values = [table["u95_deg"][j][i][tilt_index] for j in range(len(bands))]
+        rows.append([f"{low:.1f} to {high:.1f}"] + ["–" if v is None else two_significant_text(v) for v in values])
     return rows
 
 

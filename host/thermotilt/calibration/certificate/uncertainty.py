@@ -1,20 +1,28 @@
-"""U per axis as a function of IMU temperature and nominal tilt: a table
-of bands (``domain``), each band's budget (``budget``) and its expanded
-uncertainty; the certificate's headline is the table's maximum.
+"""U per axis as a function of the installation reading's IMU temperature,
+the reading's and the nominal tilt: a table of bands (``domain``), each
+cell's budget (``budget``) and its expanded uncertainty; the certificate's
+headline is the table's maximum.
 
-The dominant component, each mounting's drift, is evaluated out of sample:
-each position's rows are compensated with surfaces fitted without it
-(``errors.left_out_predictions``). In a band, per position and set, the
-mean of those errors is one draw of the mounting-to-mounting component
-and the rows' scatter about it the within-position component (GUM H.5,
-analysis of variance):
+The measurand is what a monitoring user reads: a reading's change from
+the installation reading. The dominant component, each mounting's drift,
+is evaluated out of sample: each position's rows are compensated with
+surfaces fitted without it (``errors.left_out_predictions``). Per position
+and set, the mean of those errors in a temperature band is its drift
+there; the difference between its means in the reading's band and in the
+installation's band is one draw of the mounting-to-mounting component of
+the change, and the rows' scatter about each mean the within-position
+component of each reading (GUM H.5, analysis of variance):
 
-- between positions: the RMS over positions of their sets' mean errors,
-  on positions - 1 degrees of freedom (F.1.1.2): the autocorrelated rows
+- between positions: the RMS over positions of those differences, on
+  positions - 1 degrees of freedom (F.1.1.2): the autocorrelated rows
   within a position add none to it;
-- within position: the rows' pooled scatter about their position's mean,
-  on the rows' effective count less one per position (the rows' variance
-  over the Newey-West variance of their mean, the fit's lag rule).
+- within position, for the reading and for the installation reading: the
+  rows' pooled scatter about their position's mean, on the rows' effective
+  count less one per position (the rows' variance over the Newey-West
+  variance of their mean, the fit's lag rule).
+
+A drift common to the two readings cancels in the change: a reading
+installed and read at one temperature carries none of it.
 """
 
 from __future__ import annotations
@@ -25,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from statsmodels.regression.linear_model import OLS
 
+from ...surfaces import SETS
 from ..fit import hac_lags
 from ..newey_west import hac_panel_covariance
 from .budget import AxisInputs, Combined, Component, combine, type_b_components
@@ -41,6 +50,7 @@ MIN_CELL_ROWS = 10
 @dataclass(frozen=True)
 class Cell:
     axis: str
+    installation_band_c: tuple[float, float]
     temperature_band_c: tuple[float, float]
     tilt_band_deg: tuple[float, float]
     positions: int
@@ -51,6 +61,17 @@ class Cell:
     @property
     def expanded_deg(self) -> float:
         return self.combined.expanded_deg
+
+
+@dataclass(frozen=True)
+class _Group:
+    """One position's rows of one set in one band: their mean error, their
+    squared scatter about it, their count and effective count."""
+
+    mean: float
+    scatter: float
+    rows: int
+    effective: float
 
 
 def tilt_bands(nominal_deg: np.ndarray, present: np.ndarray) -> list[tuple[float, float]]:
@@ -99,111 +120,157 @@ def _effective_shares(errors: AxisErrors) -> dict[tuple[int, str], float]:
     return shares
 
 
-def type_a_components(
-    errors: AxisErrors, cell: np.ndarray, shares: dict[tuple[int, str], float]
-) -> tuple[list[Component], int]:
-    """The between- and within-position components of the rows in cell,
-    and how many positions they rest on."""
-    means_squared: dict[int, list[float]] = {}
-    scatter = dof_rows = effective = 0.0
-    for position in np.unique(errors.position[cell]):
-        for set_name in np.unique(errors.set_name[cell]):
-            mine = cell & (errors.position == position) & (errors.set_name == set_name)
-            values = errors.out_of_sample_deg[mine]
+def _groups(errors: AxisErrors, band: np.ndarray, shares: dict[tuple[int, str], float]) -> dict:
+    """Per position and set, its rows in the band (a row mask), if at least MIN_CELL_ROWS."""
+    groups = {}
+    for position in np.unique(errors.position[band]):
+        for set_name in np.unique(errors.set_name[band]):
+            values = errors.out_of_sample_deg[band & (errors.position == position) & (errors.set_name == set_name)]
             if len(values) < MIN_CELL_ROWS:
                 continue
             mean = float(np.mean(values))
-            means_squared.setdefault(int(position), []).append(mean**2)
-            scatter += float(np.sum((values - mean) ** 2))
-            dof_rows += len(values) - 1
-            effective += max(shares[int(position), str(set_name)] * len(values) - 1.0, 0.0)
-    positions = len(means_squared)
+            groups[int(position), str(set_name)] = _Group(
+                mean,
+                float(np.sum((values - mean) ** 2)),
+                len(values),
+                max(shares[int(position), str(set_name)] * len(values) - 1.0, 0.0),
+            )
+    return groups
+
+
+def _within(groups: dict, which: str) -> Component:
+    scatter = sum(group.scatter for group in groups.values())
+    dof_rows = sum(group.rows - 1 for group in groups.values())
+    return Component(
+        f"within position ({which})",
+        "A",
+        math.sqrt(scatter / dof_rows),
+        "deg",
+        "normal",
+        1.0,
+        1.0,
+        max(sum(group.effective for group in groups.values()), 1.0),
+        f"the {which}'s scatter: the rows' pooled scatter about their position's mean in its band; degrees of "
+        "freedom from the rows' effective count (Newey-West variance of the mean)",
+    )
+
+
+def type_a_components(
+    errors: AxisErrors, reading: dict, installation: dict, positions_in_band: np.ndarray
+) -> tuple[list[Component], int]:
+    """The between- and within-position components of a change from an
+    installation reading (its band's groups) to a reading (its band's
+    groups), and how many positions they rest on. A position's draw of the
+    change is the difference of its mean errors in the two bands, over
+    every pairing of the sets it was read in: the installation may have
+    been in either set and the reading in either."""
+    squares = {}
+    for position in positions_in_band:
+        differences = [
+            reading[position, late].mean - installation[position, early].mean
+            for late in SETS
+            for early in SETS
+            if (position, late) in reading and (position, early) in installation
+        ]
+        if differences:
+            squares[int(position)] = float(np.mean(np.square(differences)))
+    positions = len(squares)
     if positions < 2:
         return [], positions
-    in_sample = sum(not errors.evaluable[position] for position in means_squared)
+    in_sample = sum(not errors.evaluable[position] for position in squares)
     note = (
         f" ({in_sample} in sample: a fold without them keeps fewer than three angles, too few for the quadratic in a)"
         if in_sample
         else ""
     )
-    between = math.sqrt(float(np.mean([np.mean(squares) for squares in means_squared.values()])))
-    within = math.sqrt(scatter / dof_rows)
+    used = {key: group for key, group in reading.items() if key[0] in squares}
+    used_installation = {key: group for key, group in installation.items() if key[0] in squares}
     return [
         Component(
             "between positions (out of sample)",
             "A",
-            between,
+            math.sqrt(float(np.mean(list(squares.values())))),
             "deg",
             "normal",
             1.0,
             1.0,
             positions - 1.0,
-            f"RMS over {positions} positions of each one's mean error in the band, its rows compensated with "
-            f"surfaces fitted without it (leave-one-position-out){note}; GUM H.5, F.1.1.2",
+            f"RMS over {positions} positions of the difference of each one's mean errors in the reading's and the "
+            "installation's bands, every pairing of its sets, its rows compensated with surfaces fitted without "
+            f"it (leave-one-position-out){note}; GUM H.5, F.1.1.2",
         ),
-        Component(
-            "within position (single reading)",
-            "A",
-            within,
-            "deg",
-            "normal",
-            1.0,
-            1.0,
-            max(effective, 1.0),
-            "the rows' pooled scatter about their position's mean in the band; degrees of freedom from the "
-            "rows' effective count (Newey-West variance of the mean)",
-        ),
+        _within(used, "reading"),
+        _within(used_installation, "installation reading"),
     ], positions
 
 
 def axis_cells(errors: AxisErrors, inputs: AxisInputs, temperature_c: tuple[float, float]) -> list[Cell]:
-    """The axis's table, row by row (temperature bands) and band by band
-    (tilt); a cell resting on fewer than two positions is left out."""
+    """The axis's table, installation band by installation band, reading
+    band by reading band (temperature) and band by band (tilt); a cell
+    resting on fewer than two positions is left out."""
     t_bands = temperature_bands(*temperature_c)
     tilt = tilt_bands(errors.nominal_deg, np.isfinite(errors.reference_lsb))
     shares = _effective_shares(errors)
     row_t = band_index(errors.temperature_c, [list(b) for b in t_bands], closed_above=False)
     row_tilt = band_index(np.abs(errors.nominal_deg[errors.position]), [list(b) for b in tilt], closed_above=True)
     cells = []
-    for t_index, t_band in enumerate(t_bands):
-        for tilt_index, tilt_band in enumerate(tilt):
-            cell = (row_t == t_index) & (row_tilt == tilt_index)
-            type_a, positions = type_a_components(errors, cell, shares)
-            if not type_a:
-                continue
-            type_a_combined = combine(type_a)
-            components = type_a + type_b_components(
-                inputs,
-                errors.temperature_c[cell],
-                errors.acceleration_lsb[cell],
-                errors.deg_per_lsb[cell],
-                type_a_combined.standard_deg,
-            )
-            cells.append(
-                Cell(errors.axis, t_band, tilt_band, positions, tuple(components), combine(components), type_a_combined)
-            )
+    for tilt_index, tilt_band in enumerate(tilt):
+        in_tilt = row_tilt == tilt_index
+        positions_in_band = np.unique(errors.position[in_tilt])
+        groups = [_groups(errors, in_tilt & (row_t == t_index), shares) for t_index in range(len(t_bands))]
+        for early, installation_band in enumerate(t_bands):
+            installed = in_tilt & (row_t == early)
+            for late, t_band in enumerate(t_bands):
+                type_a, positions = type_a_components(errors, groups[late], groups[early], positions_in_band)
+                if not type_a:
+                    continue
+                cell = in_tilt & (row_t == late)
+                type_a_combined = combine(type_a)
+                components = type_a + type_b_components(
+                    inputs,
+                    errors.temperature_c[cell],
+                    errors.temperature_c[installed],
+                    errors.acceleration_lsb[cell],
+                    errors.deg_per_lsb[cell],
+                    type_a_combined.standard_deg,
+                )
+                cells.append(
+                    Cell(
+                        errors.axis,
+                        installation_band,
+                        t_band,
+                        tilt_band,
+                        positions,
+                        tuple(components),
+                        combine(components),
+                        type_a_combined,
+                    )
+                )
     return cells
 
 
 def table(cells: list[Cell], temperature_c: tuple[float, float], errors: AxisErrors) -> dict:
     """certificate.json's uncertainty_table entry of an axis (``domain.u95_at``
-    reads it): U per temperature band (rows) and tilt band (columns),
-    null where no cell could be evaluated."""
+    reads it): U indexed [installation band][reading band][tilt band], the
+    first two of temperature_bands_c, null where no cell could be evaluated."""
     t_bands, tilt = temperature_bands(*temperature_c), tilt_bands(errors.nominal_deg, np.isfinite(errors.reference_lsb))
-    grid = [[None] * len(tilt) for _ in t_bands]
-    dof = [[None] * len(tilt) for _ in t_bands]
-    factor = [[None] * len(tilt) for _ in t_bands]
-    positions = [[0] * len(tilt) for _ in t_bands]
+
+    def grid(empty: object) -> list:
+        return [[[empty] * len(tilt) for _ in t_bands] for _ in t_bands]
+
+    u95, dof, factor, positions = grid(None), grid(None), grid(None), grid(0)
     for cell in cells:
-        i, j = t_bands.index(cell.temperature_band_c), tilt.index(cell.tilt_band_deg)
-        grid[i][j] = cell.expanded_deg
-        dof[i][j] = None if math.isinf(cell.combined.effective_dof) else round(cell.combined.effective_dof, 1)
-        factor[i][j] = round(cell.combined.coverage_factor, 2)
-        positions[i][j] = cell.positions
+        j, i = t_bands.index(cell.installation_band_c), t_bands.index(cell.temperature_band_c)
+        k = tilt.index(cell.tilt_band_deg)
+        u95[j][i][k] = cell.expanded_deg
+        dof[j][i][k] = None if math.isinf(cell.combined.effective_dof) else round(cell.combined.effective_dof, 1)
+        factor[j][i][k] = round(cell.combined.coverage_factor, 2)
+        positions[j][i][k] = cell.positions
     return {
         "temperature_bands_c": [list(band) for band in t_bands],
         "tilt_bands_deg": [list(band) for band in tilt],
-        "u95_deg": grid,
+        "index": ["installation band", "reading band", "tilt band"],
+        "u95_deg": u95,
         "effective_dof": dof,
         "coverage_factor": factor,
         "positions": positions,
