@@ -39,6 +39,7 @@ def _field_problem() -> str | None:
 
 def _arguments() -> argparse.Namespace:
     from thermotilt.calibration.field_bench import DEFAULT_SENSORS, TILTS_DEG
+    from thermotilt.calibration.field_calibration import BASE_POSITIONS
     from thermotilt.calibration.field_replay import FIELD_PROFILES
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -54,6 +55,12 @@ def _arguments() -> argparse.Namespace:
     option("--profile", action="append", choices=FIELD_PROFILES, help="only these profiles")
     option("--tilt", action="append", type=float, help=f"only these tilts about X (default {TILTS_DEG})")
     option("--duration", type=float, help="every profile this long, s (default: its own; for trials)")
+    option(
+        "--positions",
+        default=BASE_POSITIONS,
+        help=f"the base campaign's positions, as campaign --positions takes them (default {BASE_POSITIONS}; "
+        "all: the paper's 37); give another --folder and --record for another design",
+    )
     option("--report-only", action="store_true", help="only write the page and figure from the record")
     return parser.parse_args()
 
@@ -114,12 +121,14 @@ def main() -> int:
     args = _arguments()
     from thermotilt.calibration import field_accuracy
     from thermotilt.calibration.field_bench import Design, method_digest, read_record
+    from thermotilt.calibration.field_calibration import BaseDesign
 
     started, load = generated_page.now(), generated_page.load_average()
     design = Design(
         sensors=args.sensors,
         runs=args.runs,
         duration_s=args.duration,
+        base=BaseDesign(positions=args.positions),
         **({"profiles": tuple(args.profile)} if args.profile else {}),
         **({"tilts_deg": tuple(args.tilt)} if args.tilt else {}),
     )
