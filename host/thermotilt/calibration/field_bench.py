@@ -146,13 +146,12 @@ class Reading:
     """A field run as a monitoring user reads it against the certificate."""
 
     p95_change_deg: float | None  # X and Y pooled, in-domain rows (tilt_change)
-    u95_deg: (
-        float | None
-    )  # the largest U of a change over the run's in-domain rows from the installation on, either axis
+    # The largest U over the run's in-domain rows from the installation on, either axis.
+    u95_deg: float | None
     rows_within_share: float | None  # X and Y pooled, each row against its own U
     max_change_deg: float | None  # the largest change of an in-domain row, either axis
     p95_deg: dict[str, float | None]  # per axis
-    u95_axis_deg: dict[str, float | None]  # per axis, the largest U over its in-domain rows from the installation on
+    u95_axis_deg: dict[str, float | None]  # per axis, the same
     rows: int  # in-domain rows, X and Y counted apart
     outside_rows: int
     temperature_c: tuple[float, float]
@@ -169,18 +168,16 @@ def read_field_run(time_s: np.ndarray, frames: dict[str, np.ndarray], certificat
     """The run's frames (as printed) read as `validate` reads a run against a
     certificate: the change from the installation reading over the rows
     inside the certificate's domain, each held against the U for its change."""
-    from .certificate import in_domain, u95_at
+    from .certificate import change_u95, in_domain
     from .tilt_change import tilt_change
 
     temperature = frames["temp_c"]
     compensated = {"X": frames["ax_comp"], "Y": frames["ay_comp"]}
-
-    def u95_for(installation_c: float) -> dict[str, np.ndarray]:
-        return {axis: u95_at(certificate, axis, temperature, compensated[axis], installation_c) for axis in FIT_AXES}
-
     inside = {axis: in_domain(certificate, axis, temperature, compensated[axis]) for axis in FIT_AXES}
     outside = {axis: ~inside[axis] for axis in FIT_AXES}
-    change = tilt_change(time_s, temperature, compensated, outside, None, u95_for, DOMAIN)
+    change = tilt_change(
+        time_s, temperature, compensated, outside, None, change_u95(certificate, temperature, compensated), DOMAIN
+    )
     axes = {axis.axis: axis for axis in change.axes} if change is not None else {}
     largest = {axis: axes[axis].u95_max_deg if axes else None for axis in FIT_AXES}
     known = [value for value in largest.values() if value is not None]

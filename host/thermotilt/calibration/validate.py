@@ -45,7 +45,7 @@ from ..run.folder import RunFolder, RunFolderError
 from ..run.log import RunLogError, read_run_columns
 from ..set_blend import FIRMWARE_POWER_UP_SHARE, FIRMWARE_TRANSITION_C, blend, warming_shares
 from ..surfaces import AXES, PAPER_DEFAULTS, REFERENCE_C, SET_NAMES, SETS, ZERO_SURFACE, CoefficientTable
-from .certificate import in_domain, read_certificate, u95_at
+from .certificate import change_u95, in_domain, read_certificate
 from .compare import CALIBRATED_C, read_fit
 from .dataset import FIT_AXES, REFERENCE_BAND_C, CalibrationDataError, reading_at_25
 from .tilt_change import INSTALLATION_WINDOW_S, SetSwitch, TiltChange, format_tilt_change, set_switches, tilt_change
@@ -286,12 +286,7 @@ def validate(
     difference = None
     if coefficients is not None:
         difference = max(float(np.nanmax(np.abs(after[axis] - rows.firmware[axis]))) for axis in FIT_AXES)
-    u95_for = None
-    if certificate is not None:
-
-        def u95_for(installation_c: float) -> dict[str, np.ndarray]:
-            return {axis: u95_at(certificate, axis, rows.temperature, after[axis], installation_c) for axis in FIT_AXES}
-
+    u95_for = change_u95(certificate, rows.temperature, after) if certificate is not None else None
     return Validation(
         str(rows.path),
         rows.count,

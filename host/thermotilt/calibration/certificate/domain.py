@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -118,6 +119,21 @@ def u95_at(
     values = np.array(document["uncertainty_table"][axis]["u95_deg"], dtype=float)[early]
     result[inside] = values[rows[inside], columns[inside]]
     return result
+
+
+def change_u95(
+    document: dict, temperature_c: np.ndarray, compensated_lsb: dict[str, np.ndarray]
+) -> Callable[[float], dict[str, np.ndarray]]:
+    """``u95_at`` for each axis of compensated_lsb, as ``tilt_change`` asks
+    for it once it knows the installation reading's temperature."""
+
+    def at_installation(installation_c: float) -> dict[str, np.ndarray]:
+        return {
+            axis: u95_at(document, axis, temperature_c, values, installation_c)
+            for axis, values in compensated_lsb.items()
+        }
+
+    return at_installation
 
 
 def in_domain(document: dict, axis: str, temperature_c: np.ndarray, compensated_lsb: np.ndarray) -> np.ndarray:
