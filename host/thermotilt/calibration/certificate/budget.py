@@ -20,6 +20,7 @@ from statsmodels.regression.linear_model import OLS
 from statsmodels.tools import add_constant
 
 from ...set_blend import FIRMWARE_TRANSITION_C
+from ...surfaces import Surface
 from ..dataset import reading_at_25
 from ..fit import SurfaceFit, hac_lags
 from ..newey_west import hac_panel_covariance
@@ -235,26 +236,17 @@ def _corners(*ranges: np.ndarray) -> list[np.ndarray]:
     return [grid.ravel() for grid in grids]
 
 
-def _largest_slope_change(
-    inputs: AxisInputs, temperature: np.ndarray, installation_c: np.ndarray, acceleration: np.ndarray
-) -> float:
-    """max over the rows and every pairing of sets of the change of df/dT =
-    p10 + 2 p20 T + p11 a between the installation reading (T0, either set)
-    and the reading (T, either set), LSB/degC: linear in T, T0 and a, so
-    largest at a corner of their ranges."""
-    t, t0, a = _corners(temperature, installation_c, acceleration)
+def _largest_slope_change(inputs: AxisInputs, t: np.ndarray, t0: np.ndarray, a: np.ndarray) -> float:
+    """max over every pairing of sets of the change of df/dT = p10 + 2 p20 T
+    + p11 a between the installation reading (T0, either set) and the
+    reading (T, either set), LSB/degC, at the corners of the ranges of T, T0
+    and a (``_corners``): linear in each, it is largest at one of them."""
+
+    def slope(surface: Surface, temperature: np.ndarray) -> np.ndarray:
+        return surface.p10 + 2.0 * surface.p20 * temperature + surface.p11 * a
+
     surfaces = [fit.surface for fit in inputs.fits.values()]
-    return max(
-        float(
-            np.max(
-                np.abs(
-                    (late.p10 + 2.0 * late.p20 * t + late.p11 * a) - (early.p10 + 2.0 * early.p20 * t0 + early.p11 * a)
-                )
-            )
-        )
-        for late in surfaces
-        for early in surfaces
-    )
+    return max(float(np.max(np.abs(slope(late, t) - slope(early, t0)))) for late in surfaces for early in surfaces)
 
 
 def _largest_set_difference(inputs: AxisInputs, temperature: np.ndarray, acceleration: np.ndarray) -> float:
@@ -297,7 +289,7 @@ def type_b_components(
             "temperature reading shift",
             TEMPERATURE_SHIFT_C,
             "degC",
-            _largest_slope_change(inputs, temperature, installation_c, acceleration) * slope,
+            _largest_slope_change(inputs, t, t0, a) * slope,
             SHIFT_SOURCE,
         ),
         rectangular(
