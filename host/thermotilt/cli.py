@@ -1,7 +1,7 @@
 """Command line: ``thermotilt COMMAND ...``. Each wing registers its own
-commands (``wire``, ``twin``, ``calibration``, ``discovery``); this module
-parses, runs the one chosen and turns what it raises into one line on
-stderr (docs/reliability.md lists them)."""
+commands (``wire``, ``twin``, ``calibration``, ``discovery``,
+``registry``); this module parses, runs the one chosen and turns what it
+raises into one line on stderr (docs/reliability.md lists them)."""
 
 from __future__ import annotations
 
@@ -13,6 +13,7 @@ from . import __version__
 from .calibration import cli as calibration
 from .discovery import cli as discovery
 from .options import PROGRAM, ArgumentParser, UsageError, interrupted, one_line
+from .registry import cli as registry
 from .twin import cli as twin
 from .wire import cli as wire
 from .wire.protocol_spec import PROTOCOL_VERSION
@@ -22,7 +23,7 @@ def build_parser() -> ArgumentParser:
     parser = ArgumentParser(prog=PROGRAM, description="ThermoTilt host tools.")
     parser.add_argument("--version", action="version", version=f"{PROGRAM} {__version__} (protocol {PROTOCOL_VERSION})")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for wing in (wire, twin, calibration, discovery):
+    for wing in (wire, twin, calibration, discovery, registry):
         wing.add_commands(commands)
     return parser
 

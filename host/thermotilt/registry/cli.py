@@ -1,0 +1,91 @@
+"""The registry's commands: ``registry rebuild FOLDER...`` and ``registry
+ingest FOLDER...`` (the folders into the database) and ``sensors`` (the
+fleet, one line per sensor); docs/registry.md. The database loads only
+when a command runs."""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from ..options import as_usage_error, existing_folder, within
+from . import DEFAULT_INTERVAL_DAYS
+
+if TYPE_CHECKING:
+    from .database import Registry
+    from .ingest import Ingestion
+
+
+def add_commands(commands: argparse._SubParsersAction) -> None:
+    registry = commands.add_parser(
+        "registry", help="the lab registry of sensors, fits, campaigns and runs (docs/registry.md)"
+    )
+    actions = registry.add_subparsers(dest="action", required=True, metavar="ACTION")
+    rebuild = actions.add_parser(
+        "rebuild", help="empty the registry and record every campaign, fit, run and validation in FOLDER..."
+    )
+    ingest = actions.add_parser(
+        "ingest",
+        help="record the campaigns, fits, runs and validations in FOLDER... (a folder recorded before: only its changes)",
+    )
+    for action, run in ((rebuild, _rebuild), (ingest, _ingest)):
+        action.add_argument(
+            "folders", nargs="+", metavar="FOLDER", type=existing_folder, help="a folder to walk, its subfolders too"
+        )
+        _add_registry_option(action)
+        action.set_defaults(run=run)
+    sensors = commands.add_parser(
+        "sensors", help="every sensor in the registry: last calibration, U, fit, last validation, recalibration due"
+    )
+    sensors.add_argument(
+        "--interval-days",
+        metavar="N",
+        type=within(int, 1),
+        default=DEFAULT_INTERVAL_DAYS,
+        help=f"recalibration due N days after the last calibration (default {DEFAULT_INTERVAL_DAYS})",
+    )
+    _add_registry_option(sensors)
+    sensors.set_defaults(run=_sensors)
+
+
+def _add_registry_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--registry",
+        metavar="URL",
+        help="database URL, e.g. sqlite:///lab.sqlite3 or postgresql+psycopg://host/lab "
+        "(default: $THERMOTILT_REGISTRY, else runs/registry.sqlite3 here)",
+    )
+
+
+def _rebuild(args: argparse.Namespace) -> int:
+    from .ingest import rebuild
+
+    return _record(args, rebuild)
+
+
+def _ingest(args: argparse.Namespace) -> int:
+    from .ingest import ingest
+
+    return _record(args, ingest)
+
+
+def _record(args: argparse.Namespace, workflow: Callable[[Registry, Sequence[Path]], Ingestion]) -> int:
+    from .database import Registry, RegistryError, registry_url
+    from .folders import FolderError
+
+    with as_usage_error(RegistryError, FolderError), Registry.open(registry_url(args.registry)) as registry:
+        ingestion = workflow(registry, [Path(folder) for folder in args.folders])
+    print(ingestion.summary())
+    return 0
+
+
+def _sensors(args: argparse.Namespace) -> int:
+    from .database import Registry, RegistryError, registry_url
+    from .fleet import fleet
+
+    with as_usage_error(RegistryError), Registry.open(registry_url(args.registry)) as registry:
+        listing = fleet(registry, args.interval_days)
+    print(listing.summary())
+    return 0

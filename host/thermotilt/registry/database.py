@@ -1,0 +1,190 @@
+"""The registry's database: which one (``--registry URL``, else
+``THERMOTILT_REGISTRY``, else ``runs/registry.sqlite3`` here), opening it
+at the newest schema (Alembic, ``migrations/``), and its transactions.
+
+SQLite runs in WAL mode, so readers never wait for a writer, and every
+write transaction begins IMMEDIATE with a busy timeout: a second writer (a
+second rig, a rebuild) waits for the first instead of failing, and no
+transaction can find its snapshot stale when it starts to write.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+from alembic import command
+from alembic.config import Config
+from alembic.runtime.migration import MigrationContext
+from alembic.script import ScriptDirectory
+from alembic.util import CommandError
+from sqlalchemy import Connection, Engine, create_engine, event
+from sqlalchemy.engine import make_url
+from sqlalchemy.exc import DBAPIError, SQLAlchemyError
+from sqlalchemy.orm import Session
+
+ENVIRONMENT_VARIABLE = "THERMOTILT_REGISTRY"
+DEFAULT_FILE = Path("runs") / "registry.sqlite3"
+MIGRATIONS = Path(__file__).resolve().parent / "migrations"
+# How long a writer waits for another's transaction to end: a rebuild of a
+# lab's folders writes for well under this.
+BUSY_TIMEOUT_MS = 60_000
+# SQLite's files beside a database.
+SQLITE_COMPANIONS = ("", "-wal", "-shm", "-journal")
+_BEGIN = "thermotilt_sqlite_begin"
+
+
+class RegistryError(RuntimeError):
+    """A registry that cannot be opened or written; one readable line."""
+
+
+def registry_url(option: str | None = None) -> str:
+    """The database URL: the option, else the environment's, else the SQLite
+    file in ./runs (made if missing)."""
+    if option:
+        return option
+    if os.environ.get(ENVIRONMENT_VARIABLE):
+        return os.environ[ENVIRONMENT_VARIABLE]
+    path = Path.cwd() / DEFAULT_FILE
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise RegistryError(f"cannot create {path.parent}: {error.strerror or error}") from None
+    return f"sqlite:///{path}"
+
+
+def shown(url: str) -> str:
+    """The URL as messages show it: without its password."""
+    try:
+        return make_url(url).render_as_string(hide_password=True)
+    except SQLAlchemyError:
+        return url
+
+
+def reason(error: BaseException) -> str:
+    """What went wrong, without SQLAlchemy's statement and link lines."""
+    if isinstance(error, DBAPIError) and error.orig is not None:
+        return str(error.orig)
+    return str(error).splitlines()[0] if str(error) else type(error).__name__
+
+
+def alembic_config(connection: Connection | None = None) -> Config:
+    """Alembic's configuration for the packaged migrations; with a
+    connection, env.py migrates through it."""
+    config = Config()
+    config.set_main_option("script_location", str(MIGRATIONS))
+    config.attributes["connection"] = connection
+    return config
+
+
+def create_registry_engine(url: str) -> Engine:
+    """An engine for url; for SQLite, WAL, the busy timeout and SQLAlchemy's own BEGIN."""
+    engine = create_engine(url)
+    if engine.dialect.name == "sqlite":
+
+        @event.listens_for(engine, "connect")
+        def configure(dbapi_connection: Any, _record: Any) -> None:
+            # sqlite3 would BEGIN by itself, deferred and not before DDL; the begin hook does.
+            dbapi_connection.isolation_level = None
+            cursor = dbapi_connection.cursor()
+            cursor.execute(f"PRAGMA busy_timeout = {BUSY_TIMEOUT_MS}")
+            cursor.execute("PRAGMA journal_mode = WAL")
+            cursor.execute("PRAGMA foreign_keys = ON")
+            cursor.close()
+
+        @event.listens_for(engine, "begin")
+        def begin(connection: Connection) -> None:
+            connection.exec_driver_sql(f"BEGIN {connection.get_execution_options().get(_BEGIN, 'DEFERRED')}")
+
+    return engine
+
+
+class Registry:
+    """An open registry at its newest schema; ``writing()`` and
+    ``reading()`` give a session in one transaction."""
+
+    def __init__(self, url: str, engine: Engine) -> None:
+        self.url = url
+        self.engine = engine
+        self._writer = engine.execution_options(**{_BEGIN: "IMMEDIATE"})
+
+    @classmethod
+    def open(cls, url: str) -> Registry:
+        """The registry at url, upgraded to the newest schema; RegistryError,
+        one line, for a URL that names no database this can open, or one
+        whose schema is newer than this thermotilt's."""
+        try:
+            registry = cls(url, create_registry_engine(url))
+        except (SQLAlchemyError, ImportError) as error:
+            raise RegistryError(f"cannot open the registry {shown(url)}: {reason(error)}") from None
+        try:
+            registry._upgrade()
+        except BaseException:
+            registry.close()
+            raise
+        return registry
+
+    def __enter__(self) -> Registry:
+        return self
+
+    def __exit__(self, *_exception: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        self.engine.dispose()
+
+    @property
+    def shown_url(self) -> str:
+        return shown(self.url)
+
+    def database_files(self) -> frozenset[Path]:
+        """The files of a SQLite registry (none for a server's)."""
+        database = self.engine.url.database
+        if self.engine.dialect.name != "sqlite" or not database or database == ":memory:":
+            return frozenset()
+        path = Path(database).resolve()
+        return frozenset(path.with_name(path.name + suffix) for suffix in SQLITE_COMPANIONS)
+
+    def _upgrade(self) -> None:
+        """Alembic's upgrade to head, in one write transaction: two processes
+        opening a new registry at once create its tables once."""
+        try:
+            with self._writer.begin() as connection:
+                config = alembic_config(connection)
+                self._refuse_newer(connection, ScriptDirectory.from_config(config))
+                command.upgrade(config, "head")
+        except (SQLAlchemyError, CommandError, ImportError) as error:
+            raise RegistryError(f"cannot open the registry {self.shown_url}: {reason(error)}") from None
+
+    def _refuse_newer(self, connection: Connection, scripts: ScriptDirectory) -> None:
+        known = {script.revision for script in scripts.walk_revisions()}
+        current = MigrationContext.configure(connection).get_current_heads()
+        unknown = [revision for revision in current if revision not in known]
+        if unknown:
+            raise RegistryError(
+                f"the registry {self.shown_url} has schema revision {', '.join(unknown)}, which this thermotilt "
+                f"does not know (a newer thermotilt wrote it); use that version or another --registry"
+            )
+
+    @contextmanager
+    def writing(self) -> Iterator[Session]:
+        """A session whose transaction holds the write lock from its start; committed at the end."""
+        with self._session(self._writer) as session:
+            yield session
+
+    @contextmanager
+    def reading(self) -> Iterator[Session]:
+        with self._session(self.engine) as session:
+            yield session
+
+    @contextmanager
+    def _session(self, engine: Engine) -> Iterator[Session]:
+        try:
+            # Rows stay readable after the transaction, as plain values.
+            with Session(engine, expire_on_commit=False) as session, session.begin():
+                yield session
+        except SQLAlchemyError as error:
+            raise RegistryError(f"registry {self.shown_url}: {reason(error)}") from None
