@@ -17,7 +17,17 @@ from distributed import LocalCluster
 from thermotilt.calibration import field_accuracy
 from thermotilt.calibration.campaign.folder import CAMPAIGN_FILE, DONE
 from thermotilt.calibration.campaign.plan import select_positions
-from thermotilt.calibration.field_bench import COLUMNS, NO, YES, Design, Task, read_record, run_bench, run_field
+from thermotilt.calibration.field_bench import (
+    COLUMNS,
+    NO,
+    YES,
+    Design,
+    Task,
+    read_record,
+    run_bench,
+    run_field,
+    slope_reference_u95,
+)
 from thermotilt.calibration.field_calibration import (
     BASE_SENSOR,
     BaseDesign,
@@ -39,6 +49,7 @@ from thermotilt.calibration.field_replay import (
     twin_gap,
     within_tolerance,
 )
+from thermotilt.lsm9ds0 import LSB_PER_G
 from thermotilt.physics.terms.sensor import coefficient_table_of
 from thermotilt.run.folder import RunFolder
 from thermotilt.run.log import RunLogWriter, format_numbers, read_run_columns
@@ -212,6 +223,8 @@ def test_a_tiny_design_runs_on_a_cluster_and_resumes_from_its_record(tmp_path):
         assert float(row["p95_change_deg"]) > 0 and float(row["u95_deg"]) > 0
         assert (row["within"] == YES) == (float(row["p95_change_deg"]) <= float(row["u95_deg"]))
         assert 0.0 <= float(row["rows_within_share"]) <= 1.0 and int(row["rows"]) > 0
+        # The default model draws a drift slope per mounting, so every run has the yardstick.
+        assert float(row["slope_u95_deg"]) > 0 and 0.0 <= float(row["rows_within_slope_share"]) <= 1.0
     # A row made again alone, from its key's seed and its sensor's calibration, is the same row.
     cached = next((folder / "calibrations").glob(f"*/{rows[1]['sensor']}.json"))
     calibration = SensorCalibration.from_json(cached.read_text())
@@ -219,6 +232,22 @@ def test_a_tiny_design_runs_on_a_cluster_and_resumes_from_its_record(tmp_path):
     assert _without_seconds({k: str(v) for k, v in again.items() if k != "base"}) == _without_seconds(
         {k: v for k, v in rows[1].items() if k != "base"}
     )
+
+
+def test_the_slope_yardstick_is_the_normal_bound_of_a_drawn_slope_times_the_excursion():
+    sigma = {"x": 0.55, "y": 0.8}
+    temperature = np.array([10.0, 25.0, 40.0])
+    level, tilted = np.zeros(3), np.full(3, LSB_PER_G * math.sin(math.radians(40.0)))
+    u95 = slope_reference_u95(sigma, temperature, {"X": tilted, "Y": level})(25.0)
+    # d asin(a / g) / da at a = g sin(40 deg) is 1 / (g cos(40 deg)); 1.959964 the normal's 97.5 % point.
+    per_lsb_level = math.degrees(1.0 / LSB_PER_G)
+    assert u95["Y"] == pytest.approx(1.959964 * 0.8 * np.array([15.0, 0.0, 15.0]) * per_lsb_level, rel=1e-6)
+    assert u95["X"] == pytest.approx(
+        1.959964 * 0.55 * np.array([15.0, 0.0, 15.0]) * per_lsb_level / math.cos(math.radians(40.0)), rel=1e-5
+    )
+    # Drawn slopes at the model's sigma: about 95 % of changes fall within it.
+    drawn = np.random.default_rng(7).normal(0.0, 0.8, 20000) * 15.0 * per_lsb_level
+    assert np.mean(np.abs(drawn) <= u95["Y"][0]) == pytest.approx(0.95, abs=0.01)
 
 
 def test_every_run_has_its_own_seed_and_the_design_has_over_100_runs():
@@ -301,6 +330,12 @@ def test_the_page_regenerates_from_a_small_record_with_wilson_intervals(tmp_path
     written = document.read_text()
     assert written.startswith("# Field accuracy\n\nWritten by hand.") and "\nold\n" not in written
     assert written.count(field_accuracy.BEGIN) == 1 and text in written
+    assert "Against the drift-slope yardstick" not in text  # the record has no yardstick columns
+    with_yardstick = [dict(row, slope_u95_deg="0.15", rows_within_slope_share="0.9") for row in rows]
+    yardstick = field_accuracy.report(with_yardstick)
+    # field-warming: 18 runs of p95 0.1 within 0.15, w18 (0.5) and w19 (0.3) not; U / yardstick 0.2 / 0.15.
+    assert "| field-warming | 18/20 = 90.0% (" in yardstick[yardstick.index("Against the drift-slope") :]
+    assert "| all | 38/40 = 95.0% (" in yardstick and "| 90.00% | 1.67 |" in yardstick
     field_accuracy.figure(rows, tmp_path / "figure.png")
     assert (tmp_path / "figure.png").stat().st_size > 10_000
 

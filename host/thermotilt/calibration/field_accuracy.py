@@ -50,9 +50,10 @@ def runs_within(rows: list[Row]) -> Share:
     return Share(sum(row["within"] == YES for row in rows), len(rows))
 
 
-def rows_within(rows: list[Row]) -> float | None:
-    """The share of in-domain rows within U, pooled over runs (each row against its own U)."""
-    counted = [(float(row["rows_within_share"]), int(row["rows"])) for row in rows if row["rows_within_share"]]
+def rows_within(rows: list[Row], column: str = "rows_within_share") -> float | None:
+    """The share of in-domain rows within U, pooled over runs (each row
+    against its own U); column, another column of such shares."""
+    counted = [(float(row[column]), int(row["rows"])) for row in rows if row.get(column)]
     total = sum(count for _, count in counted)
     return sum(share * count for share, count in counted) / total if total else None
 
@@ -220,6 +221,32 @@ def _why_lines(rows: list[Row]) -> list[str]:
     ]
 
 
+def _slope_lines(rows: list[Row], profiles: list[str]) -> list[str]:
+    """The runs against the drift-slope yardstick (field_bench.slope_reference_u95),
+    per profile: what a U that knew the model's mounting scatter would hold,
+    and how far above it the certificate's U is."""
+    graded = [row for row in judged(rows) if row.get("slope_u95_deg")]
+    if not graded:
+        return []
+    lines = [
+        "**Against the drift-slope yardstick.** A U that knew the model's mounting-to-mounting drift-slope "
+        "scatter exactly and nothing else (`field_bench.slope_reference_u95`: 1.96 σ |T − T0| per axis, σ "
+        "of `drift_repeatability`) leaves out noise, flicker and the set switch, so it is no bound; it shows how "
+        "much of the certificate's U the scatter a field mounting brings accounts for. The ratio U / yardstick "
+        "is what the calibration's estimate of that scatter (leave-one-position-out over the base's positions, "
+        "Student's k at their degrees of freedom) and the budget's Type B rows add.",
+        "",
+        "| profile | runs within the yardstick | rows within the yardstick (pooled) | median U / yardstick |",
+        "|---|---|---|---|",
+    ]
+    for name, mine in [*_groups(graded, lambda row: row["profile"], profiles), ("all", graded)]:
+        held = Share(sum(float(r["p95_change_deg"]) <= float(r["slope_u95_deg"]) for r in mine), len(mine))
+        pooled = rows_within(mine, "rows_within_slope_share")
+        factor = _median([float(r["u95_deg"]) / float(r["slope_u95_deg"]) for r in mine])
+        lines.append(f"| {name} | {held} | {'–' if pooled is None else _percent(pooled, 2)} | {factor} |")
+    return lines + [""]
+
+
 def _cost(rows: list[Row], profiles: list[str]) -> list[str]:
     seconds = [float(row["seconds"]) for row in rows if row["seconds"]]
     parts = [
@@ -291,6 +318,7 @@ def report(rows: list[Row], method: str | None = None) -> str:
         "",
         *_misses_table(rows),
         *_why_lines(rows),
+        *_slope_lines(rows, profiles),
         *_cost(rows, profiles),
     ]
     return "\n".join(lines).rstrip("\n") + "\n"

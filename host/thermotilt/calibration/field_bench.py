@@ -31,7 +31,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from scipy import stats
 
+from ..lsm9ds0 import LSB_PER_G
 from .field_calibration import BaseCampaign, BaseDesign, SensorCalibration, calibrate_sensor, ensure_base, sensor_model
 from .field_replay import FIELD_PROFILES, field_inputs, field_scenario, printed, replay_frames
 
@@ -55,6 +57,8 @@ COLUMNS = (
     "within",
     "max_change_deg",
     "rows_within_share",
+    "slope_u95_deg",
+    "rows_within_slope_share",
     "p95_x_deg",
     "p95_y_deg",
     "u95_x_deg",
@@ -149,6 +153,9 @@ class Reading:
     # The largest U over the run's in-domain rows from the installation on, either axis.
     u95_deg: float | None
     rows_within_share: float | None  # X and Y pooled, each row against its own U
+    # The same against the drift-slope reference (slope_reference_u95), where the model has one.
+    slope_u95_deg: float | None
+    rows_within_slope_share: float | None
     max_change_deg: float | None  # the largest change of an in-domain row, either axis
     p95_deg: dict[str, float | None]  # per axis
     u95_axis_deg: dict[str, float | None]  # per axis, the same
@@ -164,10 +171,37 @@ class Reading:
         return self.p95_change_deg <= self.u95_deg
 
 
-def read_field_run(time_s: np.ndarray, frames: dict[str, np.ndarray], certificate: dict) -> Reading:
+def slope_reference_u95(
+    sigma_lsb_per_c: dict[str, float], temperature_c: np.ndarray, compensated_lsb: dict[str, np.ndarray]
+) -> Callable[[float], dict[str, np.ndarray]]:
+    """A yardstick for the certificate's U, as ``change_u95`` gives it: the
+    U a lab would state for a change if it knew the model's mounting-to-
+    mounting drift-slope scatter exactly and nothing else. A new mounting's
+    error is delta (T - 25 degC) with delta ~ N(0, sigma) per axis
+    (``drift_repeatability``), so a change from an installation at T0 carries
+    delta (T - T0): U = z(97.5 %) sigma |T - T0| |d tilt / d a|. It leaves out
+    noise, flicker and the set switch, so it is not a bound; the certificate's
+    U over it says how much of U the mounting scatter accounts for."""
+    z = float(stats.norm.ppf(0.975))
+    degrees_per_lsb = {
+        axis: np.degrees(1.0 / np.sqrt(np.maximum(LSB_PER_G**2 - values.astype(float) ** 2, 1.0)))
+        for axis, values in compensated_lsb.items()
+    }
+
+    def at_installation(installation_c: float) -> dict[str, np.ndarray]:
+        excursion = np.abs(temperature_c - installation_c)
+        return {axis: z * sigma_lsb_per_c[axis.lower()] * excursion * degrees_per_lsb[axis] for axis in compensated_lsb}
+
+    return at_installation
+
+
+def read_field_run(
+    time_s: np.ndarray, frames: dict[str, np.ndarray], certificate: dict, slope_sigma: dict[str, float] | None = None
+) -> Reading:
     """The run's frames (as printed) read as `validate` reads a run against a
     certificate: the change from the installation reading over the rows
-    inside the certificate's domain, each held against the U for its change."""
+    inside the certificate's domain, each held against the U for its change;
+    with slope_sigma (LSB/degC by axis), also against slope_reference_u95."""
     from .certificate import change_u95, in_domain
     from .tilt_change import tilt_change
 
@@ -181,10 +215,17 @@ def read_field_run(time_s: np.ndarray, frames: dict[str, np.ndarray], certificat
     axes = {axis.axis: axis for axis in change.axes} if change is not None else {}
     largest = {axis: axes[axis].u95_max_deg if axes else None for axis in FIT_AXES}
     known = [value for value in largest.values() if value is not None]
+    slope = None
+    if change is not None and slope_sigma is not None:
+        yardstick = slope_reference_u95(slope_sigma, temperature, compensated)
+        slope = tilt_change(time_s, temperature, compensated, outside, None, yardstick, DOMAIN)
+    slope_largest = [axis.u95_max_deg for axis in slope.axes if axis.u95_max_deg is not None] if slope else []
     return Reading(
         p95_change_deg=change.p95_deg if change is not None else None,
         u95_deg=max(known) if known else None,
         rows_within_share=change.within_u_share if change is not None else None,
+        slope_u95_deg=max(slope_largest, default=None),
+        rows_within_slope_share=slope.within_u_share if slope is not None else None,
         max_change_deg=max((a.max_deg for a in axes.values() if a.max_deg is not None), default=None),
         p95_deg={axis: axes[axis].p95_deg if axes else None for axis in FIT_AXES},
         u95_axis_deg=largest,
@@ -208,7 +249,8 @@ def run_field(task: Task, calibration: SensorCalibration, design: Design) -> dic
     inputs = field_inputs(field_scenario(task.profile, task.tilt_deg, task.seed, design.duration_s))
     frames = replay_frames(model, task.seed, inputs, calibration.coefficients)
     shown = {**printed(frames), "set": frames["set"]}
-    reading = read_field_run(inputs.time_s, shown, calibration.certificate)
+    sigma = model.terms["drift_repeatability"]["sigma_lsb_per_c"] if model.enabled("drift_repeatability") else None
+    reading = read_field_run(inputs.time_s, shown, calibration.certificate, sigma)
     return record_row(task, reading, calibration, time.perf_counter() - started)
 
 
@@ -230,6 +272,8 @@ def record_row(task: Task, reading: Reading, calibration: SensorCalibration, sec
         "within": "" if within is None else YES if within else NO,
         "max_change_deg": _number(reading.max_change_deg),
         "rows_within_share": _number(reading.rows_within_share),
+        "slope_u95_deg": _number(reading.slope_u95_deg),
+        "rows_within_slope_share": _number(reading.rows_within_slope_share),
         "p95_x_deg": _number(reading.p95_deg["X"]),
         "p95_y_deg": _number(reading.p95_deg["Y"]),
         "u95_x_deg": _number(reading.u95_axis_deg["X"]),
