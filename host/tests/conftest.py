@@ -1,5 +1,5 @@
 """What more than one test module takes: twin runs, made once per test
-run, and the CLI run in this process."""
+run, the CLI run in this process, and a registry of each test's own."""
 
 import fcntl
 import os
@@ -15,6 +15,25 @@ from thermotilt import cli
 # (host/tests/test_scatter.py bounds them by the paper's RMS errors).
 SCATTER_OFF = ("--disable", "drift_repeatability", "--disable", "bias_instability")
 CYCLE_ANGLES = (0, 30)
+# A hidden file: the registry's walk of a folder skips it.
+TEST_REGISTRY_FILE = ".thermotilt-registry.sqlite3"
+
+
+@pytest.fixture(scope="session", autouse=True)
+def registry_of_the_test_run(tmp_path_factory):
+    """The commands record what they make in a registry (docs/registry.md),
+    by default runs/registry.sqlite3 wherever they run: the session's
+    fixtures record in one of the test run's own, and each test in its own
+    (below). Processes the tests start inherit it."""
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("THERMOTILT_REGISTRY", f"sqlite:///{tmp_path_factory.getbasetemp() / TEST_REGISTRY_FILE}")
+        yield
+
+
+@pytest.fixture(autouse=True)
+def registry_of_the_test(tmp_path, monkeypatch):
+    monkeypatch.setenv("THERMOTILT_REGISTRY", f"sqlite:///{tmp_path / TEST_REGISTRY_FILE}")
+    return tmp_path / TEST_REGISTRY_FILE
 
 
 def made_once_per_test_run(tmp_path_factory, name, make):

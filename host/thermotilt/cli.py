@@ -1,7 +1,8 @@
 """Command line: ``thermotilt COMMAND ...``. Each wing registers its own
 commands (``wire``, ``twin``, ``calibration``, ``discovery``,
-``registry``); this module parses, runs the one chosen and turns what it
-raises into one line on stderr (docs/reliability.md lists them)."""
+``registry``); this module parses, runs the one chosen, turns what it
+raises into one line on stderr (docs/reliability.md lists them) and has
+the registry record what the command made (docs/registry.md)."""
 
 from __future__ import annotations
 
@@ -25,6 +26,7 @@ def build_parser() -> ArgumentParser:
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for wing in (wire, twin, calibration, discovery, registry):
         wing.add_commands(commands)
+    registry.add_recording_options(commands)
     return parser
 
 
@@ -59,6 +61,7 @@ def _run(argv: Sequence[str] | None) -> int:
     except UsageError as error:
         status = _error(str(error))
     sys.stdout.flush()
+    registry.record_what_was_made(args, status)
     return status
 
 

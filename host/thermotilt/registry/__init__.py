@@ -2,7 +2,13 @@
 campaigns, validations and board runs in a database (SQLAlchemy, SQLite by
 default, schema by Alembic), rebuilt from the folders the commands write,
 which stay the source of truth. Importing this package loads nothing: its
-commands import the database when they run."""
+commands import the database when they run, and the command line records
+what a command made only after it ran (``recording``)."""
+
+# Where the registry is when --registry does not say (database.registry_url).
+ENVIRONMENT_VARIABLE = "THERMOTILT_REGISTRY"
+# The URL that turns the registry off: the commands record nothing.
+OFF = "off"
 
 # How long after its last calibration a sensor is due for another (thermotilt sensors --interval-days).
 DEFAULT_INTERVAL_DAYS = 365

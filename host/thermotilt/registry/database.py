@@ -14,21 +14,23 @@ import os
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from alembic import command
-from alembic.config import Config
-from alembic.runtime.migration import MigrationContext
-from alembic.script import ScriptDirectory
-from alembic.util import CommandError
-from sqlalchemy import Connection, Engine, create_engine, event
+from sqlalchemy import Connection, Engine, create_engine, event, inspect, text
 from sqlalchemy.engine import make_url
 from sqlalchemy.exc import DBAPIError, SQLAlchemyError
 from sqlalchemy.orm import Session
 
-ENVIRONMENT_VARIABLE = "THERMOTILT_REGISTRY"
+from . import ENVIRONMENT_VARIABLE, OFF
+
+if TYPE_CHECKING:
+    from alembic.config import Config
+    from alembic.script import ScriptDirectory
+
 DEFAULT_FILE = Path("runs") / "registry.sqlite3"
 MIGRATIONS = Path(__file__).resolve().parent / "migrations"
+# Alembic's table of the revision a database is at.
+VERSION_TABLE = "alembic_version"
 # How long a writer waits for another's transaction to end: a rebuild of a
 # lab's folders writes for well under this.
 BUSY_TIMEOUT_MS = 60_000
@@ -38,22 +40,36 @@ _BEGIN = "thermotilt_sqlite_begin"
 
 
 class RegistryError(RuntimeError):
-    """A registry that cannot be opened or written; one readable line."""
+    """A registry that cannot be opened or written; one readable line.
+    reason is what went wrong without the registry's name."""
+
+    def __init__(self, message: str, reason: str | None = None) -> None:
+        super().__init__(message)
+        self.reason = reason or message
+
+
+def configured_url(option: str | None = None) -> str:
+    """The URL the option, else the environment, else the default names
+    (possibly OFF), without making anything."""
+    return option or os.environ.get(ENVIRONMENT_VARIABLE) or f"sqlite:///{Path.cwd() / DEFAULT_FILE}"
 
 
 def registry_url(option: str | None = None) -> str:
     """The database URL: the option, else the environment's, else the SQLite
     file in ./runs (made if missing)."""
-    if option:
-        return option
-    if os.environ.get(ENVIRONMENT_VARIABLE):
-        return os.environ[ENVIRONMENT_VARIABLE]
-    path = Path.cwd() / DEFAULT_FILE
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-    except OSError as error:
-        raise RegistryError(f"cannot create {path.parent}: {error.strerror or error}") from None
-    return f"sqlite:///{path}"
+    url = configured_url(option)
+    if url == OFF:
+        raise RegistryError(
+            f"the registry is off ({ENVIRONMENT_VARIABLE}={OFF}): give --registry URL to read one",
+            "the registry is off",
+        )
+    if not option and not os.environ.get(ENVIRONMENT_VARIABLE):
+        folder = Path.cwd() / DEFAULT_FILE.parent
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+        except OSError as error:
+            raise RegistryError(f"cannot create {folder}: {error.strerror or error}") from None
+    return url
 
 
 def shown(url: str) -> str:
@@ -71,9 +87,17 @@ def reason(error: BaseException) -> str:
     return str(error).splitlines()[0] if str(error) else type(error).__name__
 
 
+def newest_revision() -> str:
+    """The newest revision's ID, from the revisions' file names (0001_...,
+    0002_...; test_registry_recording.py holds it to Alembic's head) without loading Alembic."""
+    return max(path.name.partition("_")[0] for path in (MIGRATIONS / "versions").glob("[0-9][0-9][0-9][0-9]_*.py"))
+
+
 def alembic_config(connection: Connection | None = None) -> Config:
     """Alembic's configuration for the packaged migrations; with a
     connection, env.py migrates through it."""
+    from alembic.config import Config
+
     config = Config()
     config.set_main_option("script_location", str(MIGRATIONS))
     config.attributes["connection"] = connection
@@ -119,7 +143,7 @@ class Registry:
         try:
             registry = cls(url, create_registry_engine(url))
         except (SQLAlchemyError, ImportError) as error:
-            raise RegistryError(f"cannot open the registry {shown(url)}: {reason(error)}") from None
+            raise RegistryError(f"cannot open the registry {shown(url)}: {reason(error)}", reason(error)) from None
         try:
             registry._upgrade()
         except BaseException:
@@ -150,24 +174,42 @@ class Registry:
 
     def _upgrade(self) -> None:
         """Alembic's upgrade to head, in one write transaction: two processes
-        opening a new registry at once create its tables once."""
+        opening a new registry at once create its tables once. A registry at
+        the newest revision is only read (Alembic is not even loaded: a
+        command's record costs that much less)."""
+        try:
+            if self._revisions() == {newest_revision()}:
+                return
+        except (SQLAlchemyError, ImportError) as error:
+            raise RegistryError(f"cannot open the registry {self.shown_url}: {reason(error)}", reason(error)) from None
+        from alembic import command
+        from alembic.script import ScriptDirectory
+        from alembic.util import CommandError
+
         try:
             with self._writer.begin() as connection:
                 config = alembic_config(connection)
                 self._refuse_newer(connection, ScriptDirectory.from_config(config))
                 command.upgrade(config, "head")
         except (SQLAlchemyError, CommandError, ImportError) as error:
-            raise RegistryError(f"cannot open the registry {self.shown_url}: {reason(error)}") from None
+            raise RegistryError(f"cannot open the registry {self.shown_url}: {reason(error)}", reason(error)) from None
+
+    def _revisions(self) -> set[str]:
+        """The revisions the database is at (none for a new one)."""
+        with self.engine.connect() as connection:
+            if not inspect(connection).has_table(VERSION_TABLE):
+                return set()
+            return set(connection.execute(text(f"SELECT version_num FROM {VERSION_TABLE}")).scalars())
 
     def _refuse_newer(self, connection: Connection, scripts: ScriptDirectory) -> None:
+        from alembic.runtime.migration import MigrationContext
+
         known = {script.revision for script in scripts.walk_revisions()}
         current = MigrationContext.configure(connection).get_current_heads()
         unknown = [revision for revision in current if revision not in known]
         if unknown:
-            raise RegistryError(
-                f"the registry {self.shown_url} has schema revision {', '.join(unknown)}, which this thermotilt "
-                f"does not know (a newer thermotilt wrote it); use that version or another --registry"
-            )
+            why = f"schema revision {', '.join(unknown)}, which this thermotilt does not know (a newer thermotilt wrote it)"
+            raise RegistryError(f"the registry {self.shown_url} has {why}; use that version or another --registry", why)
 
     @contextmanager
     def writing(self) -> Iterator[Session]:
@@ -187,4 +229,4 @@ class Registry:
             with Session(engine, expire_on_commit=False) as session, session.begin():
                 yield session
         except SQLAlchemyError as error:
-            raise RegistryError(f"registry {self.shown_url}: {reason(error)}") from None
+            raise RegistryError(f"registry {self.shown_url}: {reason(error)}", reason(error)) from None

@@ -54,9 +54,7 @@ class Fleet:
                 f"no sensors in the registry {self.registry} yet: `thermotilt registry rebuild FOLDER...` "
                 "records the campaigns, fits and runs in those folders"
             )
-        table = [HEADER, *(self._cells(line) for line in self.lines)]
-        widths = [max(len(row[column]) for row in table) for column in range(len(HEADER))]
-        return "\n".join("  ".join(cell.ljust(width) for cell, width in zip(row, widths)).rstrip() for row in table)
+        return aligned([HEADER, *(self._cells(line) for line in self.lines)])
 
     def _cells(self, line: SensorLine) -> tuple[str, ...]:
         due = line.due(self.interval_days)
@@ -77,7 +75,7 @@ def fleet(registry: Registry, interval_days: int = DEFAULT_INTERVAL_DAYS, today:
     """Every sensor's line, by ID; due dates interval_days after the last calibration."""
     with registry.reading() as session:
         sensors = list(session.scalars(select(Sensor.sensor_id).order_by(Sensor.sensor_id)))
-        calibrations = latest(session.scalars(select(Calibration)), _calibrated_at)
+        calibrations = latest(session.scalars(select(Calibration)), calibrated_at)
         validations = latest(session.scalars(select(Validation)), lambda row: row.validated_utc)
         lines = [_line(sensor_id, calibrations.get(sensor_id), validations.get(sensor_id)) for sensor_id in sensors]
     return Fleet(registry.shown_url, lines, interval_days, today or date.today())
@@ -98,7 +96,8 @@ def calibration_date(calibration: Calibration) -> date | None:
     return calibration.ended_utc.date() if calibration.ended_utc else calibration.issue_date
 
 
-def _calibrated_at(calibration: Calibration) -> datetime | None:
+def calibrated_at(calibration: Calibration) -> datetime | None:
+    """When a calibration was made, to order them by: calibration_date's moment."""
     if calibration.ended_utc is None and calibration.issue_date is not None:
         return datetime.combine(calibration.issue_date, time())
     return calibration.ended_utc
@@ -112,6 +111,12 @@ def latest(rows: Iterable[_Row], when: Callable[[_Row], datetime | None]) -> dic
         if row.sensor_id is not None:
             by_sensor[row.sensor_id] = row
     return by_sensor
+
+
+def aligned(rows: list[tuple[str, ...]]) -> str:
+    """Rows of cells as left-aligned columns, the first row the header."""
+    widths = [max(len(row[column]) for row in rows) for column in range(len(rows[0]))]
+    return "\n".join("  ".join(cell.ljust(width) for cell, width in zip(row, widths)).rstrip() for row in rows)
 
 
 def two_significant(value: float) -> str:

@@ -12,8 +12,9 @@ writers are the calibration and run modules; nothing here writes them):
 A folder is read into the registry's rows (``schema``), not yet stored;
 each row carries the sha256 of the files that define it. A file that
 cannot be read or is not what its writer writes is a FolderError of one
-line. ``upload`` and ``assign-id`` write no record; what they leave is the
-board's EEPROM, which a twin run's image shows.
+line. ``upload`` and ``assign-id`` write no folder: what they leave is the
+board's EEPROM, which a twin run's image shows, and the rows the command
+line records as they finish (``recording``).
 """
 
 from __future__ import annotations
@@ -28,8 +29,6 @@ from pathlib import Path
 from typing import Any
 
 from ..calibration.campaign.folder import BATCH_FILE, CAMPAIGN_FILE, DONE, CampaignError, CampaignFolder
-from ..calibration.certificate.document import calibration_dates
-from ..calibration.certificate.issue import CERTIFICATE_JSON, COEFFICIENTS_BIN
 from ..run.folder import IMU_EEPROM_FILE, LOG_FILE, RunFolder
 from ..run.summary import SUMMARY_FILE, RunSummaryError
 from ..surfaces import sensor_id_problem
@@ -44,6 +43,7 @@ from .schema import Artefact, BoardRun, Calibration, Campaign, Validation
 
 # The names thermotilt fit and validate write these under (literals in their writers).
 FIT_FILE = "coefficients.json"
+COEFFICIENTS_BIN = "coefficients.bin"
 VALIDATION_FILE = "validation.json"
 DEFINING_FILES = frozenset({CAMPAIGN_FILE, FIT_FILE, VALIDATION_FILE, LOG_FILE})
 UTC_STAMP = "%Y-%m-%dT%H:%M:%SZ"
@@ -117,6 +117,9 @@ def read_folder(folder: Path, names: frozenset[str]) -> list[Artefact]:
 
 
 def read_campaign(folder: Path) -> Campaign:
+    # The certificate package loads the fit's statistics: only for a campaign or fit to read.
+    from ..calibration.certificate.document import calibration_dates
+
     data, document = _json_object(folder / CAMPAIGN_FILE)
     positions = document.get("positions")
     if not isinstance(positions, list) or not all(isinstance(entry, dict) for entry in positions):
@@ -148,6 +151,8 @@ def read_campaign(folder: Path) -> Campaign:
 
 
 def read_fit(folder: Path) -> Calibration:
+    from ..calibration.certificate.issue import CERTIFICATE_JSON
+
     path = folder / FIT_FILE
     data, document = _json_object(path)
     sources = {FIT_FILE: data}
@@ -171,6 +176,15 @@ def read_fit(folder: Path) -> Calibration:
         _add_certificate(calibration, certificate, _parsed_object(certificate_data, certificate))
     calibration.source_sha256 = _digest(sources)
     return calibration
+
+
+def read_fit_identity(folder: Path) -> tuple[str | None, str | None]:
+    """The sensor a fit folder's coefficients.json names and the sha256 of its coefficients.bin."""
+    path = folder / FIT_FILE
+    _, document = _json_object(path)
+    coefficients = _read_optional(folder / COEFFICIENTS_BIN)
+    sensor_id = _sensor_id(_optional_text(document, "sensor_id", path), path)
+    return sensor_id, _sha256(coefficients) if coefficients is not None else None
 
 
 def _add_certificate(calibration: Calibration, path: Path, certificate: dict[str, Any]) -> None:

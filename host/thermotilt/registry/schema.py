@@ -6,6 +6,11 @@ a change here is a new revision there (docs/registry.md), and
 Every artefact table keys its rows by the artefact's folder (its resolved
 path) and keeps the sha256 of the files that define it, so ingesting a
 folder again changes nothing unless those files changed. Times are UTC.
+
+``uploads`` and ``id_assignments`` are what ``upload`` and ``assign-id``
+did, recorded as they finish: no folder holds them, so a rebuild keeps
+them, and they name a sensor without making it one of ``sensors`` (the
+fleet is what the folders say).
 """
 
 from __future__ import annotations
@@ -13,7 +18,7 @@ from __future__ import annotations
 from datetime import date, datetime
 from typing import Any
 
-from sqlalchemy import JSON, Date, DateTime, Float, ForeignKey, Integer, MetaData, String, Text
+from sqlalchemy import JSON, Boolean, Date, DateTime, Float, ForeignKey, Integer, MetaData, String, Text
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
 
 from ..surfaces import SENSOR_ID_LENGTH
@@ -124,3 +129,31 @@ class BoardRun(Artefact, Base):
     # The coefficient block the IMU's EEPROM held at the end of the run.
     eeprom_coefficients_sha256: Mapped[str | None] = mapped_column(String(SHA256_LENGTH))
     eeprom_fitted_for: Mapped[str | None] = mapped_column(String(SENSOR_ID_LENGTH))
+
+
+class Upload(Base):
+    """A fit written into a board by ``thermotilt upload`` and read back
+    equal (an upload that failed is not recorded)."""
+
+    __tablename__ = "uploads"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    uploaded_utc: Mapped[datetime] = mapped_column(DateTime)
+    # The fit's sensor, which upload held equal to the board's own ID.
+    sensor_id: Mapped[str | None] = mapped_column(String(SENSOR_ID_LENGTH), index=True)
+    port: Mapped[str] = mapped_column(Text)
+    fit_folder: Mapped[str] = mapped_column(Text)
+    coefficients_sha256: Mapped[str | None] = mapped_column(String(SHA256_LENGTH))
+    # False for --no-save: in the board's RAM only, until its next reset.
+    saved: Mapped[bool] = mapped_column(Boolean)
+
+
+class IdAssignment(Base):
+    """The sensor ID ``thermotilt assign-id`` gave the board on a port."""
+
+    __tablename__ = "id_assignments"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    assigned_utc: Mapped[datetime] = mapped_column(DateTime)
+    sensor_id: Mapped[str] = mapped_column(String(SENSOR_ID_LENGTH), index=True)
+    port: Mapped[str] = mapped_column(Text)

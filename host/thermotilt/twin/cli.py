@@ -128,6 +128,8 @@ def _simulate(args: argparse.Namespace) -> int:
     model, scenario = _model_and_scenario(args)
     eeprom = _eeprom_block(args.eeprom) if args.eeprom else None
     out_dir = Path(args.out or f"runs/{scenario.name}-{time.strftime('%Y%m%d-%H%M%S')}")
+    # What the command made, for the registry's record (registry/recording.py).
+    args.out = str(out_dir)
     log = RunFolder.at(out_dir).log
     if log.exists() and not args.force:
         raise UsageError(f"{log} exists; choose another --out or add --force")

@@ -1,0 +1,123 @@
+"""What a command made, recorded in the registry as it finishes
+(docs/registry.md). The folder a command wrote is found from its parsed
+arguments and ingested as ``registry ingest`` would; ``upload`` and
+``assign-id``, which write no folder, leave a row of what they did.
+
+The command line calls ``record_made`` after every command. A folder is
+recorded once its command ended well, or was interrupted and said so (a
+campaign, a run or a log stopped by Ctrl-C keeps what it finished, and
+``log`` and ``simulate --pty`` end no other way); an upload or an
+assignment only once it ended well. A registry that cannot take the record
+costs the command a warning and nothing more: the folder is the source of
+truth, and ``registry ingest`` records it later. Importing this module
+loads nothing of the database.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from collections.abc import Callable
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from ..options import EXIT_INTERRUPTED
+from . import ENVIRONMENT_VARIABLE, OFF
+
+if TYPE_CHECKING:
+    from .schema import IdAssignment, Upload
+
+
+def _out(args: argparse.Namespace) -> list[Path]:
+    """The folder --out names (simulate's own choice when given none; a batch's sensors in theirs below it)."""
+    return [Path(args.out)]
+
+
+def _validated_run(args: argparse.Namespace) -> list[Path]:
+    """The run folder validate wrote validation.json into (its --out holds only the report)."""
+    from ..run.folder import RunFolder
+
+    return [RunFolder.of(args.run_path).path]
+
+
+def _logged_run(args: argparse.Namespace) -> list[Path]:
+    """log's --out: the run folder, or its run.csv."""
+    out = Path(args.out)
+    return [out.parent if out.suffix.lower() == ".csv" else out]
+
+
+MADE_FOLDERS: dict[str, Callable[[argparse.Namespace], list[Path]]] = {
+    "campaign": _out,
+    "fit": _out,
+    "validate": _validated_run,
+    "simulate": _out,
+    "log": _logged_run,
+}
+
+
+def _upload(args: argparse.Namespace, when: datetime) -> Upload:
+    from .folders import read_fit_identity
+    from .schema import Upload
+
+    folder = Path(args.fit_dir).resolve()
+    sensor_id, coefficients_sha256 = read_fit_identity(folder)
+    return Upload(
+        uploaded_utc=when,
+        sensor_id=sensor_id,
+        port=args.port,
+        fit_folder=str(folder),
+        coefficients_sha256=coefficients_sha256,
+        saved=not args.no_save,
+    )
+
+
+def _assignment(args: argparse.Namespace, when: datetime) -> IdAssignment:
+    from .schema import IdAssignment
+
+    return IdAssignment(assigned_utc=when, sensor_id=args.sensor_id, port=args.port)
+
+
+MADE_EVENTS: dict[str, Callable[[argparse.Namespace, datetime], Upload | IdAssignment]] = {
+    "upload": _upload,
+    "assign-id": _assignment,
+}
+RECORDED_COMMANDS = (*MADE_FOLDERS, *MADE_EVENTS)
+
+
+def recording_off(option: str | None) -> bool:
+    """--registry off, or THERMOTILT_REGISTRY=off without --registry."""
+    return (option or os.environ.get(ENVIRONMENT_VARIABLE)) == OFF
+
+
+def record_made(args: argparse.Namespace, status: int) -> str | None:
+    """Records what the command args ran made, given its exit status; what
+    to warn of when the registry could not take it, else None."""
+    command = getattr(args, "command", None)
+    folders_made = command in MADE_FOLDERS and status in (0, EXIT_INTERRUPTED)
+    if not (folders_made or (command in MADE_EVENTS and status == 0)) or recording_off(args.registry):
+        return None
+    from .database import Registry, RegistryError, configured_url, registry_url, shown
+    from .folders import FolderError
+    from .ingest import ingest
+
+    try:
+        with Registry.open(registry_url(args.registry)) as registry:
+            if folders_made:
+                folders = MADE_FOLDERS[command](args)
+                if folders:
+                    ingest(registry, folders)
+            else:
+                with registry.writing() as session:
+                    session.add(MADE_EVENTS[command](args, datetime.now(UTC).replace(tzinfo=None, microsecond=0)))
+    except RegistryError as error:
+        reason = error.reason
+    except FolderError as error:
+        reason = str(error)
+    except OSError as error:
+        reason = f"{error.filename or 'the registry'}: {error.strerror or error}"
+    except KeyboardInterrupt:
+        reason = "interrupted"
+    else:
+        return None
+    return f"not recorded in the registry {shown(configured_url(args.registry))}: {reason}"
