@@ -689,6 +689,9 @@ def fit_end_to_end(figures: Figures) -> None:
                 "--out",
                 str(Path(scratch) / "fit"),
                 "--compare-families",
+                # The fit alone: a scratch folder is nothing for the lab's registry.
+                "--registry",
+                "off",
             ],
             check=True,
             stdout=subprocess.DEVNULL,

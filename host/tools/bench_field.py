@@ -119,6 +119,8 @@ def _run(args: argparse.Namespace, design) -> int:
 
 def main() -> int:
     args = _arguments()
+    # The base campaign is the benchmark's, not the lab's: nothing for the registry.
+    os.environ["THERMOTILT_REGISTRY"] = "off"
     from thermotilt.calibration import field_accuracy
     from thermotilt.calibration.field_bench import Design, method_digest, read_record
     from thermotilt.calibration.field_calibration import BaseDesign
