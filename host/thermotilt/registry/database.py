@@ -11,6 +11,7 @@ transaction can find its snapshot stale when it starts to write.
 from __future__ import annotations
 
 import os
+import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -98,7 +99,8 @@ def alembic_config(connection: Connection | None = None) -> Config:
     connection, env.py migrates through it."""
     from alembic.config import Config
 
-    config = Config()
+    # Alembic's default stdout is the one at its import, which may be closed by now (a test's capture).
+    config = Config(stdout=sys.stdout)
     config.set_main_option("script_location", str(MIGRATIONS))
     config.attributes["connection"] = connection
     return config
