@@ -32,7 +32,14 @@ from thermotilt.calibration.certificate import certify, write_certificate
 from thermotilt.calibration.fit import write_outputs
 from thermotilt.calibration.tilt_change import Installation, TiltChange
 from thermotilt.calibration.validate import Validation
-from thermotilt.registry.database import MIGRATIONS, Registry, RegistryError, alembic_config, registry_url
+from thermotilt.registry.database import (
+    MIGRATIONS,
+    Registry,
+    RegistryError,
+    alembic_config,
+    create_registry_engine,
+    registry_url,
+)
 from thermotilt.registry.fleet import fleet
 from thermotilt.registry.folders import FolderError
 from thermotilt.registry.ingest import NEW, UNCHANGED, UPDATED, ingest, rebuild
@@ -229,6 +236,32 @@ def test_an_empty_registry_says_so(tmp_path, cli_in_process):
     result = cli_in_process("sensors", "--registry", url_of(tmp_path / "empty.sqlite3"))
     assert result.returncode == 0 and result.stdout.startswith("no sensors in the registry sqlite:///")
     assert "thermotilt registry rebuild FOLDER" in result.stdout
+
+
+def connect_at_once(url: str, start) -> None:
+    engine = create_registry_engine(url)
+    start.wait()
+    with engine.connect():
+        pass
+    engine.dispose()
+
+
+def test_two_processes_opening_a_new_sqlite_file_at_once_both_get_wal(tmp_path):
+    """Switching a new file to WAL answers a second process BUSY at once
+    (no busy handler): without waiting for it, about half of these rounds
+    failed."""
+    context = multiprocessing.get_context("fork")
+    for index in range(20):
+        url = url_of(tmp_path / f"new-{index}.sqlite3")
+        start = context.Barrier(2)
+        processes = [context.Process(target=connect_at_once, args=(url, start)) for _ in range(2)]
+        for process in processes:
+            process.start()
+        for process in processes:
+            process.join(60)
+        assert [process.exitcode for process in processes] == [0, 0], index
+        with create_registry_engine(url).connect() as connection:
+            assert connection.exec_driver_sql("PRAGMA journal_mode").scalar() == "wal"
 
 
 def ingest_one_at_a_time(url: str, folders: list[Path], start) -> None:

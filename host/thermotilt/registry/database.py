@@ -11,7 +11,9 @@ transaction can find its snapshot stale when it starts to write.
 from __future__ import annotations
 
 import os
+import sqlite3
 import sys
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -35,6 +37,7 @@ VERSION_TABLE = "alembic_version"
 # How long a writer waits for another's transaction to end: a rebuild of a
 # lab's folders writes for well under this.
 BUSY_TIMEOUT_MS = 60_000
+WAL_RETRY_S = 0.01
 # SQLite's files beside a database.
 SQLITE_COMPANIONS = ("", "-wal", "-shm", "-journal")
 _BEGIN = "thermotilt_sqlite_begin"
@@ -106,6 +109,23 @@ def alembic_config(connection: Connection | None = None) -> Config:
     return config
 
 
+def _use_wal(cursor: Any) -> None:
+    """WAL mode, waiting for another process as the busy timeout would:
+    switching takes the file's exclusive lock, and SQLite answers BUSY at
+    once instead of calling the busy handler, so two processes opening a
+    new file together would fail (about half of 200 tries here). WAL then
+    stays set in the file."""
+    deadline = time.monotonic() + BUSY_TIMEOUT_MS / 1000.0
+    while True:
+        try:
+            cursor.execute("PRAGMA journal_mode = WAL")
+            return
+        except sqlite3.OperationalError as error:
+            if "locked" not in str(error) or time.monotonic() > deadline:
+                raise
+            time.sleep(WAL_RETRY_S)
+
+
 def create_registry_engine(url: str) -> Engine:
     """An engine for url; for SQLite, WAL, the busy timeout and SQLAlchemy's own BEGIN."""
     engine = create_engine(url)
@@ -117,7 +137,7 @@ def create_registry_engine(url: str) -> Engine:
             dbapi_connection.isolation_level = None
             cursor = dbapi_connection.cursor()
             cursor.execute(f"PRAGMA busy_timeout = {BUSY_TIMEOUT_MS}")
-            cursor.execute("PRAGMA journal_mode = WAL")
+            _use_wal(cursor)
             cursor.execute("PRAGMA foreign_keys = ON")
             cursor.close()
 
