@@ -80,16 +80,16 @@ def parsed(*args) -> object:
 
 def test_each_command_s_folder_comes_from_its_arguments(tmp_path):
     made = {
-        ("campaign", "--twin", "--out", "lab/c1"): [Path("lab/c1")],
-        ("fit", tmp_path, "--out", "fits/TT-01"): [Path("fits/TT-01")],
-        ("log", "--port", "/dev/ttyUSB0", "--out", "runs/rig"): [Path("runs/rig")],
-        ("log", "--port", "/dev/ttyUSB0", "--out", "runs/rig/run.csv"): [Path("runs/rig")],
-        ("simulate", "fig8", "--out", "runs/f8"): [Path("runs/f8")],
-        ("validate", field_run(tmp_path / "field") / "run.csv", "--out", "report"): [tmp_path / "field"],
+        ("campaign", "--twin", "--out", "lab/c1"): Path("lab/c1"),
+        ("fit", tmp_path, "--out", "fits/TT-01"): Path("fits/TT-01"),
+        ("log", "--port", "/dev/ttyUSB0", "--out", "runs/rig"): Path("runs/rig"),
+        ("log", "--port", "/dev/ttyUSB0", "--out", "runs/rig/run.csv"): Path("runs/rig"),
+        ("simulate", "fig8", "--out", "runs/f8"): Path("runs/f8"),
+        ("validate", field_run(tmp_path / "field") / "run.csv", "--out", "report"): tmp_path / "field",
     }
-    for args, folders in made.items():
+    for args, folder in made.items():
         namespace = parsed(*args)
-        assert MADE_FOLDERS[namespace.command](namespace) == folders, args
+        assert MADE_FOLDERS[namespace.command](namespace) == folder, args
     assert not {"frames", "coefficients", "compare", "discover", "hide-effect", "sensors", "history"} & set(
         MADE_FOLDERS
     )

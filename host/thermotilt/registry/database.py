@@ -24,13 +24,12 @@ from sqlalchemy.engine import make_url
 from sqlalchemy.exc import DBAPIError, SQLAlchemyError
 from sqlalchemy.orm import Session
 
-from . import ENVIRONMENT_VARIABLE, OFF
+from . import DEFAULT_FILE, ENVIRONMENT_VARIABLE, OFF, configured_url
 
 if TYPE_CHECKING:
     from alembic.config import Config
     from alembic.script import ScriptDirectory
 
-DEFAULT_FILE = Path("runs") / "registry.sqlite3"
 MIGRATIONS = Path(__file__).resolve().parent / "migrations"
 # Alembic's table of the revision a database is at.
 VERSION_TABLE = "alembic_version"
@@ -50,12 +49,6 @@ class RegistryError(RuntimeError):
     def __init__(self, message: str, reason: str | None = None) -> None:
         super().__init__(message)
         self.reason = reason or message
-
-
-def configured_url(option: str | None = None) -> str:
-    """The URL the option, else the environment, else the default names
-    (possibly OFF), without making anything."""
-    return option or os.environ.get(ENVIRONMENT_VARIABLE) or f"sqlite:///{Path.cwd() / DEFAULT_FILE}"
 
 
 def registry_url(option: str | None = None) -> str:

@@ -16,38 +16,37 @@ loads nothing of the database.
 from __future__ import annotations
 
 import argparse
-import os
 from collections.abc import Callable
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..options import EXIT_INTERRUPTED
-from . import ENVIRONMENT_VARIABLE, OFF
+from . import OFF, configured_url
 
 if TYPE_CHECKING:
     from .schema import IdAssignment, Upload
 
 
-def _out(args: argparse.Namespace) -> list[Path]:
+def _out(args: argparse.Namespace) -> Path:
     """The folder --out names (simulate's own choice when given none; a batch's sensors in theirs below it)."""
-    return [Path(args.out)]
+    return Path(args.out)
 
 
-def _validated_run(args: argparse.Namespace) -> list[Path]:
+def _validated_run(args: argparse.Namespace) -> Path:
     """The run folder validate wrote validation.json into (its --out holds only the report)."""
     from ..run.folder import RunFolder
 
-    return [RunFolder.of(args.run_path).path]
+    return RunFolder.of(args.run_path).path
 
 
-def _logged_run(args: argparse.Namespace) -> list[Path]:
+def _logged_run(args: argparse.Namespace) -> Path:
     """log's --out: the run folder, or its run.csv."""
     out = Path(args.out)
-    return [out.parent if out.suffix.lower() == ".csv" else out]
+    return out.parent if out.suffix.lower() == ".csv" else out
 
 
-MADE_FOLDERS: dict[str, Callable[[argparse.Namespace], list[Path]]] = {
+MADE_FOLDERS: dict[str, Callable[[argparse.Namespace], Path]] = {
     "campaign": _out,
     "fit": _out,
     "validate": _validated_run,
@@ -85,28 +84,21 @@ MADE_EVENTS: dict[str, Callable[[argparse.Namespace, datetime], Upload | IdAssig
 RECORDED_COMMANDS = (*MADE_FOLDERS, *MADE_EVENTS)
 
 
-def recording_off(option: str | None) -> bool:
-    """--registry off, or THERMOTILT_REGISTRY=off without --registry."""
-    return (option or os.environ.get(ENVIRONMENT_VARIABLE)) == OFF
-
-
 def record_made(args: argparse.Namespace, status: int) -> str | None:
     """Records what the command args ran made, given its exit status; what
     to warn of when the registry could not take it, else None."""
     command = getattr(args, "command", None)
     folders_made = command in MADE_FOLDERS and status in (0, EXIT_INTERRUPTED)
-    if not (folders_made or (command in MADE_EVENTS and status == 0)) or recording_off(args.registry):
+    if not (folders_made or (command in MADE_EVENTS and status == 0)) or configured_url(args.registry) == OFF:
         return None
-    from .database import Registry, RegistryError, configured_url, registry_url, shown
+    from .database import Registry, RegistryError, registry_url, shown
     from .folders import FolderError
     from .ingest import ingest
 
     try:
         with Registry.open(registry_url(args.registry)) as registry:
             if folders_made:
-                folders = MADE_FOLDERS[command](args)
-                if folders:
-                    ingest(registry, folders)
+                ingest(registry, [MADE_FOLDERS[command](args)])
             else:
                 with registry.writing() as session:
                     session.add(MADE_EVENTS[command](args, datetime.now(UTC).replace(tzinfo=None, microsecond=0)))
