@@ -52,6 +52,14 @@ class FittedSurface:
     rmse_lsb: float
 
 
+def domain_grid(
+    temperature_c: tuple[float, float], acceleration_lsb: tuple[float, float]
+) -> tuple[np.ndarray, np.ndarray]:
+    """The GRID_POINTS x GRID_POINTS grid over a domain that surfaces are
+    compared on: temperatures and accelerations, as meshgrid gives them."""
+    return np.meshgrid(np.linspace(*temperature_c, GRID_POINTS), np.linspace(*acceleration_lsb, GRID_POINTS))
+
+
 def calibrated_domain(fit: FittedSurface) -> tuple[float, float]:
     """-10..45 degC, narrowed to what the fit saw: a surface is not
     compared where it was extrapolated."""
@@ -170,9 +178,7 @@ def compare(fits: dict[str, FittedSurface], reference: str, sensor_id: str = "")
             continue
         fitted = fit.surface
         domain = calibrated_domain(fit)
-        temperature, acceleration = np.meshgrid(
-            np.linspace(*domain, GRID_POINTS), np.linspace(*fit.acceleration_range_lsb, GRID_POINTS)
-        )
+        temperature, acceleration = domain_grid(domain, fit.acceleration_range_lsb)
         difference = _relative(fitted, temperature, acceleration) - _relative(surfaces[key], temperature, acceleration)
         half = widths[key] if widths is not None else fit.hac_half_widths
         sigmas = {

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 from sqlalchemy import select
 
-from ..calibration.compare import GRID_POINTS, FittedSurface, calibrated_domain, read_fit
+from ..calibration.compare import GRID_POINTS, FittedSurface, calibrated_domain, domain_grid, read_fit
 from ..calibration.dataset import CalibrationDataError
 from ..lsm9ds0 import tilt_deg
 from ..surfaces import SET_NAMES, SETS
@@ -216,9 +216,7 @@ def surface_change(key: str, old: FittedSurface, new: FittedSurface) -> SurfaceC
     acceleration_lsb = _intersection(old.acceleration_range_lsb, new.acceleration_range_lsb)
     if temperature_c is None or acceleration_lsb is None:
         return None
-    temperature, acceleration = np.meshgrid(
-        np.linspace(*temperature_c, GRID_POINTS), np.linspace(*acceleration_lsb, GRID_POINTS)
-    )
+    temperature, acceleration = domain_grid(temperature_c, acceleration_lsb)
     change_lsb = new.surface.evaluate(temperature, acceleration) - old.surface.evaluate(temperature, acceleration)
     change_deg = tilt_deg(acceleration + change_lsb) - tilt_deg(acceleration)
     return SurfaceChange(
