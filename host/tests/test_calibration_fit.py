@@ -346,6 +346,16 @@ def test_the_fit_is_for_the_sensor_the_campaign_recorded(tmp_path):
     assert result.returncode == 0, result.stderr
     assert decode_block((out / "coefficients.bin").read_bytes()).sensor_id == "NODE-08"
 
+    # A recalibration names the sensor's previous fit; another sensor's is refused.
+    first = tmp_path / "fit0"
+    result, out = fit("--sensor-id", "NODE-07", "--previous-fit", str(first))
+    assert result.returncode == 0, result.stderr
+    previous = json.loads((out / "certificate.json").read_text())["previous_calibration"]
+    assert previous["fit"] == str(first)
+    result, _ = fit("--sensor-id", "NODE-08", "--previous-fit", str(first), "--axes", "X")
+    assert result.returncode == 1 and len(result.stderr.splitlines()) == 1
+    assert f"--previous-fit {first}: its fits are of NODE-07, not of NODE-08" in result.stderr
+
 
 @pytest.mark.slow
 @pytest.mark.parametrize(

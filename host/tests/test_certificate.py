@@ -16,11 +16,15 @@ from thermotilt.calibration.certificate import NotCertifiable, certify, in_domai
 from thermotilt.calibration.certificate.budget import two_significant_text, two_significant_up
 from thermotilt.calibration.certificate.domain import band_index
 from thermotilt.calibration.certificate.errors import left_out_predictions
-from thermotilt.calibration.dataset import Campaign, SetData
+from thermotilt.calibration.certificate.stability import PreviousCalibration
+from thermotilt.calibration.compare import FittedSurface, read_fit
+from thermotilt.calibration.dataset import CalibrationDataError, Campaign, SetData
 from thermotilt.calibration.fit import design, fit_surface, write_outputs
 from thermotilt.calibration.fitting import NO_ID_REASON, SensorFit
+from thermotilt.calibration.surface_change import stability_bound, surface_change
 from thermotilt.calibration.validate import tilt_deg
 from thermotilt.lsm9ds0 import LSB_PER_G
+from thermotilt.surfaces import Surface
 
 ROWS = 800
 OFFSET_LSB = -1823.0
@@ -37,6 +41,7 @@ TYPE_B = (
     "resolution",
     "sensitivity tolerance",
     "sensitivity change with temperature",
+    "long-term stability",
 )
 
 
@@ -152,6 +157,9 @@ def test_the_budget_lists_every_type_b_component_with_its_reason(issued):
     assert not components["sensitivity change with temperature"]["added"]
     assert components["sensitivity change with temperature"]["contribution_deg"] == 0.0
     assert components["temperature reading shift"]["degrees_of_freedom"] is None  # a bound: infinite
+    # A first calibration: the sensor's change over time is not known yet.
+    assert not components["long-term stability"]["added"]
+    assert components["long-term stability"]["source"].startswith("not evaluated")
 
 
 def test_u_is_given_to_two_significant_digits_rounded_up(issued):
@@ -327,3 +335,46 @@ def test_a_campaign_of_three_angles_rests_its_mounting_component_on_in_sample_er
     between = next(c for c in document["budget"]["X"]["components"] if c["name"].startswith("between"))
     assert "3 in sample" in between["source"] and between["degrees_of_freedom"] == 2
     assert not any(point["out_of_sample"] for point in document["points"])
+
+
+def test_a_recalibrations_certificate_adds_the_change_since_the_previous_one(issued, tmp_path):
+    _, _, first, first_dir = issued
+    campaign, fits = fitted(6)  # the same sensor mounted again: other drift slopes
+    previous = PreviousCalibration.read(first_dir, "TT-A")
+    document = certify(campaign, fits, tmp_path, "TT-A", previous).document
+    alone = certify(campaign, fits, tmp_path, "TT-A").document
+    stability = next(c for c in document["budget"]["X"]["components"] if c["name"] == "long-term stability")
+    old = read_fit(first_dir)
+    expected = stability_bound([surface_change(f"{f.set_name}X", old[f"{f.set_name}X"], f) for f in fits])
+    assert stability["added"] and stability["value"] == pytest.approx(expected) and expected > 0.0
+    assert stability["contribution_deg"] == pytest.approx(expected / np.sqrt(3.0))
+    assert first["certificate_number"] in stability["source"]
+    assert document["previous_calibration"]["certificate_number"] == first["certificate_number"]
+
+    # A component more raises every band's u_c. (U = k u_c may still fall:
+    # a bound has infinite degrees of freedom, so Welch-Satterthwaite's
+    # nu_eff rises and Student's k falls, GUM G.4.1.)
+    def combined(cell: dict) -> float:
+        return float(np.sqrt(sum(value**2 for value in cell["contributions_deg"].values())))
+
+    for with_it, without in zip(document["cells"], alone["cells"], strict=True):
+        assert combined(with_it) > combined(without)
+    with pytest.raises(CalibrationDataError, match="fitted for TT-A, not TT-B"):
+        PreviousCalibration.read(first_dir, "TT-B")
+
+
+def _flat_fit(surface: Surface, temperature_c=(-10.0, 45.0)) -> FittedSurface:
+    # Near level, where a degree of tilt is LSB_PER_G / 57.3 LSB.
+    return FittedSurface(surface, {}, temperature_c, (0.0, 100.0), 1.0)
+
+
+def test_a_change_the_same_everywhere_cancels_in_the_stability_bound():
+    old = _flat_fit(Surface(0.0, 0.0, 0.0, 0.0, 0.0, 0.0))
+    shifted = [surface_change(key, old, _flat_fit(Surface(20.0, 0.0, 0.0, 0.0, 0.0, 0.0))) for key in ("WX", "CX")]
+    assert stability_bound(shifted) == pytest.approx(0.0, abs=1e-12)
+    # A slope of 0.2 LSB/degC over 55 degC: 11 LSB between the domain's ends.
+    tilted = surface_change("WX", old, _flat_fit(Surface(0.0, 0.2, 0.0, 0.0, 0.0, 0.0)))
+    assert stability_bound([tilted]) == pytest.approx(np.degrees(11.0 / LSB_PER_G), rel=1e-3)
+    # Sets moved apart: a reading in one and its installation in the other differ by the gap.
+    apart = [shifted[0], surface_change("CX", old, _flat_fit(Surface(-20.0, 0.0, 0.0, 0.0, 0.0, 0.0)))]
+    assert stability_bound(apart) == pytest.approx(np.degrees(40.0 / LSB_PER_G), rel=1e-3)

@@ -13,6 +13,7 @@ from test_certificate import campaign_of
 
 from thermotilt.calibration.certificate import certify
 from thermotilt.calibration.certificate.crossing import (
+    FILTER_LAG_S,
     MAX_WIDTH_C,
     WIDTH_STEP_C,
     crossing_mismatch,
@@ -41,30 +42,44 @@ TURNS_C = (20.0, 44.0, -10.0, 30.0)  # two reversals a position, each with long 
 TURNAROUND = "set selection at turnarounds"
 
 
-def crossing_campaign(rng, width_c: float, set_offset: float = SET_OFFSET_LSB, turns=TURNS_C) -> Campaign:
+def crossing_campaign(
+    rng, width_c: float, set_offset: float = SET_OFFSET_LSB, turns=TURNS_C, axes=("X",), width_spread_c: float = 0.0
+) -> Campaign:
     """Every angle of ANGLES_DEG along turns, its sensor crossing between
-    the sets with a stop operator of width_c on the (filtered) temperature,
-    each mounting with its own offset and slope about the drift."""
+    the sets with a stop operator of width_c on the (filtered) temperature
+    (each position's own, drawn N(width_c, width_spread_c)), each mounting
+    and axis with its own offset, slope and noise about the drift."""
     temperature = np.concatenate(
         [np.arange(a, b, ROW_C if b > a else -ROW_C) for a, b in zip(turns[:-1], turns[1:])] + [[turns[-1]]]
     )
-    share = stop_shares(width_c, temperature[0], temperature, 1.0)
     labels = drift_sets(LABEL_HYSTERESIS_C, temperature[0], temperature)
     parts: dict[str, list] = {"W": [], "C": []}
     for index, angle in enumerate(ANGLES_DEG):
+        width = max(0.0, width_c + rng.normal(0.0, width_spread_c)) if width_spread_c else width_c
+        share = stop_shares(width, temperature[0], temperature, 1.0)
         reading = np.full(len(temperature), LSB_PER_G * np.sin(np.radians(angle)))
         drift = TRUE.evaluate(temperature, reading)
-        mounting = rng.normal(0.0, 3.0) + rng.normal(0.0, 0.3) * (temperature - 25.0)
-        residual = blend(share, drift + set_offset, drift - set_offset) + mounting
-        residual += smooth_noise(rng, len(temperature), NOISE_LSB, 40)
+        residuals = {}
+        for axis in axes:
+            mounting = rng.normal(0.0, 3.0) + rng.normal(0.0, 0.3) * (temperature - 25.0)
+            residual = blend(share, drift + set_offset, drift - set_offset) + mounting
+            residuals[axis] = residual + smooth_noise(rng, len(temperature), NOISE_LSB, 40)
         for set_name, rows in parts.items():
             mine = labels == set_name
-            rows.append((temperature[mine], reading[mine], residual[mine], index, np.flatnonzero(mine) * ROW_S))
+            rows.append(
+                (
+                    temperature[mine],
+                    reading[mine],
+                    {axis: values[mine] for axis, values in residuals.items()},
+                    index,
+                    np.flatnonzero(mine) * ROW_S,
+                )
+            )
     sets = {
         set_name: SetData(
             np.concatenate([part[0] for part in rows]),
-            {"X": np.concatenate([part[1] for part in rows])},
-            {"X": np.concatenate([part[2] for part in rows])},
+            {axis: np.concatenate([part[1] for part in rows]) for axis in axes},
+            {axis: np.concatenate([part[2][axis] for part in rows]) for axis in axes},
             np.concatenate([np.full(len(part[0]), part[3]) for part in rows]),
             time_s=np.concatenate([part[4] for part in rows]),
         )
@@ -74,10 +89,18 @@ def crossing_campaign(rng, width_c: float, set_offset: float = SET_OFFSET_LSB, t
     return Campaign(labels_text, sets, 0)
 
 
-def crossing_of(campaign: Campaign):
-    fits = [fit_surface(campaign.sets[s], s, "X") for s in ("W", "C")]
-    errors = axis_errors(campaign, fits, "X", nominal_angles(campaign.positions)["X"])
-    return estimate_crossing({"X": errors}, fits), fits
+def crossing_of(campaign: Campaign, axes=("X",)):
+    fits = [fit_surface(campaign.sets[s], s, axis) for axis in axes for s in ("W", "C")]
+    angles = nominal_angles(campaign.positions)["X"]
+    errors = {axis: axis_errors(campaign, fits, axis, angles) for axis in axes}
+    return estimate_crossing(errors, fits), fits
+
+
+# The synthetic paths' rate (ROW_C a ROW_S) and the certificate's field rate limit.
+PATH_RATE_C_PER_S = ROW_C / ROW_S
+FIELD_RATE_C_PER_S = 1.0 / 60.0
+# The interval's widening for the filter's lag at the path's rate (crossing.py's docstring).
+LAG_TRAVEL_C = FILTER_LAG_S * PATH_RATE_C_PER_S
 
 
 @pytest.fixture(scope="module", params=[0.0, 1.5, 3.0])
@@ -114,18 +137,19 @@ def test_an_instant_crossing_is_the_limit_of_a_narrow_one():
     np.testing.assert_array_equal(stop_shares(0.0, 1.0, path, 0.0), [0, 1, 1, 0, 0, 1, 0])
 
 
-def test_a_known_crossing_width_lies_in_its_prediction_interval(measured):
+def test_a_known_crossing_width_lies_in_its_interval(measured):
     width, crossing = measured
     # Both reversals of every position: the top one after warming from
     # 20 degC, the bottom one after cooling 54 degC.
     assert len(crossing.reversals) == 2 * len(ANGLES_DEG) and crossing.unevaluated == 0
     assert {r.old_set for r in crossing.reversals} == {"W", "C"}
-    low, high = crossing.prediction_interval_c()
+    assert all(r.rate_c_per_s == pytest.approx(PATH_RATE_C_PER_S, rel=0.01) for r in crossing.reversals)
+    low, high = crossing.width_interval_c(FIELD_RATE_C_PER_S)
     assert low <= width <= high, (width, crossing.widths_c)
     # 1 LSB of noise against a 30 LSB step reads each width to ~0.2 degC or
-    # better; an interval as wide as the device's whole width would be the
-    # method reading noise, not the crossing.
-    assert high - low < FIRMWARE_TRANSITION_C, (low, high)
+    # better; an interval as wide as the device's whole width (beside the
+    # lag's widening) would be the method reading noise, not the crossing.
+    assert high - LAG_TRAVEL_C - low < FIRMWARE_TRANSITION_C, (low, high)
     # Unbiased: the widths' mean within its own 95 % confidence interval of
     # the truth (t s / sqrt(n)), plus half a grid step. Without the step's
     # scale free (crossing._profile), the fitted surfaces' share of the step
@@ -137,36 +161,76 @@ def test_a_known_crossing_width_lies_in_its_prediction_interval(measured):
 
 def test_the_mismatch_is_small_when_the_widths_match_and_whole_for_an_instant_crossing(measured):
     width, crossing = measured
-    m = crossing.mismatch()
-    assert m == pytest.approx(largest_mismatch(*crossing.prediction_interval_c()))
+    m = crossing.mismatch(FIELD_RATE_C_PER_S)
+    assert m == pytest.approx(largest_mismatch(*crossing.width_interval_c(FIELD_RATE_C_PER_S)))
     if width == FIRMWARE_TRANSITION_C:
-        # An interval within +-0.5 degC of 1.5 (a third of the width) gives
-        # m <= 1 - 1 / 1.5 = 1/3.
-        assert m <= 1.0 / 3.0, (m, crossing.prediction_interval_c())
+        # An interval within +-0.5 degC of 1.5 (a third of the width), widened
+        # above by the lag at 6 degC/min (1 degC), gives m <= 1 - 1.5 / 3.
+        assert m <= crossing_mismatch(width + 0.5 + LAG_TRAVEL_C), (m, crossing.width_interval_c(FIELD_RATE_C_PER_S))
     elif width == 0.0:
         # An interval reaching down to 0.15 degC (a tenth of w_d) gives m >= 0.9.
-        assert m >= 0.9, (m, crossing.prediction_interval_c())
+        assert m >= 0.9, (m, crossing.width_interval_c(FIELD_RATE_C_PER_S))
     else:
         assert m >= crossing_mismatch(width) - 0.1, m  # 1 - 1.5 / 3 = 0.5, less a grid step's worth at each end
+
+
+@pytest.mark.slow
+def test_the_variance_between_reversals_is_read_from_two_axes_and_only_it_widens_the_interval():
+    # One width for every reversal: the axes' readings err apart, so their
+    # covariance is about 0 and the interval is the mean's, narrower than
+    # one axis's, which takes all the scatter as the reversals'.
+    fixed = crossing_campaign(np.random.default_rng(11), 1.5, axes=("X", "Y"))
+    both, _ = crossing_of(fixed, ("X", "Y"))
+    alone, _ = crossing_of(fixed, ("X",))
+    assert alone.between_variance() is None
+    assert both.between_variance() < 0.02, both.between_variance()
+    low, high = both.width_interval_c(FIELD_RATE_C_PER_S)
+    single_low, single_high = alone.width_interval_c(FIELD_RATE_C_PER_S)
+    assert high - low < single_high - single_low
+    # Widths that truly differ between positions (sd 0.4 degC): the axes
+    # share them, their covariance reads that variance, and the interval
+    # holds the positions' own widths.
+    spread = 0.4
+    varied = crossing_campaign(np.random.default_rng(12), 1.5, axes=("X", "Y"), width_spread_c=spread)
+    crossing, _ = crossing_of(varied, ("X", "Y"))
+    between = crossing.between_variance()
+    # 14 reversals of 7 positions: the covariance's sampling error is ~40 % of it.
+    assert 0.3 * spread**2 < between < 2.5 * spread**2, between
+    low, high = crossing.width_interval_c(FIELD_RATE_C_PER_S)
+    assert (high - LAG_TRAVEL_C) - low > 2 * 1.5 * spread
+    assert "covariance of the widths the two axes read apart" in crossing.source(FIELD_RATE_C_PER_S)
+
+
+def test_the_lag_widens_the_interval_by_the_travel_the_filter_hides():
+    # Above: the die's crossing the lag hid at the turns' rate; below: the
+    # field's faster reversals hide more, beyond the campaign's rate.
+    fixed = crossing_campaign(np.random.default_rng(13), 1.5)
+    crossing, _ = crossing_of(fixed)
+    slow_field = crossing.width_interval_c(0.0)
+    fast_field = crossing.width_interval_c(PATH_RATE_C_PER_S + 0.05)
+    assert fast_field[1] == pytest.approx(slow_field[1])
+    assert slow_field[0] - fast_field[0] == pytest.approx(FILTER_LAG_S * 0.05, rel=1e-6)
+    widths = crossing.widths_c
+    assert slow_field[1] - LAG_TRAVEL_C > np.mean(widths) > slow_field[0]
 
 
 def test_a_campaign_without_time_or_reversals_keeps_the_whole_difference(tmp_path):
     untimed = campaign_of(np.random.default_rng(5))  # test_certificate's: rows without time_s
     crossing, fits = crossing_of(untimed)
-    assert not crossing.reversals and crossing.mismatch() == 1.0
-    assert "not measured" in crossing.source() and "m = 1" in crossing.source()
+    assert not crossing.reversals and crossing.mismatch(FIELD_RATE_C_PER_S) == 1.0
+    assert "not measured" in crossing.source(FIELD_RATE_C_PER_S) and "m = 1" in crossing.source(FIELD_RATE_C_PER_S)
     # A reversal that comes back less than MAX_WIDTH_C cannot tell the widest
     # candidate from a narrower one, and is said to be left out.
     short = crossing_campaign(np.random.default_rng(7), 1.5, turns=(-10.0, 44.0, 44.0 - MAX_WIDTH_C / 2))
     crossing = crossing_of(short)[0]
-    assert crossing.mismatch() == 1.0 and crossing.unevaluated == len(ANGLES_DEG)
-    assert "after it" in crossing.source()
+    assert crossing.mismatch(FIELD_RATE_C_PER_S) == 1.0 and crossing.unevaluated == len(ANGLES_DEG)
+    assert "after it" in crossing.source(FIELD_RATE_C_PER_S)
 
 
 def test_sets_that_do_not_differ_cannot_show_a_width():
     crossing = crossing_of(crossing_campaign(np.random.default_rng(8), 1.5, set_offset=0.0))[0]
     assert not crossing.reversals and crossing.unevaluated == 2 * len(ANGLES_DEG)
-    assert crossing.mismatch() == 1.0 and "sigma" in crossing.source()
+    assert crossing.mismatch(FIELD_RATE_C_PER_S) == 1.0 and "sigma" in crossing.source(FIELD_RATE_C_PER_S)
 
 
 def test_the_turnaround_row_takes_m_of_the_sets_difference(tmp_path):
@@ -188,13 +252,13 @@ def test_the_turnaround_row_takes_m_of_the_sets_difference(tmp_path):
     # The same cells, the same fits: only m differs, 1 without the rows' time (the cells round to 1e-6 deg).
     np.testing.assert_allclose(
         contributions(documents["timed"]),
-        crossing.mismatch() * np.array(contributions(documents["untimed"])),
+        crossing.mismatch(FIELD_RATE_C_PER_S) * np.array(contributions(documents["untimed"])),
         rtol=1e-4,
         atol=1e-6,
     )
     assert rows["timed"]["value"] < 0.5 * rows["untimed"]["value"]
     assert f"measured at {2 * len(ANGLES_DEG)} reversals" in rows["timed"]["source"]
-    assert f"m = {crossing.mismatch():.2f}" in rows["timed"]["source"]
+    assert f"m = {crossing.mismatch(FIELD_RATE_C_PER_S):.2f}" in rows["timed"]["source"]
     assert "m = 1" in rows["untimed"]["source"]
 
 

@@ -14,7 +14,9 @@ from __future__ import annotations
 import json
 import shutil
 from dataclasses import replace
+from datetime import datetime
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -24,8 +26,11 @@ from test_registry import JANUARY, JUNE, assert_one_line_error, url_of, write_ca
 from thermotilt.calibration.certificate import certify, write_certificate
 from thermotilt.calibration.compare import FittedSurface
 from thermotilt.calibration.fit import write_outputs
+from thermotilt.calibration.surface_change import surface_change
+from thermotilt.calibration.upload_record import record_upload
 from thermotilt.lsm9ds0 import LSB_PER_G
-from thermotilt.registry.history import surface_change
+from thermotilt.registry.database import Registry
+from thermotilt.registry.recalibration import latest_fit_before, previous_fit_finder
 from thermotilt.surfaces import Surface
 
 RAISED_LSB = 2.0
@@ -121,3 +126,42 @@ def test_the_change_is_taken_only_where_both_fits_calibrated():
     assert (change.temperature_c, change.acceleration_lsb) == ((5.0, 30.0), (-400.0, 500.0))
     assert change.rms_lsb == change.largest_lsb == 1.0
     assert surface_change("WX", fit((-10.0, 10.0), (0.0, 100.0)), fit((10.0, 45.0), (0.0, 100.0))) is None
+
+
+def _uploaded(fit_dir: Path, when: datetime, saved: bool = True) -> None:
+    """upload's record of fit_dir going onto TT-H's board (upload_record's line, as the command writes it)."""
+    result = SimpleNamespace(port="/dev/ttyUSB0", sensor_id="TT-H", firmware_version="0.4.1", saved=saved)
+    record_upload(fit_dir, SimpleNamespace(**vars(result), coef_source="E" if saved else "U"), when)
+
+
+def test_the_fleet_shows_the_fit_each_board_runs_and_whether_it_is_the_latest(recorded_lab, cli_in_process):
+    lab, url = recorded_lab
+
+    def board_cell() -> str:
+        listing = cli_in_process("sensors", "--registry", url).stdout.splitlines()
+        header, line = listing[0], next(line for line in listing if line.startswith("TT-H "))
+        start = header.index("fit on its board")
+        return line[start : header.index("last validation")].strip()
+
+    assert board_cell() == "-"
+    _uploaded(lab / "fits" / "TT-H-january", datetime(2026, 1, 12))
+    assert cli_in_process("registry", "ingest", lab / "fits", "--registry", url).returncode == 0
+    assert board_cell() == f"{lab / 'fits' / 'TT-H-january'} (not the latest)"
+    _uploaded(lab / "fits" / "TT-H-june", datetime(2026, 6, 3), saved=False)
+    assert cli_in_process("registry", "ingest", lab / "fits", "--registry", url).returncode == 0
+    assert board_cell() == f"{lab / 'fits' / 'TT-H-june'} (latest, RAM only)"
+
+
+def test_a_recalibration_s_previous_fit_is_the_latest_that_ended_before_its_campaign_started(recorded_lab):
+    lab, url = recorded_lab
+    january, june = (lab / "fits" / f"TT-H-{month}" for month in ("january", "june"))
+    june_started = datetime.strptime(
+        json.loads((june / "certificate.json").read_text())["calibration_dates"]["started_utc"], "%Y-%m-%dT%H:%M:%SZ"
+    )
+    with Registry.open(url) as registry:
+        assert latest_fit_before(registry, "TT-H", june_started) == january
+        assert latest_fit_before(registry, "TT-H", datetime(2025, 1, 1)) is None
+        assert latest_fit_before(registry, "TT-H", None) == june
+        assert latest_fit_before(registry, "TT-X", None) is None
+    # The registry off: fit asks nothing.
+    assert previous_fit_finder(SimpleNamespace(registry="off")) is None

@@ -7,6 +7,7 @@ and says what it did."""
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from ..options import (
@@ -56,12 +57,21 @@ def _add_fit(commands: argparse._SubParsersAction) -> None:
         "(campaign.json from real boards records the IMU's ID; upload refuses a fit for another sensor)",
     )
     fit.add_argument(
+        "--previous-fit",
+        type=existing_folder,
+        metavar="FIT_DIR",
+        help="the sensor's calibration before this one (a fit folder, or a batch's with a folder per sensor): "
+        "the change of its drift surfaces since enters the certificate as the long-term stability component "
+        "(default: each sensor's latest calibration in the registry)",
+    )
+    fit.add_argument(
         "--compare-families",
         action="store_true",
         help="also score poly11, poly22 (the paper's), poly22+rate and poly33 by "
         "leave-one-position-out CV RMSE and BIC; writes families.json",
     )
-    fit.set_defaults(run=_fit)
+    # The command line gives find_previous_fit from the registry (registry.recalibration).
+    fit.set_defaults(run=_fit, find_previous_fit=None)
 
 
 def _add_compare(commands: argparse._SubParsersAction) -> None:
@@ -147,11 +157,25 @@ def _add_assign_id(commands: argparse._SubParsersAction) -> None:
 
 def _fit(args: argparse.Namespace) -> int:
     from .dataset import CalibrationDataError
-    from .fitting import FitOptions, fit_folder
+    from .fitting import FitOptions, fit_folder, fits_by_sensor
 
-    options = FitOptions(tuple(args.axes), args.settle_seconds, args.sensor_id, args.compare_families)
     with as_usage_error(CalibrationDataError):
+        previous = fits_by_sensor(Path(args.previous_fit)) if args.previous_fit else {}
+        options = FitOptions(
+            tuple(args.axes),
+            args.settle_seconds,
+            args.sensor_id,
+            args.compare_families,
+            previous,
+            args.find_previous_fit,
+        )
         fit = fit_folder(Path(args.campaign), Path(args.out), options)
+        fitted = {sensor.fitted_for for sensor in fit.sensors.values()}
+        if args.previous_fit and not fitted & previous.keys():
+            raise CalibrationDataError(
+                f"--previous-fit {args.previous_fit}: its fits are of {', '.join(sorted(previous))}, "
+                f"not of {', '.join(sorted(fitted - {''})) or 'the sensor fitted (it has no ID)'}"
+            )
         fit.write()
     print(fit.summary())
     return 0
@@ -187,10 +211,18 @@ def _validate(args: argparse.Namespace) -> int:
 
 def _upload(args: argparse.Namespace) -> int:
     from .upload import UploadError, format_result, upload
+    from .upload_record import record_upload
 
     with as_usage_error(UploadError):
         result = upload(Path(args.fit_dir), args.port, baud=args.baud, save=not args.no_save)
     print(format_result(result))
+    try:
+        print(f"recorded in {record_upload(Path(args.fit_dir), result)}")
+    except OSError as error:
+        print(
+            f"thermotilt: warning: uploaded, but not recorded in {args.fit_dir}: {error.strerror or error}",
+            file=sys.stderr,
+        )
     return 0
 
 

@@ -85,6 +85,7 @@ METHOD_SOURCES = (
     "calibration/newey_west.py",
     "calibration/tilt_change.py",
     "calibration/certificate",
+    "calibration/surface_change.py",
     "physics/sensor.py",
     "physics/batch.py",
     "physics/model.py",
@@ -97,6 +98,7 @@ METHOD_SOURCES = (
     "run/positions.py",
     "lsm9ds0.py",
     "surfaces.py",
+    "set_blend.py",
     "program.py",
 )
 

@@ -8,7 +8,9 @@ and no certificate."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from datetime import datetime
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +28,11 @@ class FitOptions:
     # The sensor the campaign calibrated, where its campaign.json does not say.
     sensor_id: str | None = None
     compare_families: bool = False
+    # Each sensor's calibration before this one, by ID: its fit folder.
+    previous_fits: Mapping[str, Path] = field(default_factory=dict)
+    # For a sensor previous_fits does not name: its latest fit from a
+    # campaign that ended before this one started (sensor ID, start), if any.
+    find_previous: Callable[[str, datetime | None], Path | None] | None = None
 
 
 @dataclass
@@ -121,6 +128,7 @@ class SensorFit:
 def fit_sensor(campaign_dir: Path, out_dir: Path, options: FitOptions) -> SensorFit:
     """One sensor's campaign fitted and certified (nothing written yet)."""
     from .certificate import NotCertifiable, certify
+    from .certificate.stability import PreviousCalibration
     from .dataset import load
     from .families import compare_families
     from .fit import fit_campaign
@@ -136,12 +144,39 @@ def fit_sensor(campaign_dir: Path, out_dir: Path, options: FitOptions) -> Sensor
         fitted_for = options.sensor_id
     certificate, no_certificate = None, NO_ID_REASON
     if fitted_for:
+        previous_fit = _previous_fit(options, fitted_for, campaign_dir)
+        previous = None if previous_fit is None else PreviousCalibration.read(previous_fit, fitted_for)
         try:
-            certificate, no_certificate = certify(campaign, fits, campaign_dir, fitted_for), None
+            certificate, no_certificate = certify(campaign, fits, campaign_dir, fitted_for, previous), None
         except NotCertifiable as error:
             no_certificate = str(error)
     families = compare_families(campaign, options.axes) if options.compare_families else None
     return SensorFit(campaign_dir, out_dir, campaign, fits, certificate, no_certificate, families, fitted_for)
+
+
+def _previous_fit(options: FitOptions, sensor_id: str, campaign_dir: Path) -> Path | None:
+    from .certificate.document import calibration_dates, campaign_record
+
+    if sensor_id in options.previous_fits or options.find_previous is None:
+        return options.previous_fits.get(sensor_id)
+    started = calibration_dates(campaign_record(campaign_dir))["started_utc"]
+    return options.find_previous(sensor_id, datetime.strptime(started, "%Y-%m-%dT%H:%M:%SZ") if started else None)
+
+
+def fits_by_sensor(fit_dir: Path) -> dict[str, Path]:
+    """The fit folders fit_dir holds, by their sensor's ID: itself (one
+    sensor's fit) or, for a batch's, each sensor's folder in it."""
+    from .compare import fitted_sensor_id
+
+    if (fit_dir / "coefficients.json").is_file():
+        folders = [fit_dir]
+    else:
+        folders = sorted(path.parent for path in fit_dir.glob("*/coefficients.json"))
+    found = {fitted_sensor_id(folder): folder for folder in folders}
+    found.pop("", None)
+    if not found:
+        raise CalibrationDataError(f"{fit_dir}: no fit of an identified sensor (coefficients.json with a sensor ID)")
+    return found
 
 
 @dataclass

@@ -4,18 +4,16 @@ consecutive ones, how its drift surfaces changed.
 The calibrations and their order come from the registry (a calibration's
 date as ``thermotilt sensors`` gives it); each fit's surfaces from its
 folder's coefficients.json (``calibration.compare.read_fit``). The change
-is f_new - f_old per set (W, C) and axis (X, Y) on a grid over the domain
-both fits calibrated (the intersection of their temperature ranges, within
--10..45 degC as compare takes them, and of their acceleration ranges): its
-RMS and its largest value in LSB, and the same in degrees of tilt, the
-change of tilt_deg at each grid point's acceleration. What compensation
-subtracts changes by exactly this when the board gets the new fit.
+per set (W, C) and axis (X, Y) is ``calibration.surface_change``'s: its RMS
+and its largest value in LSB and in degrees of tilt over the domain both
+fits calibrated. What compensation subtracts changes by exactly this when
+the board gets the new fit.
 """
 
 from __future__ import annotations
 
 import json
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from datetime import date, datetime
 from pathlib import Path
 from typing import Any
@@ -23,9 +21,9 @@ from typing import Any
 import numpy as np
 from sqlalchemy import select
 
-from ..calibration.compare import GRID_POINTS, FittedSurface, calibrated_domain, domain_grid, read_fit
+from ..calibration.compare import GRID_POINTS, FittedSurface, read_fit
 from ..calibration.dataset import CalibrationDataError
-from ..lsm9ds0 import tilt_deg
+from ..calibration.surface_change import SurfaceChange, surface_change
 from ..surfaces import SET_NAMES, SETS
 from .database import Registry
 from .fleet import NONE, aligned, calibrated_at, calibration_date, shown_path, two_significant
@@ -64,25 +62,6 @@ class CalibrationEntry:
     @property
     def shown_date(self) -> str:
         return str(self.calibrated or "undated")
-
-
-@dataclass(frozen=True)
-class SurfaceChange:
-    """f_new - f_old of one set and axis over the common domain; largest is
-    the value of greatest magnitude, with its sign. The grid's values are
-    for the figure."""
-
-    surface: str
-    temperature_c: tuple[float, float]
-    acceleration_lsb: tuple[float, float]
-    rms_lsb: float
-    largest_lsb: float
-    rms_deg: float
-    largest_deg: float
-    grid_deg: np.ndarray = field(repr=False, compare=False)
-
-    def document(self) -> dict[str, Any]:
-        return {name: value for name, value in asdict(self).items() if name not in ("surface", "grid_deg")}
 
 
 @dataclass(frozen=True)
@@ -208,40 +187,6 @@ def _calibration_change(
         else:
             surfaces.append(change)
     return CalibrationChange(older, newer, surfaces, not_compared)
-
-
-def surface_change(key: str, old: FittedSurface, new: FittedSurface) -> SurfaceChange | None:
-    """new - old over their common domain; None where they share none."""
-    temperature_c = _intersection(calibrated_domain(old), calibrated_domain(new))
-    acceleration_lsb = _intersection(old.acceleration_range_lsb, new.acceleration_range_lsb)
-    if temperature_c is None or acceleration_lsb is None:
-        return None
-    temperature, acceleration = domain_grid(temperature_c, acceleration_lsb)
-    change_lsb = new.surface.evaluate(temperature, acceleration) - old.surface.evaluate(temperature, acceleration)
-    change_deg = tilt_deg(acceleration + change_lsb) - tilt_deg(acceleration)
-    return SurfaceChange(
-        key,
-        temperature_c,
-        acceleration_lsb,
-        _rms(change_lsb),
-        _largest(change_lsb),
-        _rms(change_deg),
-        _largest(change_deg),
-        change_deg,
-    )
-
-
-def _intersection(first: tuple[float, float], second: tuple[float, float]) -> tuple[float, float] | None:
-    low, high = max(first[0], second[0]), min(first[1], second[1])
-    return (low, high) if low < high else None
-
-
-def _rms(values: np.ndarray) -> float:
-    return float(np.sqrt(np.mean(values**2)))
-
-
-def _largest(values: np.ndarray) -> float:
-    return float(values.flat[np.argmax(np.abs(values))])
 
 
 def _calibration_text(entry: CalibrationEntry) -> str:

@@ -26,6 +26,7 @@ from ..fit import SurfaceFit, hac_lags
 from ..newey_west import hac_panel_covariance
 from .crossing import Crossing
 from .errors import AxisErrors
+from .stability import NOT_EVALUATED, PreviousCalibration
 
 COVERAGE_PROBABILITY = 0.95
 SQRT3 = math.sqrt(3.0)
@@ -156,6 +157,9 @@ class AxisInputs:
     # m: the share of |f_W - f_C| the device's crossing can be off by after a reversal (crossing.py)
     set_mismatch: float
     set_mismatch_source: str
+    # The long-term stability half-width in degrees (stability.py); None unevaluated.
+    stability_deg: float | None = None
+    stability_source: str = NOT_EVALUATED
 
 
 def rate_bound(errors: AxisErrors) -> tuple[float, str]:
@@ -213,11 +217,17 @@ def offset_difference(errors: AxisErrors) -> tuple[float, float, str]:
     )
 
 
-def axis_inputs(errors: AxisErrors, fits: list[SurfaceFit], crossing: Crossing) -> AxisInputs:
+def axis_inputs(
+    errors: AxisErrors, fits: list[SurfaceFit], crossing: Crossing, previous: PreviousCalibration | None = None
+) -> AxisInputs:
     """The axis's campaign-level inputs; crossing, the campaign's
-    set-crossing estimate over all its axes (crossing.estimate_crossing)."""
+    set-crossing estimate over all its axes (crossing.estimate_crossing);
+    previous, the sensor's calibration before this one, if any."""
     rate_lsb, rate_source = rate_bound(errors)
     offset_u, offset_dof, offset_source = offset_difference(errors)
+    stability_deg, stability_source = (
+        (None, NOT_EVALUATED) if previous is None else previous.stability(fits, errors.axis)
+    )
     return AxisInputs(
         {fit.set_name: fit for fit in fits if fit.axis == errors.axis},
         rate_lsb,
@@ -225,8 +235,10 @@ def axis_inputs(errors: AxisErrors, fits: list[SurfaceFit], crossing: Crossing) 
         offset_u,
         offset_dof,
         offset_source,
-        crossing.mismatch(),
-        crossing.source(),
+        crossing.mismatch(FIELD_RATE_LIMIT_C_PER_MIN / 60.0),
+        crossing.source(FIELD_RATE_LIMIT_C_PER_MIN / 60.0),
+        stability_deg,
+        stability_source,
     )
 
 
@@ -340,4 +352,13 @@ def type_b_components(
             TEMPCO_SOURCE,
             added=False,
         ),
+        _stability(inputs),
     ]
+
+
+def _stability(inputs: AxisInputs) -> Component:
+    """The long-term stability component: listed, not added, for a first calibration."""
+    added = inputs.stability_deg is not None
+    return rectangular(
+        "long-term stability", inputs.stability_deg or 0.0, "deg", 1.0, inputs.stability_source, added=added
+    )

@@ -18,9 +18,19 @@ state of the die, the same share for both axes, so the axes' sums of
 squares are added, each over its scatter before the turn (an axis whose
 sets hardly differ there carries no say, see MIN_SET_CONTRAST).
 
-Across the reversals the widths are draws of the crossing at the
-campaign's rates; a field reversal is a new draw, so its width is bounded
-by their 95 % prediction interval, mean +- t(n - 1) s sqrt(1 + 1/n).
+Across the reversals the widths are readings of the crossing at the
+campaign's rates. A field reversal's width may differ from their mean by
+the mean's own uncertainty and by how much the crossing truly varies from
+one reversal to the next: that variance is the covariance of the two axes'
+widths read apart on the same reversals (each axis's reading errs on its
+own; what they share is the reversal's width), or, with one axis, all the
+widths' scatter. The interval for a new reversal is mean +- t(n - 1)
+sqrt(between + s^2 / n), Student's t on n - 1. The width is read on the
+filtered temperature, which lags the die's by the Kalman filter's time
+constant (FILTER_LAG_S): the slower a reversal, the less of the die's
+crossing the lag hides, so at field rates the width lies between what the
+campaign's fastest reversal read less the lag at the validity's rate limit
+beyond it, and what its fastest read plus the whole lag at its own rate.
 """
 
 from __future__ import annotations
@@ -46,7 +56,13 @@ CANDIDATE_WIDTHS_C = np.linspace(0.0, MAX_WIDTH_C, round(MAX_WIDTH_C / WIDTH_STE
 MIN_SET_CONTRAST = 3.0
 # Fewer widths give no spread, so no prediction interval.
 MIN_REVERSALS = 2
+# Fewer reversals read on two axes leave the variance between reversals unread.
+MIN_PAIRED_REVERSALS = 3
 PREDICTION_PROBABILITY = 0.95
+# lib/Kalman: the gain settles at sqrt(Q/R) = 1e-3 a sample, a first-order
+# lag of ~1000 samples, 10 s at 100 Hz; the temperature goes through the
+# same filter as the axes (lib/ImuProcessing).
+FILTER_LAG_S = 10.0
 
 
 @dataclass(frozen=True)
@@ -58,7 +74,9 @@ class Reversal:
     turn_c: float  # the filtered temperature at the turn
     turn_time_s: float
     axes: tuple[str, ...]  # the axes whose sets differ enough to read the width
-    width_c: float
+    width_c: float  # read on those axes together
+    axis_widths_c: tuple[float, ...]  # read on each of them alone, in axes' order
+    rate_c_per_s: float  # |dT/dt| of the filtered temperature over the window after the turn
 
 
 @dataclass(frozen=True)
@@ -77,24 +95,38 @@ class Crossing:
     def measured(self) -> bool:
         return len(self.reversals) >= MIN_REVERSALS
 
-    def prediction_interval_c(self) -> tuple[float, float]:
-        """The 95 % prediction interval of a new reversal's width (Student's
-        t on n - 1 degrees of freedom), held at or above 0."""
+    def between_variance(self) -> float | None:
+        """How much the crossing's width varies from one reversal to the
+        next (degC^2): the covariance of the widths two axes read apart on
+        the same reversals, at least 0; None with fewer than
+        MIN_PAIRED_REVERSALS reversals read on two axes."""
+        paired = np.array([r.axis_widths_c[:2] for r in self.reversals if len(r.axis_widths_c) >= 2])
+        if len(paired) < MIN_PAIRED_REVERSALS:
+            return None
+        return max(0.0, float(np.cov(paired[:, 0], paired[:, 1], ddof=1)[0, 1]))
+
+    def width_interval_c(self, field_rate_limit_c_per_s: float) -> tuple[float, float]:
+        """The 95 % interval of a field reversal's width on the filtered
+        temperature (the module's docstring), held at or above 0."""
         widths = self.widths_c
         count = len(widths)
-        factor = float(stats.t.ppf(0.5 + PREDICTION_PROBABILITY / 2.0, count - 1))
-        half = factor * float(np.std(widths, ddof=1)) * math.sqrt(1.0 + 1.0 / count)
+        spread = float(np.var(widths, ddof=1))
+        between = self.between_variance()
+        variance = spread * (1.0 + 1.0 / count) if between is None else min(spread, between) + spread / count
+        half = float(stats.t.ppf(0.5 + PREDICTION_PROBABILITY / 2.0, count - 1)) * math.sqrt(variance)
+        rates = [reversal.rate_c_per_s for reversal in self.reversals]
         mean = float(np.mean(widths))
-        return max(0.0, mean - half), mean + half
+        low = mean - half - FILTER_LAG_S * max(0.0, field_rate_limit_c_per_s - min(rates))
+        return max(0.0, low), mean + half + FILTER_LAG_S * max(rates)
 
-    def mismatch(self) -> float:
+    def mismatch(self, field_rate_limit_c_per_s: float) -> float:
         """m: the largest share of |f_W - f_C| the device's crossing can be
-        off by, over the widths of the prediction interval; 1 unmeasured."""
+        off by, over the widths of width_interval_c; 1 unmeasured."""
         if not self.measured:
             return 1.0
-        return largest_mismatch(*self.prediction_interval_c())
+        return largest_mismatch(*self.width_interval_c(field_rate_limit_c_per_s))
 
-    def source(self) -> str:
+    def source(self, field_rate_limit_c_per_s: float) -> str:
         found = len(self.reversals) + self.unevaluated
         skipped = f"; {self.unevaluated} not evaluated ({'; '.join(self.reasons)})" if self.unevaluated else ""
         if not self.measured:
@@ -104,14 +136,24 @@ class Crossing:
                 "difference, m = 1"
             )
         widths = self.widths_c
-        low, high = self.prediction_interval_c()
+        between = self.between_variance()
+        low, high = self.width_interval_c(field_rate_limit_c_per_s)
+        varies = (
+            "no second axis to tell it from the readings' scatter, so all of the scatter is taken as the reversals'"
+            if between is None
+            else "the reversals' own variance, the covariance of the widths the two axes read apart (held at 0 "
+            f"or above): {between:.2g} degC^2"
+        )
+        rates = [reversal.rate_c_per_s * 60.0 for reversal in self.reversals]
         return (
             f"the sensor's crossing width w measured at {len(widths)} reversals of the campaign (the stop "
             "operator's width on the filtered temperature whose blend of the fitted sets best fits the residuals "
             f"around each turn, least squares, one share for the axes){skipped}: mean {np.mean(widths):.2f} degC, "
-            f"s {np.std(widths, ddof=1):.2f} degC, {PREDICTION_PROBABILITY * 100:g} % prediction interval for a "
-            f"new reversal {low:.2f} .. {high:.2f} degC (Student t, {len(widths) - 1} degrees of freedom); "
-            f"m = {self.mismatch():.2f}"
+            f"s {np.std(widths, ddof=1):.2f} degC; {varies}; a new reversal mean +- t s_new "
+            f"(Student t, {len(widths) - 1} degrees of freedom, {PREDICTION_PROBABILITY * 100:g} %), widened for "
+            f"the filter's {FILTER_LAG_S:g} s lag between the turns' rates ({min(rates):.2g}..{max(rates):.2g} "
+            f"degC/min) and the field's (0..{field_rate_limit_c_per_s * 60.0:g} degC/min): {low:.2f} .. {high:.2f} "
+            f"degC; m = {self.mismatch(field_rate_limit_c_per_s):.2f}"
         )
 
 
@@ -178,6 +220,12 @@ def _windows(errors: AxisErrors) -> tuple[list[_Window], dict[str, int]]:
     return windows, skipped
 
 
+def _rate_after(errors: AxisErrors, window: _Window) -> float:
+    """|dT/dt| of the filtered temperature from the turn to the window's end (least squares), degC/s."""
+    after = window.rows[window.turn :]
+    return abs(float(np.polyfit(errors.time_s[after], errors.temperature_c[after], 1)[0]))
+
+
 def _profile(errors: AxisErrors, fits: dict[str, SurfaceFit], window: _Window, shares: np.ndarray) -> np.ndarray | None:
     """The window's sum of squared errors per candidate width, over the
     variance of the in-sample errors before the turn (about their line in
@@ -215,7 +263,7 @@ def estimate_crossing(errors_by_axis: dict[str, AxisErrors], fits: list[SurfaceF
     """Every reversal of the campaign with its width, over the axes fitted
     in both sets (one share per reversal for all of them)."""
     profiles: dict[tuple[int, float], dict[str, np.ndarray | None]] = {}
-    turns: dict[tuple[int, float], tuple[str, float]] = {}
+    turns: dict[tuple[int, float], tuple[str, float, float]] = {}
     skipped: dict[str, int] = {}
     # The axes fitted in both sets hold the same rows, so the same windows: their shares once.
     shares_of: dict[tuple[int, float], np.ndarray] = {}
@@ -236,7 +284,11 @@ def estimate_crossing(errors_by_axis: dict[str, AxisErrors], fits: list[SurfaceF
                     [stop_shares(width, temperature[0], temperature, old_share) for width in CANDIDATE_WIDTHS_C]
                 )
             profiles.setdefault(key, {})[axis] = _profile(errors, axis_fits, window, shares_of[key])
-            turns[key] = (window.old_set, float(errors.temperature_c[window.rows[window.turn]]))
+            turns[key] = (
+                window.old_set,
+                float(errors.temperature_c[window.rows[window.turn]]),
+                _rate_after(errors, window),
+            )
     reversals = []
     flat = 0
     for key, by_axis in sorted(profiles.items()):
@@ -245,9 +297,18 @@ def estimate_crossing(errors_by_axis: dict[str, AxisErrors], fits: list[SurfaceF
             flat += 1
             continue
         total = np.sum(list(readable.values()), axis=0)
-        old_set, turn_c = turns[key]
+        old_set, turn_c, rate = turns[key]
         reversals.append(
-            Reversal(key[0], old_set, turn_c, key[1], tuple(readable), float(CANDIDATE_WIDTHS_C[np.argmin(total)]))
+            Reversal(
+                key[0],
+                old_set,
+                turn_c,
+                key[1],
+                tuple(readable),
+                float(CANDIDATE_WIDTHS_C[np.argmin(total)]),
+                tuple(float(CANDIDATE_WIDTHS_C[np.argmin(profile)]) for profile in readable.values()),
+                rate,
+            )
         )
     if flat:
         skipped[f"where the sets differ by less than {MIN_SET_CONTRAST:g} sigma of the rows at the turn"] = flat

@@ -19,6 +19,7 @@ from .budget import COVERAGE_PROBABILITY, FIELD_RATE_LIMIT_C_PER_MIN, axis_input
 from .crossing import estimate_crossing
 from .errors import AxisErrors, NoNominalAngle, axis_errors, nominal_angles, tilt_allowance_deg
 from .points import axis_points, coverage
+from .stability import PreviousCalibration
 from .uncertainty import MIN_BAND_POSITIONS, Cell, axis_cells, table
 
 CERTIFICATE_JSON = "certificate.json"
@@ -90,14 +91,20 @@ def _cell_summary(cell: Cell) -> dict:
     }
 
 
-def _axis_results(campaign: Campaign, fits: list[SurfaceFit], angles: dict, domain_c: tuple[float, float]) -> dict:
+def _axis_results(
+    campaign: Campaign,
+    fits: list[SurfaceFit],
+    angles: dict,
+    domain_c: tuple[float, float],
+    previous: PreviousCalibration | None,
+) -> dict:
     errors_by_axis = {
         axis: axis_errors(campaign, fits, axis, angles[axis]) for axis in dict.fromkeys(f.axis for f in fits)
     }
     crossing = estimate_crossing(errors_by_axis, fits)
     results = {}
     for axis, errors in errors_by_axis.items():
-        cells = axis_cells(errors, axis_inputs(errors, fits, crossing), domain_c)
+        cells = axis_cells(errors, axis_inputs(errors, fits, crossing, previous), domain_c)
         if not cells:
             raise NotCertifiable(f"{axis} axis: no band of IMU temperature and tilt holds rows of two positions")
         axis_table = table(cells, domain_c, errors)
@@ -105,16 +112,22 @@ def _axis_results(campaign: Campaign, fits: list[SurfaceFit], angles: dict, doma
     return results
 
 
-def certify(campaign: Campaign, fits: list[SurfaceFit], campaign_dir: Path, sensor_id: str) -> Certification:
+def certify(
+    campaign: Campaign,
+    fits: list[SurfaceFit],
+    campaign_dir: Path,
+    sensor_id: str,
+    previous: PreviousCalibration | None = None,
+) -> Certification:
     """certificate.json's document (all but the fields write_certificate
-    adds) for the sensor sensor_id; NotCertifiable when the campaign cannot
-    support one."""
+    adds) for the sensor sensor_id, recalibrated after previous if given;
+    NotCertifiable when the campaign cannot support one."""
     try:
         angles = nominal_angles(campaign.positions)
     except NoNominalAngle as error:
         raise NotCertifiable(str(error)) from None
     domain_c = _temperature_domain(fits)
-    results = _axis_results(campaign, fits, angles, domain_c)
+    results = _axis_results(campaign, fits, angles, domain_c, previous)
     record, lab = fields.campaign_record(campaign_dir), fields.laboratory(campaign_dir)
     present = {axis: np.isfinite(errors.reference_lsb) for axis, (errors, *_) in results.items()}
     domain = {
@@ -140,6 +153,13 @@ def certify(campaign: Campaign, fits: list[SurfaceFit], campaign_dir: Path, sens
         "procedure": fields.procedure(),
         "calibration_dates": fields.calibration_dates(record),
         "campaign": str(campaign_dir),
+        "previous_calibration": None
+        if previous is None
+        else {
+            "certificate_number": previous.certificate_number,
+            "ended_utc": previous.calibrated,
+            "fit": str(previous.fit_dir),
+        },
         "chamber_program": fields.chamber_program(record),
         "positions": len(campaign.positions),
         "references": {"tilt": lab["tilt_reference"], "temperature": lab["temperature_reference"]},
