@@ -201,8 +201,8 @@ def test_the_sensors_listing_shows_the_last_calibration_and_validation_and_when_
     lines = early.summary().splitlines()
     assert lines[0].split()[:2] == ["sensor", "calibrated"]
     u95 = f"{json.loads((june / 'certificate.json').read_text())['tilt_u95_deg']:#.2g}".rstrip(".")
-    assert lines[1].split() == ["TT-A", "2026-06-02", u95, str(june), "0.050", "(2026-07-01)", "2027-06-02"]
-    assert lines[2].split() == ["TT-B", "-", "-", str((lab / "fits" / "TT-B").resolve()), "-", "-"]
+    assert lines[1].split() == ["TT-A", "2026-06-02", u95, str(june), "-", "0.050", "(2026-07-01)", "2027-06-02"]
+    assert lines[2].split() == ["TT-B", "-", "-", str((lab / "fits" / "TT-B").resolve()), "-", "-", "-"]
     assert late.summary().splitlines()[1].endswith("2026-07-02 overdue")
 
 

@@ -186,9 +186,22 @@ def test_upload_and_assign_id_are_recorded_as_what_they_did(
             ("TT-U", str(fit_dir), block, False),
         ]
         assert uploads[0].uploaded_utc <= uploads[1].uploaded_utc and assignment.assigned_utc <= uploads[0].uploaded_utc
-        # No folder holds them: a rebuild keeps them, and they make no sensor of the fleet.
+        # The fit folder holds the uploads (uploads.jsonl); no folder holds the
+        # assignment, so a rebuild keeps it, and it makes no sensor of the fleet.
         rebuild(registry, [tmp_path / "fit"])
         assert (rows(registry, Upload), rows(registry, IdAssignment), rows(registry, Sensor)) == (2, 1, 1)
+    assert len((fit_dir / "uploads.jsonl").read_text().splitlines()) == 2
+    # A registry deleted and rebuilt from the folder has the uploads as they were.
+    with Registry.open(url_of(tmp_path / "new.sqlite3")) as registry:
+        (fit_dir / "uploads.jsonl").write_text((fit_dir / "uploads.jsonl").read_text() + '{"cut short\n')
+        ingestion = rebuild(registry, [tmp_path / "fit"])
+        with registry.reading() as session:
+            again = session.scalars(select(Upload).order_by(Upload.id)).all()
+        assert [(row.sensor_id, row.coefficients_sha256, row.saved, row.uploaded_utc) for row in again] == [
+            (row.sensor_id, row.coefficients_sha256, row.saved, row.uploaded_utc) for row in uploads
+        ]
+        assert ingestion.uploads == 2 and ingestion.malformed_upload_lines == 1
+        assert "skipped 1 lines of uploads.jsonl" in ingestion.summary()
 
 
 def test_an_upload_that_failed_is_not_recorded(board_on_a_port, monkeypatch, cli_in_process, registry_of_the_test):

@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING
 
 from ..options import PROGRAM, as_usage_error, existing_folder, one_line, within
 from . import DEFAULT_INTERVAL_DAYS, ENVIRONMENT_VARIABLE, OFF
+from .recalibration import previous_fit_finder
 from .recording import RECORDED_COMMANDS, record_made
 
 if TYPE_CHECKING:
@@ -72,6 +73,12 @@ def add_recording_options(commands: argparse._SubParsersAction) -> None:
             help=f"record what this makes in this registry (default: ${ENVIRONMENT_VARIABLE}, else "
             f"runs/registry.sqlite3 here); {OFF}: record nothing",
         )
+
+
+def prepare(args: argparse.Namespace) -> None:
+    """Before a command: fit asks the registry for each sensor's previous calibration (recalibration.py)."""
+    if getattr(args, "command", None) == "fit":
+        args.find_previous_fit = previous_fit_finder(args)
 
 
 def record_what_was_made(args: argparse.Namespace, status: int) -> None:

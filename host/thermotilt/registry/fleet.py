@@ -1,5 +1,6 @@
 """``thermotilt sensors``: one line per sensor the registry knows — its
-last calibration (date, the certificate's U, the fit folder), its last
+last calibration (date, the certificate's U, the fit folder), the fit its
+board runs (its last upload) and whether that is the latest, its last
 validation's p95 change of tilt, and when it is due for recalibration.
 
 A calibration's date is when its campaign ended (the certificate's
@@ -20,12 +21,20 @@ from sqlalchemy import select
 
 from . import DEFAULT_INTERVAL_DAYS
 from .database import Registry
-from .schema import Calibration, Sensor, Validation
+from .schema import Calibration, Sensor, Upload, Validation
 
 NONE = "-"
-HEADER = ("sensor", "calibrated", "U (deg)", "fit", "last validation p95 (deg)", "recalibration due")
+HEADER = (
+    "sensor",
+    "calibrated",
+    "U (deg)",
+    "fit",
+    "fit on its board",
+    "last validation p95 (deg)",
+    "recalibration due",
+)
 
-_Row = TypeVar("_Row", Calibration, Validation)
+_Row = TypeVar("_Row", Calibration, Validation, Upload)
 
 
 @dataclass(frozen=True)
@@ -36,6 +45,9 @@ class SensorLine:
     fit_folder: str | None = None
     validation_p95_deg: float | None = None
     validated: date | None = None
+    on_board: str | None = None  # the last upload's fit folder
+    on_board_latest: bool = False  # its coefficients are the last calibration's
+    on_board_saved: bool = True  # False: in the board's RAM only, until its next reset
 
     def due(self, interval_days: int) -> date | None:
         return None if self.calibrated is None else self.calibrated + timedelta(days=interval_days)
@@ -54,9 +66,10 @@ class Fleet:
                 f"no sensors in the registry {self.registry} yet: `thermotilt registry rebuild FOLDER...` "
                 "records the campaigns, fits and runs in those folders"
             )
-        return aligned([HEADER, *(self._cells(line) for line in self.lines)])
+        return aligned([HEADER, *(self.cells(line) for line in self.lines)])
 
-    def _cells(self, line: SensorLine) -> tuple[str, ...]:
+    def cells(self, line: SensorLine) -> tuple[str, ...]:
+        """The line as `thermotilt sensors` prints it, a cell per HEADER column."""
         due = line.due(self.interval_days)
         validation = NONE
         if line.validation_p95_deg is not None:
@@ -66,6 +79,7 @@ class Fleet:
             str(line.calibrated or NONE),
             NONE if line.u95_deg is None else two_significant(line.u95_deg),
             NONE if line.fit_folder is None else shown_path(line.fit_folder),
+            _on_board(line),
             validation,
             NONE if due is None else f"{due}{' overdue' if due < self.today else ''}",
         )
@@ -74,14 +88,21 @@ class Fleet:
 def fleet(registry: Registry, interval_days: int = DEFAULT_INTERVAL_DAYS, today: date | None = None) -> Fleet:
     """Every sensor's line, by ID; due dates interval_days after the last calibration."""
     with registry.reading() as session:
-        sensors = list(session.scalars(select(Sensor.sensor_id).order_by(Sensor.sensor_id)))
+        # Sorted here: a server's collation may order IDs by language (case and '-' aside), not by character.
+        sensors = sorted(session.scalars(select(Sensor.sensor_id)))
         calibrations = latest(session.scalars(select(Calibration)), calibrated_at)
         validations = latest(session.scalars(select(Validation)), lambda row: row.validated_utc)
-        lines = [_line(sensor_id, calibrations.get(sensor_id), validations.get(sensor_id)) for sensor_id in sensors]
+        uploads = latest(session.scalars(select(Upload)), lambda row: row.uploaded_utc)
+        lines = [
+            _line(sensor_id, calibrations.get(sensor_id), validations.get(sensor_id), uploads.get(sensor_id))
+            for sensor_id in sensors
+        ]
     return Fleet(registry.shown_url, lines, interval_days, today or date.today())
 
 
-def _line(sensor_id: str, calibration: Calibration | None, validation: Validation | None) -> SensorLine:
+def _line(
+    sensor_id: str, calibration: Calibration | None, validation: Validation | None, upload: Upload | None
+) -> SensorLine:
     return SensorLine(
         sensor_id,
         calibration_date(calibration) if calibration else None,
@@ -89,7 +110,19 @@ def _line(sensor_id: str, calibration: Calibration | None, validation: Validatio
         calibration.folder if calibration else None,
         validation.tilt_change_p95_deg if validation else None,
         validation.validated_utc.date() if validation else None,
+        upload.fit_folder if upload else None,
+        bool(upload and calibration and upload.coefficients_sha256 == calibration.coefficients_sha256),
+        upload.saved if upload else True,
     )
+
+
+def _on_board(line: SensorLine) -> str:
+    if line.on_board is None:
+        return NONE
+    notes = ["latest" if line.on_board_latest else "not the latest"]
+    if not line.on_board_saved:
+        notes.append("RAM only")
+    return f"{shown_path(line.on_board)} ({', '.join(notes)})"
 
 
 def calibration_date(calibration: Calibration) -> date | None:
@@ -107,10 +140,14 @@ def latest(rows: Iterable[_Row], when: Callable[[_Row], datetime | None]) -> dic
     """Per sensor, its latest row (undated rows before any dated one, a
     tie to the last folder by name)."""
     by_sensor: dict[str, _Row] = {}
-    for row in sorted(rows, key=lambda row: (when(row) or datetime.min, row.folder)):
+    for row in sorted(rows, key=lambda row: (when(row) or datetime.min, _folder_of(row))):
         if row.sensor_id is not None:
             by_sensor[row.sensor_id] = row
     return by_sensor
+
+
+def _folder_of(row: Calibration | Validation | Upload) -> str:
+    return row.fit_folder if isinstance(row, Upload) else row.folder
 
 
 def aligned(rows: list[tuple[str, ...]]) -> str:

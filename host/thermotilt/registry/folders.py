@@ -12,9 +12,11 @@ writers are the calibration and run modules; nothing here writes them):
 A folder is read into the registry's rows (``schema``), not yet stored;
 each row carries the sha256 of the files that define it. A file that
 cannot be read or is not what its writer writes is a FolderError of one
-line. ``upload`` and ``assign-id`` write no folder: what they leave is the
-board's EEPROM, which a twin run's image shows, and the rows the command
-line records as they finish (``recording``).
+line. ``upload`` appends what it put onto which board to the fit folder's
+``uploads.jsonl`` (``calibration/upload_record.py``), read with the fit;
+``assign-id`` writes no folder: what it leaves is the board's EEPROM, which
+a twin run's image shows, and the row the command line records as it
+finishes (``recording``).
 """
 
 from __future__ import annotations
@@ -39,7 +41,7 @@ from ..wire.coefficients import (
     decode_block,
     encode_sensor_id_record,
 )
-from .schema import Artefact, BoardRun, Calibration, Campaign, Validation
+from .schema import Artefact, BoardRun, Calibration, Campaign, Upload, Validation
 
 # The names thermotilt fit and validate write these under (literals in their writers).
 FIT_FILE = "coefficients.json"
@@ -178,13 +180,27 @@ def read_fit(folder: Path) -> Calibration:
     return calibration
 
 
-def read_fit_identity(folder: Path) -> tuple[str | None, str | None]:
-    """The sensor a fit folder's coefficients.json names and the sha256 of its coefficients.bin."""
-    path = folder / FIT_FILE
-    _, document = _json_object(path)
-    coefficients = _read_optional(folder / COEFFICIENTS_BIN)
-    sensor_id = _sensor_id(_optional_text(document, "sensor_id", path), path)
-    return sensor_id, _sha256(coefficients) if coefficients is not None else None
+def read_uploads(folder: Path) -> tuple[list[Upload], int]:
+    """A fit folder's uploads as rows, and how many of its lines were not
+    records (skipped, as a line cut short by a crash)."""
+    from ..calibration.upload_record import read_uploads as read_records
+
+    try:
+        records, malformed = read_records(folder)
+    except (OSError, UnicodeDecodeError) as error:
+        raise FolderError(f"cannot read {folder}'s uploads: {getattr(error, 'strerror', None) or error}") from None
+    rows = [
+        Upload(
+            uploaded_utc=record.uploaded_utc,
+            sensor_id=record.sensor_id or None,
+            port=record.port,
+            fit_folder=str(folder),
+            coefficients_sha256=record.coefficients_sha256,
+            saved=record.saved,
+        )
+        for record in records
+    ]
+    return rows, malformed
 
 
 def _add_certificate(calibration: Calibration, path: Path, certificate: dict[str, Any]) -> None:

@@ -20,8 +20,8 @@ from sqlalchemy.orm import Session
 from tqdm import tqdm
 
 from .database import Registry
-from .folders import DEFINING_FILES, KINDS, find_folders, read_folder
-from .schema import Artefact, Sensor
+from .folders import DEFINING_FILES, FIT_FILE, KINDS, find_folders, read_folder, read_uploads
+from .schema import Artefact, Sensor, Upload
 
 NEW, UPDATED, UNCHANGED = "new", "updated", "unchanged"
 PLURALS = {"campaign": "campaigns", "fit": "fits", "board run": "board runs", "validation": "validations"}
@@ -35,6 +35,8 @@ class Ingestion:
     rebuilt: bool
     counts: Counter[tuple[str, str]] = field(default_factory=Counter)
     unrecognised: list[Path] = field(default_factory=list)
+    uploads: int = 0  # the uploads the fits' folders hold
+    malformed_upload_lines: int = 0
 
     def recorded(self, kind: str) -> int:
         return sum(count for (counted, _), count in self.counts.items() if counted == kind)
@@ -45,6 +47,9 @@ class Ingestion:
             outcomes = [f"{self.counts[kind, outcome]} {outcome}" for outcome in (NEW, UPDATED, UNCHANGED)]
             details = ", ".join(text for text in outcomes if not text.startswith("0 "))
             lines.append(f"  {PLURALS[kind] + ':':<13}{self.recorded(kind):>5}" + (f" ({details})" if details else ""))
+        lines.append(f"  {'uploads:':<13}{self.uploads:>5}")
+        if self.malformed_upload_lines:
+            lines.append(f"skipped {self.malformed_upload_lines} lines of uploads.jsonl that are not upload records")
         skipped = len(self.unrecognised)
         known = ", ".join(sorted(DEFINING_FILES))
         lines.append(f"skipped {skipped} folder{'' if skipped == 1 else 's'} with files but none of {known}")
@@ -57,13 +62,20 @@ def ingest(registry: Registry, folders: Sequence[Path], fresh: bool = False) -> 
     read: a FolderError leaves the registry as it was."""
     found = find_folders(folders, registry.database_files())
     artefacts: list[Artefact] = []
+    uploads: dict[str, list[Upload]] = {}
+    malformed = 0
     # tqdm draws its bar only when stderr is a terminal (disable=None).
     with tqdm(found.artefact_folders, desc="reading", unit=" folders", disable=None, file=sys.stderr) as progress:
         for folder, names in progress:
             artefacts += read_folder(folder, names)
+            if FIT_FILE in names:
+                uploads[str(folder)], skipped = read_uploads(folder)
+                malformed += skipped
     with registry.writing() as session:
         counts = record(session, artefacts, fresh)
-    return Ingestion(registry.shown_url, fresh, counts, found.unrecognised)
+        replace_uploads(session, uploads, fresh)
+    held = sum(len(rows) for rows in uploads.values())
+    return Ingestion(registry.shown_url, fresh, counts, found.unrecognised, held, malformed)
 
 
 def rebuild(registry: Registry, folders: Sequence[Path]) -> Ingestion:
@@ -89,6 +101,16 @@ def record(session: Session, artefacts: Sequence[Artefact], fresh: bool = False)
     named_anywhere = union(*(select(table.sensor_id).where(table.sensor_id.is_not(None)) for table in KINDS))
     session.execute(delete(Sensor).where(Sensor.sensor_id.not_in(named_anywhere)))
     return counts
+
+
+def replace_uploads(session: Session, uploads: dict[str, list[Upload]], fresh: bool = False) -> None:
+    """Each fit folder's uploads as its uploads.jsonl holds them now (all of
+    the registry's, with fresh)."""
+    if fresh:
+        session.execute(delete(Upload))
+    else:
+        session.execute(delete(Upload).where(Upload.fit_folder.in_(list(uploads))))
+    session.add_all(row for rows in uploads.values() for row in rows)
 
 
 def _store(session: Session, artefact: Artefact) -> str:

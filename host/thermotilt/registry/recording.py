@@ -1,13 +1,14 @@
 """What a command made, recorded in the registry as it finishes
 (docs/registry.md). The folder a command wrote is found from its parsed
-arguments and ingested as ``registry ingest`` would; ``upload`` and
-``assign-id``, which write no folder, leave a row of what they did.
+arguments and ingested as ``registry ingest`` would (``upload`` wrote its
+record into the fit's folder); ``assign-id``, which writes no folder,
+leaves a row of what it did.
 
 The command line calls ``record_made`` after every command. A folder is
 recorded once its command ended well, or was interrupted and said so (a
 campaign, a run or a log stopped by Ctrl-C keeps what it finished, and
-``log`` and ``simulate --pty`` end no other way); an upload or an
-assignment only once it ended well. A registry that cannot take the record
+``log`` and ``simulate --pty`` end no other way); an assignment only once
+it ended well. A registry that cannot take the record
 costs the command a warning and nothing more: the folder is the source of
 truth, and ``registry ingest`` records it later. Importing this module
 loads nothing of the database.
@@ -25,7 +26,7 @@ from ..options import EXIT_INTERRUPTED
 from . import OFF, configured_url
 
 if TYPE_CHECKING:
-    from .schema import IdAssignment, Upload
+    from .schema import IdAssignment
 
 
 def _out(args: argparse.Namespace) -> Path:
@@ -46,29 +47,19 @@ def _logged_run(args: argparse.Namespace) -> Path:
     return out.parent if out.suffix.lower() == ".csv" else out
 
 
+def _uploaded_fit(args: argparse.Namespace) -> Path:
+    """upload's fit folder, whose uploads.jsonl it appended to."""
+    return Path(args.fit_dir)
+
+
 MADE_FOLDERS: dict[str, Callable[[argparse.Namespace], Path]] = {
     "campaign": _out,
     "fit": _out,
+    "upload": _uploaded_fit,
     "validate": _validated_run,
     "simulate": _out,
     "log": _logged_run,
 }
-
-
-def _upload(args: argparse.Namespace, when: datetime) -> Upload:
-    from .folders import read_fit_identity
-    from .schema import Upload
-
-    folder = Path(args.fit_dir).resolve()
-    sensor_id, coefficients_sha256 = read_fit_identity(folder)
-    return Upload(
-        uploaded_utc=when,
-        sensor_id=sensor_id,
-        port=args.port,
-        fit_folder=str(folder),
-        coefficients_sha256=coefficients_sha256,
-        saved=not args.no_save,
-    )
 
 
 def _assignment(args: argparse.Namespace, when: datetime) -> IdAssignment:
@@ -77,8 +68,7 @@ def _assignment(args: argparse.Namespace, when: datetime) -> IdAssignment:
     return IdAssignment(assigned_utc=when, sensor_id=args.sensor_id, port=args.port)
 
 
-MADE_EVENTS: dict[str, Callable[[argparse.Namespace, datetime], Upload | IdAssignment]] = {
-    "upload": _upload,
+MADE_EVENTS: dict[str, Callable[[argparse.Namespace, datetime], IdAssignment]] = {
     "assign-id": _assignment,
 }
 RECORDED_COMMANDS = (*MADE_FOLDERS, *MADE_EVENTS)
