@@ -6,6 +6,11 @@ SQLite runs in WAL mode, so readers never wait for a writer, and every
 write transaction begins IMMEDIATE with a busy timeout: a second writer (a
 second rig, a rebuild) waits for the first instead of failing, and no
 transaction can find its snapshot stale when it starts to write.
+
+PostgreSQL (a lab's rigs sharing one server) does the same with a lock:
+every write transaction first takes one transaction-level advisory lock, so
+writers run one after another, each at READ COMMITTED reading what the one
+before committed; a reader sees one snapshot and waits for no one.
 """
 
 from __future__ import annotations
@@ -19,7 +24,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from sqlalchemy import Connection, Engine, create_engine, event, inspect, text
+from sqlalchemy import URL, Connection, Engine, create_engine, event, inspect, text
 from sqlalchemy.engine import make_url
 from sqlalchemy.exc import DBAPIError, SQLAlchemyError
 from sqlalchemy.orm import Session
@@ -33,13 +38,21 @@ if TYPE_CHECKING:
 MIGRATIONS = Path(__file__).resolve().parent / "migrations"
 # Alembic's table of the revision a database is at.
 VERSION_TABLE = "alembic_version"
-# How long a writer waits for another's transaction to end: a rebuild of a
-# lab's folders writes for well under this.
+# How long a writer waits for another's transaction to end (SQLite's busy
+# timeout, PostgreSQL's lock timeout): a rebuild of a lab's folders writes
+# for well under this.
 BUSY_TIMEOUT_MS = 60_000
 WAL_RETRY_S = 0.01
 # SQLite's files beside a database.
 SQLITE_COMPANIONS = ("", "-wal", "-shm", "-journal")
-_BEGIN = "thermotilt_sqlite_begin"
+# The key of the PostgreSQL advisory lock every write transaction takes (any
+# constant; advisory locks are per database): "ttreg" in ASCII.
+POSTGRES_WRITE_LOCK = 0x74_74_72_65_67
+# How long a PostgreSQL connection may take before the registry counts as
+# unreachable (libpq's default is to wait as long as the network does).
+POSTGRES_CONNECT_TIMEOUT_S = 10
+# The execution option that marks a write transaction's connection.
+_WRITER = "thermotilt_registry_writer"
 
 
 class RegistryError(RuntimeError):
@@ -70,17 +83,22 @@ def registry_url(option: str | None = None) -> str:
 
 
 def shown(url: str) -> str:
-    """The URL as messages show it: without its password."""
+    """The URL as messages show it: as given, but without a password (after
+    the user's name, or in the query as libpq also takes it)."""
     try:
-        return make_url(url).render_as_string(hide_password=True)
+        parsed = make_url(url)
     except SQLAlchemyError:
         return url
+    if parsed.password is None and "password" not in parsed.query:
+        return url
+    return parsed.difference_update_query(["password"]).render_as_string(hide_password=True)
 
 
 def reason(error: BaseException) -> str:
-    """What went wrong, without SQLAlchemy's statement and link lines."""
+    """What went wrong, in one line: the driver's message (libpq's has a
+    hint on a line of its own), else SQLAlchemy's first line."""
     if isinstance(error, DBAPIError) and error.orig is not None:
-        return str(error.orig)
+        return "; ".join(line.strip() for line in str(error.orig).splitlines() if line.strip())
     return str(error).splitlines()[0] if str(error) else type(error).__name__
 
 
@@ -120,25 +138,60 @@ def _use_wal(cursor: Any) -> None:
 
 
 def create_registry_engine(url: str) -> Engine:
-    """An engine for url; for SQLite, WAL, the busy timeout and SQLAlchemy's own BEGIN."""
-    engine = create_engine(url)
-    if engine.dialect.name == "sqlite":
-
-        @event.listens_for(engine, "connect")
-        def configure(dbapi_connection: Any, _record: Any) -> None:
-            # sqlite3 would BEGIN by itself, deferred and not before DDL; the begin hook does.
-            dbapi_connection.isolation_level = None
-            cursor = dbapi_connection.cursor()
-            cursor.execute(f"PRAGMA busy_timeout = {BUSY_TIMEOUT_MS}")
-            _use_wal(cursor)
-            cursor.execute("PRAGMA foreign_keys = ON")
-            cursor.close()
-
-        @event.listens_for(engine, "begin")
-        def begin(connection: Connection) -> None:
-            connection.exec_driver_sql(f"BEGIN {connection.get_execution_options().get(_BEGIN, 'DEFERRED')}")
-
+    """An engine for url: for SQLite, WAL, the busy timeout and SQLAlchemy's
+    own BEGIN; for PostgreSQL, READ COMMITTED and the writers' lock."""
+    parsed = make_url(url)
+    if parsed.get_backend_name() == "postgresql":
+        # The lock serialises writers only if each statement after it reads
+        # what was committed before it, whatever the server's default isolation.
+        engine = create_engine(parsed, isolation_level="READ COMMITTED", connect_args=_postgres_connect_args(parsed))
+        _lock_postgres_writers(engine)
+    else:
+        engine = create_engine(parsed)
+        if engine.dialect.name == "sqlite":
+            _configure_sqlite(engine)
     return engine
+
+
+def _configure_sqlite(engine: Engine) -> None:
+    @event.listens_for(engine, "connect")
+    def configure(dbapi_connection: Any, _record: Any) -> None:
+        # sqlite3 would BEGIN by itself, deferred and not before DDL; the begin hook does.
+        dbapi_connection.isolation_level = None
+        cursor = dbapi_connection.cursor()
+        cursor.execute(f"PRAGMA busy_timeout = {BUSY_TIMEOUT_MS}")
+        _use_wal(cursor)
+        cursor.execute("PRAGMA foreign_keys = ON")
+        cursor.close()
+
+    @event.listens_for(engine, "begin")
+    def begin(connection: Connection) -> None:
+        mode = "IMMEDIATE" if connection.get_execution_options().get(_WRITER) else "DEFERRED"
+        connection.exec_driver_sql(f"BEGIN {mode}")
+
+
+def _lock_postgres_writers(engine: Engine) -> None:
+    """Every write transaction begins by taking one advisory lock, released
+    at its end: writers wait for each other as SQLite's BEGIN IMMEDIATE
+    makes them, so ingest's look-then-insert of sensors and folders (unique
+    keys) never meets another's uncommitted rows, a migration runs once, and
+    no transaction is retried. Simpler than INSERT ... ON CONFLICT, which
+    would not cover the updates, a rebuild's deletes or a migration, and
+    than SERIALIZABLE, whose failures would replay a whole ingestion."""
+
+    @event.listens_for(engine, "begin")
+    def begin(connection: Connection) -> None:
+        if connection.get_execution_options().get(_WRITER):
+            connection.exec_driver_sql(f"SET LOCAL lock_timeout = {BUSY_TIMEOUT_MS}")
+            connection.exec_driver_sql(f"SELECT pg_advisory_xact_lock({POSTGRES_WRITE_LOCK})")
+
+
+def _postgres_connect_args(url: URL) -> dict[str, Any]:
+    """psycopg's connect_timeout unless the URL sets one: a lab server that
+    is down is then one line within seconds, not minutes of TCP retries."""
+    if url.get_driver_name() not in ("psycopg", "psycopg2") or "connect_timeout" in url.query:
+        return {}
+    return {"connect_timeout": POSTGRES_CONNECT_TIMEOUT_S}
 
 
 class Registry:
@@ -148,7 +201,11 @@ class Registry:
     def __init__(self, url: str, engine: Engine) -> None:
         self.url = url
         self.engine = engine
-        self._writer = engine.execution_options(**{_BEGIN: "IMMEDIATE"})
+        self._writer = engine.execution_options(**{_WRITER: True})
+        # PostgreSQL's readers see one snapshot, as SQLite's do (a read-only
+        # transaction is never refused at REPEATABLE READ).
+        postgres = engine.dialect.name == "postgresql"
+        self._reader = engine.execution_options(isolation_level="REPEATABLE READ") if postgres else engine
 
     @classmethod
     def open(cls, url: str) -> Registry:
@@ -234,7 +291,7 @@ class Registry:
 
     @contextmanager
     def reading(self) -> Iterator[Session]:
-        with self._session(self.engine) as session:
+        with self._session(self._reader) as session:
             yield session
 
     @contextmanager
