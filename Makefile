@@ -6,7 +6,7 @@ BUILD ?= build
 VENV ?= .venv
 PYTHON ?= python3
 JOBS ?= $(shell nproc)
-APT_PACKAGES := python3 python3-venv cmake make gcc g++ gcc-avr avr-libc binutils-avr arduino-core-avr simavr libsimavr-dev clang-format
+APT_PACKAGES := python3 python3-venv cmake make gcc g++ gcc-avr avr-libc binutils-avr arduino-core-avr simavr libsimavr-dev clang-format chromium chromium-driver postgresql
 # clang 14 and its libFuzzer and sanitizer runtimes, for the fuzz targets.
 FUZZ_APT_PACKAGES := clang libclang-rt-14-dev
 AVR_MCUS := atmega328p atmega2560

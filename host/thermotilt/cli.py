@@ -1,8 +1,10 @@
 """Command line: ``thermotilt COMMAND ...``. Each wing registers its own
 commands (``wire``, ``twin``, ``calibration``, ``discovery``,
-``registry``); this module parses, runs the one chosen, turns what it
-raises into one line on stderr (docs/reliability.md lists them) and has
-the registry record what the command made (docs/registry.md)."""
+``registry``, ``live``); this module parses, runs the one chosen (with the
+live view of its folder served while it runs when it has ``--serve``,
+docs/live.md), turns what it raises into one line on stderr
+(docs/reliability.md lists them) and has the registry record what the
+command made (docs/registry.md)."""
 
 from __future__ import annotations
 
@@ -13,6 +15,7 @@ from collections.abc import Sequence
 from . import __version__
 from .calibration import cli as calibration
 from .discovery import cli as discovery
+from .live import cli as live
 from .options import PROGRAM, ArgumentParser, UsageError, interrupted, one_line
 from .registry import cli as registry
 from .twin import cli as twin
@@ -24,7 +27,7 @@ def build_parser() -> ArgumentParser:
     parser = ArgumentParser(prog=PROGRAM, description="ThermoTilt host tools.")
     parser.add_argument("--version", action="version", version=f"{PROGRAM} {__version__} (protocol {PROTOCOL_VERSION})")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for wing in (wire, twin, calibration, discovery, registry):
+    for wing in (wire, twin, calibration, discovery, registry, live):
         wing.add_commands(commands)
     registry.add_recording_options(commands)
     return parser
@@ -56,8 +59,10 @@ def _run(argv: Sequence[str] | None) -> int:
     finally:
         # --help and --version print and exit: a failed write shows here.
         sys.stdout.flush()
+    registry.prepare(args)
     try:
-        status = args.run(args)
+        with live.serving_while_it_runs(args):
+            status = args.run(args)
     except UsageError as error:
         status = _error(str(error))
     sys.stdout.flush()

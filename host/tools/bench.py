@@ -28,7 +28,9 @@ date, the machine and the command to docs/performance.md (overwritten;
 docs/testing.md (host/tools/nano_ram.py).
 
 `bench.py --memory` prints only each board's RAM: its static data and the
-stack's high-water mark (a few seconds).
+stack's high-water mark (a few seconds). `bench.py --live` prints only the
+live view's figures (docs/live.md): a short twin campaign's wall time with
+and without `--serve` and the page's first load (about half a minute).
 
 `bench.py --scatter [--seed N] [--disable TERM ...]` instead runs the long
 check of the scatter the twin's sensor leaves to the paper's fit (about
@@ -47,9 +49,11 @@ import datetime
 import itertools
 import os
 import re
+import statistics
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from collections import Counter
 from pathlib import Path
@@ -605,6 +609,86 @@ def integrity(figures: Figures) -> None:
             )
 
 
+# The live view's figure: a short twin campaign (two positions of 3 s
+# timed holds, one at a time, so the server shares the campaign's process
+# and core), its median wall time of LIVE_REPEATS with and without --serve.
+LIVE_CAMPAIGN = ["--positions", "0,X+15", "--hold-seconds", "3", "--rest-seconds", "0", "--hold-start", "T"]
+LIVE_REPEATS = 3
+LIVE_STATIC = ("app.js", "app.css", "uPlot.iife.min.js", "uPlot.min.css")
+
+
+def _live_campaign_seconds(out: Path, serve: bool) -> float:
+    """One campaign's wall time; served, with a page's event stream open
+    from the live view's first line to the campaign's end."""
+    import urllib.request
+
+    command = [sys.executable, "-m", "thermotilt", "campaign", "--twin", "--out", str(out), "--jobs", "1"]
+    command += [*LIVE_CAMPAIGN, "--registry", "off", "--force", *(["--serve", "127.0.0.1:0"] if serve else [])]
+    begin = time.perf_counter()
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    if serve:
+        url = process.stdout.readline().split()[2]
+
+        def read_events() -> None:
+            try:
+                with urllib.request.urlopen(f"{url}api/events", timeout=60) as stream:
+                    for _line in stream:
+                        pass
+            except OSError:
+                pass  # the server stops with the campaign
+
+        threading.Thread(target=read_events, daemon=True).start()
+    process.communicate()
+    return time.perf_counter() - begin
+
+
+def _first_load_seconds(folder: Path) -> tuple[float, int]:
+    """`thermotilt watch folder`'s page as a browser first loads it: GET /,
+    the static files and the first /api/state, one after another; the
+    seconds and the bytes."""
+    import urllib.request
+
+    process = subprocess.Popen(
+        [sys.executable, "-m", "thermotilt", "watch", str(folder), "--serve", "127.0.0.1:0"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
+    )
+    try:
+        url = next(word for word in process.stdout.readline().split() if word.startswith("http://"))
+        begin = time.perf_counter()
+        size = 0
+        for path in ("", *(f"static/{name}" for name in LIVE_STATIC), "api/state"):
+            with urllib.request.urlopen(url + path, timeout=30) as answer:
+                size += len(answer.read())
+        return time.perf_counter() - begin, size
+    finally:
+        process.terminate()
+        process.wait(timeout=30)
+
+
+def live_view(figures: Figures) -> None:
+    """What serving the live view costs a twin campaign, and the page's first load."""
+    with tempfile.TemporaryDirectory(prefix="thermotilt-bench-") as scratch:
+        out = Path(scratch) / "campaign"
+        plain = [_live_campaign_seconds(out, serve=False) for _ in range(LIVE_REPEATS)]
+        served = [_live_campaign_seconds(out, serve=True) for _ in range(LIVE_REPEATS)]
+        plain_s, served_s = statistics.median(plain), statistics.median(served)
+        figures.add(
+            "twin campaign with the live view served (--serve, a page open)",
+            f"{served_s:.2f} s against {plain_s:.2f} s without: x {served_s / plain_s:.2f}",
+            f"2 positions, 3 s timed holds, --jobs 1; median of {LIVE_REPEATS} each",
+        )
+        loads = [_first_load_seconds(out) for _ in range(LIVE_REPEATS)]
+        load_s, size = statistics.median(load for load, _ in loads), loads[0][1]
+        figures.add(
+            "live view's first load",
+            f"{1000 * load_s:.0f} ms",
+            f"GET /, {len(LIVE_STATIC)} static files and the first /api/state of that campaign ({size / 1e6:.1f} MB); "
+            f"median of {LIVE_REPEATS}",
+        )
+
+
 def write_campaign_logs(folder: Path, seed: int = 3) -> int:
     """A campaign of the paper's size as run logs in the twin's layout, one
     folder per position (section 3.2's 37): every position through the
@@ -714,6 +798,7 @@ def main() -> None:
         help="the twin's scatter against Tables 2-3 and section 4.3 instead (about 40 min)",
     )
     parser.add_argument("--memory", action="store_true", help="only each board's static RAM and stack peak")
+    parser.add_argument("--live", action="store_true", help="only the live view's cost to a campaign and first load")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--disable", action="append", default=[], metavar="TERM")
     parser.add_argument("--page", type=Path, default=PAGE, help=f"the page to write (default {PAGE})")
@@ -724,6 +809,9 @@ def main() -> None:
     figures = Figures()
     if args.memory:
         memory(figures)
+        return
+    if args.live:
+        live_view(figures)
         return
     started, load_at_start = generated_page.now(), generated_page.load_average()
     model = Model.load()
@@ -747,6 +835,7 @@ def main() -> None:
         f"{points} synthetic points per set, no run logs to parse; target <= 30 s",
     )
     fit_end_to_end(figures)
+    live_view(figures)
     integrity(figures)
     write_page(args.page, figures.rows, started, load_at_start)
     nano_ram.write()

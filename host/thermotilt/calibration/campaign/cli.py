@@ -57,6 +57,12 @@ def add_campaign(commands: argparse._SubParsersAction) -> None:
         "--resume", action="store_true", help="finish an interrupted campaign in --out, keeping its finished positions"
     )
     option("--force", action="store_true", help="start --out again from nothing")
+    option(
+        "--serve",
+        metavar="[HOST:]PORT",
+        help="serve the live view of --out (read-only) on this address while the campaign runs, "
+        "e.g. 8765 or 0.0.0.0:8765 (host 127.0.0.1 unless given; docs/live.md)",
+    )
     add_model_options(campaign)
     add_program_options(campaign)
     campaign.set_defaults(run=_campaign)
