@@ -11,6 +11,7 @@ which processes the tests start inherit)."""
 from __future__ import annotations
 
 import hashlib
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -220,3 +221,35 @@ def test_the_newest_revision_named_by_its_file_is_alembic_s_head():
 def test_the_block_file_the_registry_names_is_the_one_the_certificate_names():
     # folders.py names it itself so that recording an upload loads none of the certificate's modules.
     assert registry_folders.COEFFICIENTS_BIN == certificate_issue.COEFFICIENTS_BIN
+
+
+def test_a_recalibration_s_fit_takes_its_previous_calibration_from_the_registry(tmp_path, cli_in_process):
+    # Two campaigns of TT-R, in January and in June: June's fit is certified
+    # with the change since January's as its long-term stability component.
+    temperatures, sets = cycle(600)
+    fits = {}
+    for month, started in (("january", "2026-01-05T08:00:00Z"), ("june", "2026-06-01T08:00:00Z")):
+        campaign = tmp_path / month
+        for angle in ANGLES_DEG[:4]:
+            write_run_log(campaign / f"{angle}.csv", angle, temperatures, sets)
+        positions = [
+            {"label": str(index), "status": "done", "sensor_id": "TT-R", "started_utc": started, "wall_seconds": 60.0}
+            for index in range(4)
+        ]
+        (campaign / "campaign.json").write_text(json.dumps({"format": 1, "positions": positions}))
+        fits[month] = tmp_path / f"fit-{month}"
+        fitted = cli_in_process("fit", campaign, "--out", fits[month])
+        assert (fitted.returncode, fitted.stderr) == (0, "")
+    first, second = (json.loads((fits[m] / "certificate.json").read_text()) for m in ("january", "june"))
+    assert first["previous_calibration"] is None
+    assert second["previous_calibration"] == {
+        "certificate_number": first["certificate_number"],
+        "ended_utc": "2026-01-05T08:01:00Z",
+        "fit": str(fits["january"]),
+    }
+    stability = [c for c in second["budget"]["X"]["components"] if c["name"] == "long-term stability"]
+    assert stability[0]["added"] and first["certificate_number"] in stability[0]["source"]
+    # Fitting January's campaign again takes no calibration made after it began.
+    again = cli_in_process("fit", tmp_path / "january", "--out", tmp_path / "fit-again")
+    assert again.returncode == 0
+    assert json.loads((tmp_path / "fit-again" / "certificate.json").read_text())["previous_calibration"] is None
