@@ -271,11 +271,9 @@ def ingest_one_at_a_time(url: str, folders: list[Path], start) -> None:
             ingest(registry, [folder])
 
 
-def test_two_processes_ingesting_into_one_sqlite_file_at_once_lose_no_record(tmp_path):
-    """Both open a new registry at the same moment (one creates its tables,
-    the other waits) and then write a transaction per folder, interleaved."""
-    runs = {side: [write_run(tmp_path / side / f"run-{index}") for index in range(25)] for side in ("a", "b")}
-    url = url_of(tmp_path / "shared.sqlite3")
+def ingest_from_two_processes_at_once(url: str, runs: dict[str, list[Path]]) -> None:
+    """Each side's folders ingested one at a time by its own process, both
+    starting at one moment; both must end well."""
     context = multiprocessing.get_context("fork")
     start = context.Barrier(2)
     processes = [context.Process(target=ingest_one_at_a_time, args=(url, runs[side], start)) for side in runs]
@@ -284,6 +282,14 @@ def test_two_processes_ingesting_into_one_sqlite_file_at_once_lose_no_record(tmp
     for process in processes:
         process.join(60)
     assert [process.exitcode for process in processes] == [0, 0]
+
+
+def test_two_processes_ingesting_into_one_sqlite_file_at_once_lose_no_record(tmp_path):
+    """Both open a new registry at the same moment (one creates its tables,
+    the other waits) and then write a transaction per folder, interleaved."""
+    runs = {side: [write_run(tmp_path / side / f"run-{index}") for index in range(25)] for side in ("a", "b")}
+    url = url_of(tmp_path / "shared.sqlite3")
+    ingest_from_two_processes_at_once(url, runs)
     with Registry.open(url) as registry, registry.reading() as session:
         recorded = set(session.scalars(select(BoardRun.folder)))
     assert recorded == {str(folder.resolve()) for folders in runs.values() for folder in folders}

@@ -13,7 +13,6 @@ en-US), not character by character as SQLite does."""
 from __future__ import annotations
 
 import itertools
-import multiprocessing
 import os
 import shutil
 import subprocess
@@ -31,7 +30,7 @@ from sqlalchemy.pool import NullPool
 from test_registry import (
     EEPROM_BYTES,
     assert_one_line_error,
-    ingest_one_at_a_time,
+    ingest_from_two_processes_at_once,
     url_of,
     write_fit,
     write_run,
@@ -278,14 +277,7 @@ def test_two_processes_writing_at_once_lose_no_record(tmp_path, postgres_url, mi
     }
     if migrated:
         Registry.open(postgres_url).close()
-    context = multiprocessing.get_context("fork")
-    start = context.Barrier(2)
-    processes = [context.Process(target=ingest_one_at_a_time, args=(postgres_url, runs[side], start)) for side in runs]
-    for process in processes:
-        process.start()
-    for process in processes:
-        process.join(60)
-    assert [process.exitcode for process in processes] == [0, 0]
+    ingest_from_two_processes_at_once(postgres_url, runs)
     with Registry.open(postgres_url) as registry, registry.reading() as session:
         recorded = set(session.scalars(select(BoardRun.folder)))
         sensors = set(session.scalars(select(Sensor.sensor_id)))
