@@ -31,6 +31,7 @@ from .folder_state import Cursors, FolderState
 
 STATIC = Path(__file__).resolve().parent / "static"
 PUSH_EVERY_S = 0.5
+STOP_CHECK_S = 0.05
 # How long the server waits for open event streams when it stops.
 GRACEFUL_STOP_S = 1
 STARTUP_TIMEOUT_S = 10.0
@@ -79,9 +80,14 @@ async def _event_stream(state: FolderState, push_every_s: float, stopping: threa
         await run_in_threadpool(state.refresh)
         document, cursors = await run_in_threadpool(state.snapshot, cursors)
         yield f"data: {_dumps(document)}\n\n"
-        # Starlette ends the stream when the reader leaves; a loop that woke
-        # more often would take the GIL from a campaign in this process more often.
-        await asyncio.sleep(push_every_s)
+        # Starlette ends the stream when the reader leaves. The wait looks at
+        # stopping every STOP_CHECK_S, so a command that ends is not held up
+        # by an open page; reading the folder more often would take the GIL
+        # from a campaign in this process more often.
+        waited = 0.0
+        while waited < push_every_s and not stopping.is_set():
+            await asyncio.sleep(STOP_CHECK_S)
+            waited += STOP_CHECK_S
 
 
 def bind(address: Address) -> socket.socket:
