@@ -28,9 +28,10 @@ widths' scatter. The interval for a new reversal is mean +- t(n - 1)
 sqrt(between + s^2 / n), Student's t on n - 1. The width is read on the
 filtered temperature, which lags the die's by the Kalman filter's time
 constant (FILTER_LAG_S): the slower a reversal, the less of the die's
-crossing the lag hides, so at field rates the width lies between what the
-campaign's fastest reversal read less the lag at the validity's rate limit
-beyond it, and what its fastest read plus the whole lag at its own rate.
+crossing the lag hides. So the interval is widened below by the lag over
+the field's rates beyond the campaign's slowest turn (up to the validity's
+rate limit), and above by the whole lag at its fastest turn, where a
+field reversal at rest would show all of the die's crossing.
 """
 
 from __future__ import annotations
