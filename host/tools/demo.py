@@ -7,7 +7,9 @@ same commands a user runs on a real rig.
     the EEPROM the IMU saved -> validate, next to the paper's RMS figures;
     then a batch of three sensors on one tilt table -> a fit and a
     certificate each -> each fit compared with its own sensor's drift ->
-    IDs: a fit for another sensor refused by a board, its own uploaded.
+    IDs: a fit for another sensor refused by a board, each its own
+    uploaded -> the lab (demo_lab.py): one sensor recalibrated, its campaign
+    watched live, the fleet and its history from the registry.
 
 Every step is a `thermotilt` command, printed before it runs; what each
 prints is what a user sees. Outputs go to runs/demo/ (DEMO_DIR); at the end
@@ -38,6 +40,7 @@ import numpy as np
 # generated_page sits beside this file, which tests load by its path (for the
 # campaign settings) without this folder on sys.path.
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+import demo_lab  # noqa: E402
 import generated_page  # noqa: E402
 
 from thermotilt.calibration.compare import CALIBRATED_C, compare, expected_mounting_miss_lsb, read_fit
@@ -128,13 +131,15 @@ def stop(twin: subprocess.Popen) -> None:
 
 
 @contextmanager
-def idle_twin(board_dir: Path) -> Iterator[dict[str, str]]:
-    """The twin's boards idling behind pseudo-terminals, by board name; a
-    command talks to the IMU as to a Nano on USB."""
+def idle_twin(board_dir: Path, eeprom: Path | None = None) -> Iterator[dict[str, str]]:
+    """The twin's boards idling behind pseudo-terminals, by board name, the
+    IMU starting from eeprom if given; a command talks to the IMU as to a
+    Nano on USB."""
     print("$ thermotilt simulate idle --pty ...  (in the background)", flush=True)
+    starting = ["--eeprom", str(eeprom)] if eeprom else []
     # preexec_fn runs between fork and exec; no other thread is running yet.
     twin = subprocess.Popen(
-        [*THERMOTILT, "simulate", "idle", "--pty", "--out", str(board_dir), "--force"],
+        [*THERMOTILT, "simulate", "idle", "--pty", *starting, "--out", str(board_dir), "--force"],
         stdout=subprocess.PIPE,
         stderr=subprocess.DEVNULL,
         text=True,
@@ -146,9 +151,12 @@ def idle_twin(board_dir: Path) -> Iterator[dict[str, str]]:
         stop(twin)
 
 
-def upload_through_pty(fit: Path, board_dir: Path) -> Path:
-    """`thermotilt upload` into the twin's IMU. Returns the EEPROM the IMU saved."""
-    with idle_twin(board_dir) as ports:
+def upload_through_pty(fit: Path, board_dir: Path, sensor: str | None = None, eeprom: Path | None = None) -> Path:
+    """`thermotilt upload` into the twin's IMU (given sensor's ID first, or
+    starting from eeprom). Returns the EEPROM the IMU saved."""
+    with idle_twin(board_dir, eeprom) as ports:
+        if sensor is not None:
+            thermotilt("assign-id", sensor, "--port", ports["imu_reader"])
         thermotilt("upload", str(fit), "--port", ports["imu_reader"])
     eeprom = board_dir / "imu_reader_eeprom.bin"
     if not eeprom.is_file():
@@ -487,7 +495,7 @@ def batch_section(out: Path, refusal: str) -> list[str]:
 
 
 def write_paper_comparison(
-    out: Path, runs: dict[str, Path], refusal: str, started: datetime.datetime, load_at_start: str
+    out: Path, runs: dict[str, Path], refusal: str, lab: list[str], started: datetime.datetime, load_at_start: str
 ) -> None:
     campaign = json.loads((out / "campaign" / "campaign.json").read_text())
     positions = campaign["positions"]
@@ -519,6 +527,8 @@ def write_paper_comparison(
             *batch_section(out, refusal),
             "",
             *reading_section(out, json.loads((out / "batch" / "batch.json").read_text())["sensors"][0]),
+            "",
+            *lab,
         ],
     )
 
@@ -527,6 +537,7 @@ def main() -> None:
     out = Path(os.environ.get("DEMO_DIR", "runs/demo"))
     begin = time.monotonic()
     started, load_at_start = generated_page.now(), generated_page.load_average()
+    users_registry = demo_lab.use_own_registry(out)
 
     step(f"1. calibration campaign in the twin: {POSITIONS}, each -10 -> 45 -> -10 degC")
     program = ("--positions", POSITIONS, "--hold-seconds", str(HOLD_SECONDS), "--rest-seconds", "0")
@@ -575,10 +586,22 @@ def main() -> None:
     for sensor, run in [*field_runs.items(), (sensors[0], alternating)]:
         thermotilt("validate", str(run), "--coefficients", str(out / "batch-fit" / sensor))
 
-    step("7. sensor IDs: a board refuses another sensor's fit and takes its own")
+    step("7. sensor IDs: a board refuses another sensor's fit and takes its own; each sensor's onto its board")
     refusal = refused_then_uploaded(out / "batch-fit", sensors, out / "batch-board")
+    for sensor in sensors[1:]:
+        upload_through_pty(out / "batch-fit" / sensor, out / "boards" / sensor, sensor=sensor)
 
-    write_paper_comparison(out, runs, refusal, started, load_at_start)
+    step(f"8. the lab: {sensors[0]} calibrated again, watched live; the new fit onto its board")
+    recalibration = demo_lab.recalibrate(thermotilt, THERMOTILT, out, sensors[0], program)
+    board = out / "boards" / sensors[0]
+    upload_through_pty(recalibration, board, eeprom=out / "batch-board" / "imu_reader_eeprom.bin")
+
+    step(f"9. the fleet and {sensors[0]}'s history, from the registry")
+    listing, history = demo_lab.fleet_and_history(thermotilt, out, sensors[0])
+    demo_lab.into_users_registry(thermotilt, out, users_registry)
+
+    lab = demo_lab.lab_section(out, sensors[0], listing, history)
+    write_paper_comparison(out, runs, refusal, lab, started, load_at_start)
     minutes = (time.monotonic() - begin) / 60.0
     step(
         f"done in {minutes:.1f} min; reports: {out}/fit/report.md, "
