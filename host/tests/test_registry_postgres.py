@@ -21,6 +21,7 @@ import tempfile
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 import test_registry
@@ -37,6 +38,7 @@ from test_registry import (
 )
 from test_registry_recording import parsed
 
+from thermotilt.calibration.upload_record import record_upload
 from thermotilt.registry.database import MIGRATIONS, Registry, alembic_config, newest_revision
 from thermotilt.registry.recording import record_made
 from thermotilt.registry.schema import Base, BoardRun, Sensor, Upload
@@ -187,9 +189,17 @@ def test_a_database_of_a_newer_schema_is_refused_in_one_line_and_left_as_it_was(
     engine.dispose()
 
 
+def uploaded_twice(fit_dir: Path) -> None:
+    """What two uploads of fit_dir (saved, then --no-save) leave in its uploads.jsonl."""
+    for saved in (True, False):
+        board = SimpleNamespace(port="/dev/ttyUSB3", sensor_id="TT-A", firmware_version="0.4.1", saved=saved)
+        record_upload(fit_dir, SimpleNamespace(**vars(board), coef_source="E" if saved else "U"))
+
+
 def record_what_a_lab_made(lab: Path, url: str) -> None:
     """What campaign, fit, upload and validate record as they finish, in
-    the order the lab made them (the commands' record, without running them)."""
+    the order the lab made them (the commands' record, without running them;
+    the uploads' lines are in the fit folder already, uploaded_twice)."""
     made = []
     for month in ("january", "june"):
         campaign, fit = lab / "campaigns" / f"TT-A-{month}", lab / "fits" / f"TT-A-{month}"
@@ -222,6 +232,7 @@ def test_what_the_commands_record_lists_the_sensors_and_history_sqlite_lists(
     lab, tmp_path, postgres_url, cli_in_process
 ):
     listed = {}
+    uploaded_twice(lab / "fits" / "TT-A-june")
     for url in (url_of(tmp_path / "registry.sqlite3"), postgres_url):
         record_what_a_lab_made(lab, url)
         listed[url] = what_it_lists(url, cli_in_process)
