@@ -295,6 +295,18 @@ def test_two_processes_ingesting_into_one_sqlite_file_at_once_lose_no_record(tmp
     assert recorded == {str(folder.resolve()) for folders in runs.values() for folder in folders}
 
 
+def assert_alembic_check_passes(url: str) -> None:
+    """`alembic check` through Alembic's own command line (env.py) on the registry at url."""
+    checked = subprocess.run(
+        [sys.executable, "-m", "alembic", "-c", MIGRATIONS / "alembic.ini", "check"],
+        env={**os.environ, "THERMOTILT_REGISTRY": url},
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert (checked.returncode, checked.stdout) == (0, "No new upgrade operations detected.\n"), checked.stderr
+
+
 def test_the_revisions_build_the_schema_the_models_declare_and_take_it_down_again(tmp_path):
     url = url_of(tmp_path / "registry.sqlite3")
     with Registry.open(url) as registry:
@@ -306,14 +318,7 @@ def test_the_revisions_build_the_schema_the_models_declare_and_take_it_down_agai
     with Registry.open(url) as registry:
         assert rows(registry, Sensor) == 0
     # Alembic's own command line, as a developer writing a revision runs it.
-    checked = subprocess.run(
-        [sys.executable, "-m", "alembic", "-c", MIGRATIONS / "alembic.ini", "check"],
-        env={**os.environ, "THERMOTILT_REGISTRY": url},
-        capture_output=True,
-        text=True,
-        check=False,
-    )
-    assert (checked.returncode, checked.stdout) == (0, "No new upgrade operations detected.\n"), checked.stderr
+    assert_alembic_check_passes(url)
 
 
 def test_a_registry_of_a_newer_schema_is_refused(tmp_path):

@@ -16,7 +16,6 @@ import itertools
 import os
 import shutil
 import subprocess
-import sys
 import tempfile
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -30,6 +29,7 @@ from sqlalchemy import create_engine, inspect, select
 from sqlalchemy.pool import NullPool
 from test_registry import (
     EEPROM_BYTES,
+    assert_alembic_check_passes,
     assert_one_line_error,
     ingest_from_two_processes_at_once,
     url_of,
@@ -39,7 +39,7 @@ from test_registry import (
 from test_registry_recording import parsed
 
 from thermotilt.calibration.upload_record import record_upload
-from thermotilt.registry.database import MIGRATIONS, Registry, alembic_config, newest_revision
+from thermotilt.registry.database import Registry, alembic_config, newest_revision
 from thermotilt.registry.recording import record_made
 from thermotilt.registry.schema import Base, BoardRun, Sensor, Upload
 from thermotilt.wire.coefficients import SENSOR_ID_RECORD_ADDRESS, encode_sensor_id_record
@@ -168,14 +168,7 @@ def test_a_new_database_is_migrated_to_the_newest_revision_the_models_declare(po
     with Registry.open(postgres_url) as registry, registry.reading() as session:
         assert session.scalars(select(Sensor)).all() == []
     # Alembic's own command line (env.py), as a developer writing a revision runs it.
-    checked = subprocess.run(
-        [sys.executable, "-m", "alembic", "-c", MIGRATIONS / "alembic.ini", "check"],
-        env={**os.environ, "THERMOTILT_REGISTRY": postgres_url},
-        capture_output=True,
-        text=True,
-        check=False,
-    )
-    assert (checked.returncode, checked.stdout) == (0, "No new upgrade operations detected.\n"), checked.stderr
+    assert_alembic_check_passes(postgres_url)
 
 
 def test_a_database_of_a_newer_schema_is_refused_in_one_line_and_left_as_it_was(postgres_url, cli_in_process):
