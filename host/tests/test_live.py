@@ -31,7 +31,7 @@ from thermotilt.live.folder_state import (
     campaign_eta_seconds,
     folder_kind,
 )
-from thermotilt.live.registry_lines import read_registry_lines
+from thermotilt.live.registry_lines import RegistryLines
 from thermotilt.live.server import create_app
 from thermotilt.live.tail import RunLogTail
 from thermotilt.registry.database import Registry
@@ -273,7 +273,7 @@ def test_a_folder_that_is_no_campaign_and_no_run_is_refused_in_one_line(tmp_path
 def test_a_sensors_registry_line_is_its_line_of_thermotilt_sensors_and_a_dash_otherwise(
     tmp_path, monkeypatch, registry_of_the_test
 ):
-    assert read_registry_lines(["TT-01"]) == {"TT-01": None}
+    assert RegistryLines()(["TT-01"]) == {"TT-01": None}
     assert not registry_of_the_test.exists(), "a registry that does not exist is not made"
     with Registry.open(f"sqlite:///{registry_of_the_test}") as registry, registry.writing() as session:
         session.add(Sensor(sensor_id="TT-01"))
@@ -289,12 +289,14 @@ def test_a_sensors_registry_line_is_its_line_of_thermotilt_sensors_and_a_dash_ot
                 domain={},
             )
         )
-    lines = read_registry_lines(["TT-01", "TT-09"])
+    lines = RegistryLines()(["TT-01", "TT-09"])
     assert lines["TT-09"] is None
     assert lines["TT-01"]["calibrated"] == "2026-01-10" and lines["TT-01"]["U (deg)"] == "0.40"
     assert lines["TT-01"]["recalibration due"].startswith("2027-01-10")
     monkeypatch.setenv("THERMOTILT_REGISTRY", "off")
-    assert read_registry_lines(["TT-01"]) == {"TT-01": None}
+    assert RegistryLines()(["TT-01"]) == {"TT-01": None}
+    # watch --registry URL, or the campaign's, before the environment.
+    assert RegistryLines(f"sqlite:///{registry_of_the_test}")(["TT-01"]) == {"TT-01": lines["TT-01"]}
 
 
 @pytest.fixture
@@ -398,3 +400,57 @@ def test_watch_serves_the_folder_until_ctrl_c(campaign_folder):
         process.send_signal(signal.SIGINT)
         _, stderr = process.communicate(timeout=20)
     assert process.returncode == 130, stderr
+
+
+def _page_answers(url: str) -> bool:
+    import urllib.error
+    import urllib.request
+
+    try:
+        with urllib.request.urlopen(f"{url}api/state", timeout=5) as answer:
+            return answer.status == 200
+    except (urllib.error.URLError, ConnectionError):
+        return False
+
+
+def _served_campaign(out: Path) -> tuple[subprocess.Popen, str]:
+    process = popen(
+        [
+            *THERMOTILT,
+            "campaign",
+            "--twin",
+            "--out",
+            str(out),
+            "--positions",
+            "0",
+            "--registry",
+            "off",
+            "--serve",
+            "127.0.0.1:0",
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    line = process.stdout.readline()
+    assert "read-only" in line, process.stderr.read() if process.poll() is not None else line
+    url = next(word for word in line.split() if word.startswith("http://"))
+    assert _page_answers(url)
+    return process, url
+
+
+@pytest.mark.parametrize(("stop", "returncode"), [(signal.SIGINT, 130), (signal.SIGKILL, -signal.SIGKILL)])
+def test_a_served_campaign_leaves_no_server_behind(tmp_path, stop, returncode):
+    """The page is served by a child process: Ctrl-C on the campaign stops
+    it with the campaign, and a campaign killed outright leaves it within
+    the reader's next look at its parent (PUSH_EVERY_S; 30 s is for a busy machine)."""
+    process, url = _served_campaign(tmp_path / "campaign")
+    process.send_signal(stop)
+    process.communicate(timeout=60)
+    assert process.returncode == returncode
+    if stop == signal.SIGINT:
+        assert not _page_answers(url)
+    deadline = time.monotonic() + 30
+    while _page_answers(url) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not _page_answers(url)

@@ -3,6 +3,8 @@ it. Imports nothing heavy, so a bad address is answered before Starlette loads."
 
 from __future__ import annotations
 
+import errno
+import socket
 from dataclasses import dataclass
 
 from ..options import UsageError
@@ -34,3 +36,17 @@ def parse_address(text: str) -> Address:
     if not host or not 0 <= port <= 65535:
         raise UsageError(f"--serve {text!r}: expected [HOST:]PORT, e.g. 8765 or 127.0.0.1:8765 (port 0 to 65535)")
     return Address(host, port)
+
+
+def bind(address: Address) -> socket.socket:
+    """A listening socket at address; UsageError, one line, for a port in
+    use, a host this machine is not, or a name that does not resolve."""
+    family = socket.AF_INET6 if ":" in address.host else socket.AF_INET
+    try:
+        return socket.create_server((address.host, address.port), family=family)
+    except OSError as error:
+        if error.errno == errno.EADDRINUSE:
+            why = "the port is in use (give another with --serve [HOST:]PORT)"
+        else:
+            why = error.strerror or str(error)
+        raise UsageError(f"cannot serve the live view on {address.host}:{address.port}: {why}") from None

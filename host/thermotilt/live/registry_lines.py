@@ -46,11 +46,10 @@ def _missing_sqlite_file(url: str) -> bool:
     )
 
 
-def read_registry_lines(sensor_ids: Sequence[str]) -> dict[str, RegistryLine | None]:
-    """The registry's line of each sensor ID, None where it has none."""
+def read_registry_lines(url: str, sensor_ids: Sequence[str]) -> dict[str, RegistryLine | None]:
+    """The line of each sensor ID in the registry at url, None where it has none."""
     wanted = [sensor_id for sensor_id in sensor_ids if sensor_id]
     lines: dict[str, RegistryLine | None] = dict.fromkeys(sensor_ids)
-    url = configured_url()
     if not wanted or url == OFF or _missing_sqlite_file(url):
         return lines
     from ..registry.database import Registry, RegistryError
@@ -72,7 +71,8 @@ class RegistryLines:
     """read_registry_lines, asked again only when the sensors change or
     LOOKUP_EVERY_S has passed."""
 
-    def __init__(self, every_s: float = LOOKUP_EVERY_S) -> None:
+    def __init__(self, url: str | None = None, every_s: float = LOOKUP_EVERY_S) -> None:
+        self._url = configured_url(url)
         self._every_s = every_s
         self._lock = threading.Lock()
         self._asked: tuple[tuple[str, ...], float] | None = None
@@ -83,6 +83,6 @@ class RegistryLines:
         with self._lock:
             now = time.monotonic()
             if self._asked is None or self._asked[0] != key or now - self._asked[1] >= self._every_s:
-                self._lines = read_registry_lines(key)
+                self._lines = read_registry_lines(self._url, key)
                 self._asked = (key, now)
             return dict(self._lines)

@@ -2,20 +2,22 @@
 ``/`` the page, ``/static/...`` its script, style and the vendored uPlot,
 ``/api/state`` the folder's whole view as JSON, ``/api/events`` Server-Sent
 Events, a first one with the whole view and then, about every PUSH_EVERY_S,
-what changed — served by uvicorn on a socket bound before anything runs,
-in this thread (``watch``) or in a background thread (``campaign --serve``).
+what changed — served by uvicorn on a socket bound before anything runs. ``watch``
+serves in its main thread; ``campaign --serve`` binds the socket and hands
+it to a ``watch`` child process, so the page never takes the campaign's
+interpreter from the twin.
 """
 
 from __future__ import annotations
 
 import asyncio
-import errno
 import json
+import os
 import socket
 import threading
-import time
 from collections.abc import AsyncIterator
 from pathlib import Path
+from types import FrameType
 
 import uvicorn
 from starlette.applications import Starlette
@@ -25,8 +27,6 @@ from starlette.responses import FileResponse, Response, StreamingResponse
 from starlette.routing import Mount, Route
 from starlette.staticfiles import StaticFiles
 
-from ..options import UsageError
-from .address import Address
 from .folder_state import Cursors, FolderState
 
 STATIC = Path(__file__).resolve().parent / "static"
@@ -34,7 +34,6 @@ PUSH_EVERY_S = 0.5
 STOP_CHECK_S = 0.05
 # How long the server waits for open event streams when it stops.
 GRACEFUL_STOP_S = 1
-STARTUP_TIMEOUT_S = 10.0
 
 
 def _dumps(document: object) -> str:
@@ -90,29 +89,26 @@ async def _event_stream(state: FolderState, push_every_s: float, stopping: threa
             waited += STOP_CHECK_S
 
 
-def bind(address: Address) -> socket.socket:
-    """A listening socket at address; UsageError, one line, for a port in
-    use, a host this machine is not, or a name that does not resolve."""
-    family = socket.AF_INET6 if ":" in address.host else socket.AF_INET
-    try:
-        return socket.create_server((address.host, address.port), family=family)
-    except OSError as error:
-        if error.errno == errno.EADDRINUSE:
-            why = "the port is in use (give another with --serve [HOST:]PORT)"
-        else:
-            why = error.strerror or str(error)
-        raise UsageError(f"cannot serve the live view on {address.host}:{address.port}: {why}") from None
+class _Server(uvicorn.Server):
+    """uvicorn's server whose Ctrl-C or SIGTERM ends the open event streams
+    first, so its graceful stop does not wait GRACEFUL_STOP_S for them."""
+
+    def __init__(self, config: uvicorn.Config, stopping: threading.Event) -> None:
+        super().__init__(config)
+        self.stopping = stopping
+
+    def handle_exit(self, sig: int, frame: FrameType | None) -> None:
+        self.stopping.set()
+        super().handle_exit(sig, frame)
 
 
 class LiveServer:
-    """uvicorn serving the live view of state at address; the socket is
-    bound on construction, so a port in use is known before a campaign starts."""
+    """uvicorn serving the live view of state on a listening socket."""
 
-    def __init__(self, state: FolderState, address: Address) -> None:
+    def __init__(self, state: FolderState, listening: socket.socket) -> None:
         self.state = state
         self.stopping = threading.Event()
-        self.socket = bind(address)
-        self.url = address.url(self.socket.getsockname()[1])
+        self.socket = listening
         config = uvicorn.Config(
             create_app(state, stopping=self.stopping),
             log_level="warning",
@@ -120,43 +116,30 @@ class LiveServer:
             lifespan="off",
             timeout_graceful_shutdown=GRACEFUL_STOP_S,
         )
-        self._server = uvicorn.Server(config)
-        self._thread: threading.Thread | None = None
+        self._server = _Server(config, self.stopping)
 
-    def serve_here(self) -> None:
-        """Serves until Ctrl-C (uvicorn's own signal handling, then
-        KeyboardInterrupt as from any command)."""
-        self._start_reading()
+    def serve_here(self, while_parent: int | None = None) -> None:
+        """Serves until Ctrl-C or SIGTERM (uvicorn's own signal handling),
+        or, given while_parent, until that process is no longer this one's
+        parent: a campaign killed outright leaves no server behind."""
+        self._start_reading(while_parent)
         try:
             self._server.run(sockets=[self.socket])
         finally:
             self.stopping.set()
             self.socket.close()
 
-    def _start_reading(self) -> None:
+    def _start_reading(self, while_parent: int | None) -> None:
         """The folder read every PUSH_EVERY_S whether a page is open or not,
         so that a fault in a position that ends before anyone looks is seen."""
 
         def read() -> None:
             while not self.stopping.wait(PUSH_EVERY_S):
+                if while_parent is not None and os.getppid() != while_parent:
+                    self.stopping.set()
+                    self._server.should_exit = True
+                    return
                 self.state.refresh()
 
         self.state.refresh()
         threading.Thread(target=read, name="thermotilt-live-reader", daemon=True).start()
-
-    def start_in_background(self) -> None:
-        self._start_reading()
-        self._thread = threading.Thread(
-            target=self._server.run, kwargs={"sockets": [self.socket]}, name="thermotilt-live", daemon=True
-        )
-        self._thread.start()
-        deadline = time.monotonic() + STARTUP_TIMEOUT_S
-        while not self._server.started and self._thread.is_alive() and time.monotonic() < deadline:
-            time.sleep(0.01)
-
-    def stop(self) -> None:
-        self.stopping.set()
-        self._server.should_exit = True
-        if self._thread is not None:
-            self._thread.join(timeout=GRACEFUL_STOP_S + 5)
-        self.socket.close()
