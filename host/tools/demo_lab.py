@@ -59,18 +59,32 @@ def free_port() -> int:
 
 def watched_recalibration(command: list[str], arguments: list[str], out: Path) -> None:
     """The campaign with --serve, and a screenshot of its page once it has
-    drawn SCREENSHOT_POINTS rows of a position."""
+    drawn SCREENSHOT_POINTS rows of a running position (of the finished
+    campaign, with a warning, when it ends first)."""
     port = free_port()
     arguments = [*arguments, "--serve", f"127.0.0.1:{port}"]
     print("$ thermotilt " + " ".join(shlex.quote(a) for a in arguments), flush=True)
     campaign = subprocess.Popen([*command, *arguments], text=True)
     try:
-        live_screenshot.take(f"http://127.0.0.1:{port}/", LIVE_FIGURE, SCREENSHOT_POINTS, SCREENSHOT_TIMEOUT_S)
+        caught = live_screenshot.take(
+            f"http://127.0.0.1:{port}/",
+            LIVE_FIGURE,
+            SCREENSHOT_POINTS,
+            SCREENSHOT_TIMEOUT_S,
+            stop_waiting=lambda: campaign.poll() is not None,
+        )
     except Exception as error:  # noqa: BLE001 - any browser failure ends the demo in one line
         campaign.kill()
         campaign.wait()
         sys.exit(f"demo: no screenshot of the live page: {str(error).splitlines()[0] if str(error) else error!r}")
-    print(f"(screenshot of the live page: {LIVE_FIGURE})", flush=True)
+    if caught:
+        print(f"(screenshot of the live page: {LIVE_FIGURE})", flush=True)
+    else:
+        print(
+            f"demo: warning: the campaign ended before its page drew {SCREENSHOT_POINTS} rows of a running "
+            f"position; {LIVE_FIGURE} shows it finished",
+            flush=True,
+        )
     if campaign.wait() != 0:
         sys.exit(f"demo: thermotilt campaign exited {campaign.returncode}")
 

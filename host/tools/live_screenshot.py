@@ -3,7 +3,7 @@
     .venv/bin/python host/tools/live_screenshot.py http://127.0.0.1:8765/ live.png --points 100
 
 Waits until the page reports at least --points rows of the current position
-(its #points[data-points]), then saves the page. Selenium drives the
+(its #points[data-points]) while that position runs, then saves the page. Selenium drives the
 system's Chromium (apt: chromium chromium-driver) through the chromedriver
 named here, so Selenium Manager never goes to the network. The browser
 test (host/tests/test_live_browser.py) opens its browser with ``chromium``.
@@ -14,7 +14,7 @@ from __future__ import annotations
 import argparse
 import os
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -48,12 +48,27 @@ def points(driver: webdriver.Chrome) -> int:
     return int(driver.find_element(By.ID, "points").get_attribute("data-points") or 0)
 
 
-def take(url: str, path: Path | str, wait_for_points: int = 1, timeout_s: float = 30.0) -> Path:
-    """Opens url, waits for wait_for_points rows drawn, saves a PNG at path."""
+def running(driver: webdriver.Chrome) -> bool:
+    return driver.find_element(By.ID, "position").get_attribute("data-status") == "running"
+
+
+def take(
+    url: str,
+    path: Path | str,
+    wait_for_points: int = 1,
+    timeout_s: float = 30.0,
+    stop_waiting: Callable[[], bool] = lambda: False,
+) -> bool:
+    """Opens url, waits for wait_for_points rows drawn of a running
+    position, saves a PNG at path; False when stop_waiting said so first
+    (the page is saved as it is then)."""
     path = Path(path)
     with chromium() as driver:
         driver.get(url)
-        WebDriverWait(driver, timeout_s).until(lambda d: points(d) >= wait_for_points)
+        WebDriverWait(driver, timeout_s).until(
+            lambda d: (running(d) and points(d) >= wait_for_points) or stop_waiting()
+        )
+        caught = running(driver) and points(driver) >= wait_for_points
         # The whole page: the window grown until its viewport holds it (the
         # window's height counts the browser's own bars too).
         for _ in range(3):
@@ -63,7 +78,7 @@ def take(url: str, path: Path | str, wait_for_points: int = 1, timeout_s: float 
             driver.set_window_size(WINDOW[0], driver.get_window_size()["height"] + int(missing) + 16)
             time.sleep(0.5)
         driver.save_screenshot(str(path))
-    return path
+    return caught
 
 
 def main() -> None:
@@ -73,7 +88,8 @@ def main() -> None:
     parser.add_argument("--points", type=int, default=1, help="wait for this many rows drawn (default 1)")
     parser.add_argument("--timeout", type=float, default=30.0, help="seconds to wait for them (default 30)")
     args = parser.parse_args()
-    print(take(args.url, args.png, args.points, args.timeout))
+    take(args.url, args.png, args.points, args.timeout)
+    print(args.png)
 
 
 if __name__ == "__main__":
