@@ -31,6 +31,8 @@ docs/testing.md (host/tools/nano_ram.py).
 stack's high-water mark (a few seconds). `bench.py --live` prints only the
 live view's figures (docs/live.md): a twin campaign's wall and processor
 time with and without `--serve` and the page's first load (about 8 minutes).
+`bench.py --discover` prints only `thermotilt discover`'s time end to end
+on a 100 000-row run (docs/discovery.md; about a minute).
 
 `bench.py --scatter [--seed N] [--disable TERM ...]` instead runs the long
 check of the scatter the twin's sensor leaves to the paper's fit (about
@@ -802,6 +804,53 @@ def fit_end_to_end(figures: Figures) -> None:
     )
 
 
+# discover end to end (its command: reading the run, the search, writing
+# the report and the found model) on a run of at least DISCOVER_ROWS rows:
+# the sensor's staircase of hide.staircase_inputs at 8 table positions, 60 s
+# holds, the model's noise and nothing hidden.
+DISCOVER_ROWS = 100_000
+DISCOVER_POSITIONS = (
+    (-45.0, 0.0),
+    (-30.0, 0.0),
+    (-15.0, 0.0),
+    (15.0, 0.0),
+    (30.0, 0.0),
+    (45.0, 0.0),
+    (0.0, 30.0),
+    (0.0, -30.0),
+)
+DISCOVER_REPEATS = 3
+
+
+def discover_end_to_end(figures: Figures) -> None:
+    from thermotilt.discovery.hide import hide_effect, staircase_inputs
+    from thermotilt.run.log import read_run_columns
+
+    with tempfile.TemporaryDirectory(prefix="thermotilt-bench-") as scratch:
+        base = Path(scratch)
+        inputs = staircase_inputs(base / "inputs" / "run.csv", positions=DISCOVER_POSITIONS, hold_s=60.0)
+        run = base / "run"
+        hide_effect(inputs, run, "none", seed=1)
+        rows = read_run_columns(str(run / LOG_FILE)).rows
+        if rows < DISCOVER_ROWS:
+            raise SystemExit(f"bench: the discover run has {rows} rows, fewer than {DISCOVER_ROWS}")
+        times = []
+        for _ in range(DISCOVER_REPEATS):
+            begin = time.perf_counter()
+            subprocess.run(
+                [sys.executable, "-m", "thermotilt", "discover", str(run), "--out", str(base / "found")],
+                check=True,
+                stdout=subprocess.DEVNULL,
+            )
+            times.append(time.perf_counter() - begin)
+    figures.add(
+        "discover end to end",
+        f"{statistics.median(times):.1f} s",
+        f"{rows} rows (a staircase at {len(DISCOVER_POSITIONS)} positions, the model's noise, nothing hidden): "
+        f"the command, from reading the run to writing the report; median of {DISCOVER_REPEATS}; target <= 10 s",
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
@@ -811,6 +860,7 @@ def main() -> None:
     )
     parser.add_argument("--memory", action="store_true", help="only each board's static RAM and stack peak")
     parser.add_argument("--live", action="store_true", help="only the live view's cost to a campaign and first load")
+    parser.add_argument("--discover", action="store_true", help="only discover's time end to end on 100 000 rows")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--disable", action="append", default=[], metavar="TERM")
     parser.add_argument("--page", type=Path, default=PAGE, help=f"the page to write (default {PAGE})")
@@ -824,6 +874,9 @@ def main() -> None:
         return
     if args.live:
         live_view(figures)
+        return
+    if args.discover:
+        discover_end_to_end(figures)
         return
     started, load_at_start = generated_page.now(), generated_page.load_average()
     model = Model.load()
@@ -847,6 +900,7 @@ def main() -> None:
         f"{points} synthetic points per set, no run logs to parse; target <= 30 s",
     )
     fit_end_to_end(figures)
+    discover_end_to_end(figures)
     live_view(figures)
     integrity(figures)
     write_page(args.page, figures.rows, started, load_at_start)
