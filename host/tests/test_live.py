@@ -436,6 +436,10 @@ def _served_campaign(out: Path) -> tuple[subprocess.Popen, str]:
     assert "read-only" in line, process.stderr.read() if process.poll() is not None else line
     url = next(word for word in line.split() if word.startswith("http://"))
     assert _page_answers(url)
+    # Once the campaign has started: a Ctrl-C while Python still imports
+    # numpy can end the process by SIGINT itself instead of exit 130 (CPython's
+    # exit path, seen with strace), which a shell reports as 130 too.
+    assert "campaign of" in process.stdout.readline()
     return process, url
 
 

@@ -106,8 +106,8 @@ def serving_while_it_runs(args: argparse.Namespace) -> Iterator[None]:
         # Its own session: Ctrl-C reaches the command, which stops the server.
         server = subprocess.Popen(command, pass_fds=[listening.fileno()], start_new_session=True)
         url = address.url(listening.getsockname()[1])
-    print(f"live view: {url} (read-only, while this command runs)", flush=True)
     try:
+        print(f"live view: {url} (read-only, while this command runs)", flush=True)
         yield
     finally:
         server.terminate()
