@@ -5,8 +5,8 @@ cluster (docs/discovery.md, "Benchmark"; thermotilt/discovery/benchmark.py).
 Runs what the record (docs/benchmarks/discovery-runs.csv) does not hold yet
 — on a LocalCluster of this machine's cores, or on the cluster of
 --scheduler — then writes the rates into docs/discovery.md and the figure
-docs/benchmarks/discovery-rates.png from the record, and times one
-discovery on a 100 000-row run. Ctrl-C keeps every finished run; the next
+docs/benchmarks/discovery-rates.png from the record (how long one
+discovery takes, `make bench` measures). Ctrl-C keeps every finished run; the next
 start runs only the others. --report-only rewrites the tables and the
 figure from the record as it is.
 """
@@ -16,8 +16,6 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-import tempfile
-import time
 from contextlib import ExitStack
 from pathlib import Path
 
@@ -39,24 +37,6 @@ def _discovery_problem() -> str | None:
     return None
 
 
-def _speed() -> tuple[int, float]:
-    """One discovery on an inputs-only staircase of 7 positions, 60 s holds."""
-    from thermotilt.discovery.hide import hide_effect, staircase_inputs
-    from thermotilt.discovery.replay import load_measured
-    from thermotilt.discovery.search import Search
-    from thermotilt.physics import Model
-
-    with tempfile.TemporaryDirectory() as folder:
-        base = Path(folder)
-        positions = tuple((angle, 0.0) for angle in (-45.0, -30.0, -15.0, 15.0, 30.0, 45.0)) + ((0.0, 30.0),)
-        inputs = staircase_inputs(base / "inputs" / "run.csv", positions=positions, hold_s=60.0)
-        hide_effect(inputs, base / "speed", "none", seed=1)
-        measured = load_measured(base / "speed")
-        start = time.perf_counter()
-        Search(measured, Model.load()).run()
-        return len(measured.time_s), time.perf_counter() - start
-
-
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scheduler", help="run on the Dask cluster of this scheduler (tcp://HOST:8786)")
@@ -73,7 +53,6 @@ def main() -> int:
     parser.add_argument("--kind", action="append", choices=("null", "effect", "collinear"), help="only these runs")
     parser.add_argument("--base", action="append", help="only the runs on these bases (staircase, cycle, wave, fig8)")
     parser.add_argument("--report-only", action="store_true", help="only write the tables and figure from the record")
-    parser.add_argument("--no-speed", action="store_true", help="skip timing one discovery on a 100 000-row run")
     args = parser.parse_args()
 
     from tqdm import tqdm
@@ -131,12 +110,10 @@ def main() -> int:
         for failure in progress.failed:
             print(f"bench-discovery: run failed: {failure}", file=sys.stderr)
     rows = read_record(args.record)
-    text = rates.report(rows)
-    if not args.no_speed:
-        count, seconds = _speed()
-        line = f"discover on a {count}-row run: {seconds:.1f} s (target ≤ 10 s)"
-        print(line)
-        text += f"\nSpeed: {line}, on the machine that wrote this.\n"
+    text = (
+        rates.report(rows)
+        + "\nSpeed: `make bench` times `discover` end to end on 100 000 rows (docs/performance.md).\n"
+    )
     try:
         generated_page.write_block(args.document, rates.BEGIN, rates.END, text)
     except ValueError as error:
