@@ -136,11 +136,19 @@ def test_a_chamber_effect_needs_inputs_with_the_drive(inputs: Path, tmp_path: Pa
 
 @pytest.mark.slow
 @pytest.mark.twin
-@pytest.mark.parametrize("noise", ["white", "model", "flicker"])
-def test_null_runs_give_none(inputs: Path, tmp_path: Path, noise: str) -> None:
+@pytest.mark.parametrize(("noise", "verdict"), [("white", "none"), ("model", "none"), ("flicker", "unexplained")])
+def test_null_runs_name_nothing_and_say_whether_the_declared_noise_explains_them(
+    inputs: Path, tmp_path: Path, noise: str, verdict: str
+) -> None:
+    # "flicker": the flicker floor 5x what the model declares. On Z, which
+    # declares no drift slope, flicker is all the declared noise there is:
+    # its gap is then twice what the model allows.
     hide_effect(inputs, tmp_path, "none", seed=5, noise=noise)
     outcome = _discover(tmp_path / "run.csv")
-    assert outcome.verdict == "none", [(e.candidate, e.channel, e.adjusted_p) for e in outcome.effects]
+    assert outcome.verdict == verdict, [(e.candidate, e.channel, e.adjusted_p) for e in outcome.effects]
+    assert [fit.channel for fit in outcome.unexplained] == ([] if verdict == "none" else ["Z"])
+    if outcome.unexplained:
+        assert outcome.unexplained[0].gap > 2.0 * outcome.unexplained[0].allowed
 
 
 @pytest.mark.slow

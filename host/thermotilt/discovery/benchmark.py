@@ -37,7 +37,7 @@ if TYPE_CHECKING:
 
 SNRS = (0.5, 1.0, 2.0, 4.0)
 NULL, EFFECT, COLLINEAR = "null", "effect", "collinear"
-FOUND, NONE, AMBIGUOUS, NOT_TESTABLE = "found", "none", "ambiguous", "not_testable"
+FOUND, NONE, AMBIGUOUS, NOT_TESTABLE, UNEXPLAINED = "found", "none", "ambiguous", "not_testable", "unexplained"
 COLUMNS = (
     "key",
     "kind",
@@ -56,6 +56,7 @@ COLUMNS = (
     "high",
     "truth",
     "ambiguous",
+    "fit",
     "expected_pair",
     "snr_actual",
     "rows",
@@ -271,6 +272,7 @@ def run_task(task: Task, base_csv: bytes) -> dict[str, Any]:
         "high": _number(first.interval[1]) if first else "",
         "truth": "" if truth.value is None else _number(truth.value),
         "ambiguous": ";".join("+".join(group.names) for group in outcome.ambiguous),
+        "fit": ";".join(f"{fit.channel}:{fit.gap:.4g}/{fit.allowed:.4g}" for fit in outcome.fit.values()),
         "expected_pair": "+".join(cell.pair),
         "snr_actual": "" if truth.snr is None else f"{truth.snr:.3f}",
         "rows": len(measured.time_s),
@@ -430,6 +432,16 @@ def cell_summary(cells: list[Cell]) -> str:
     for cell in cells:
         counts[cell.kind] = counts.get(cell.kind, 0) + cell.runs
     return ", ".join(f"{count} {kind}" for kind, count in counts.items())
+
+
+def gap_ratio(row: dict[str, str]) -> float:
+    """The largest gap of a run's channels in units of what the model's
+    declared noise allows there (0 where none was tested)."""
+    ratios = [0.0]
+    for entry in filter(None, row["fit"].split(";")):
+        gap, allowed = entry.split(":", 1)[1].split("/")
+        ratios.append(float(gap) / float(allowed) if float(allowed) > 0 else np.inf)
+    return max(ratios)
 
 
 def named_right(row: dict[str, str]) -> bool:

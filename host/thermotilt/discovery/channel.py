@@ -12,6 +12,8 @@ docs/discovery.md ("Decision") states the rules.
 
 from __future__ import annotations
 
+import functools
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -21,10 +23,11 @@ from scipy import stats
 from scipy.linalg import solve_triangular
 from scipy.optimize import minimize
 
+from .. import native
 from ..physics import Model
 from ..physics.terms.sensor import FLICKER_TIME_CONSTANTS_S, FLICKER_VARIANCE_PER_FLOOR
 from ..surfaces import REFERENCE_C
-from .replay import ACCELERATION_CHANNELS, Measured
+from .replay import ACCELERATION_CHANNELS, SAMPLE_PERIOD_S, Measured
 
 # Long against the Kalman filters' ~10 s and short against a 60 s
 # staircase hold, so a block still follows the temperature.
@@ -47,6 +50,8 @@ LOG_LEVEL_MAX = 4.0
 # White noise of at least this share of the residual blocks' variance
 # keeps the fitted covariance well conditioned.
 MIN_WHITE_SHARE = 1e-3
+# A register holds a whole LSB: rounding adds a uniform error of +-0.5.
+REGISTER_ROUNDING_VARIANCE = 1.0 / 12.0
 
 
 def _nuisance(channel: str) -> bool:
@@ -93,12 +98,14 @@ class Fit:
 
 @dataclass(frozen=True)
 class DeclaredNoise:
-    """The noise the model declares on a channel, as block covariances: a
-    random drift slope per mounting (LSB/degC) and flicker, one Gauss-Markov
-    process per time constant with its variance (LSB^2)."""
+    """The noise the model declares on a channel: a random drift slope per
+    mounting (LSB/degC), flicker (one Gauss-Markov process per time
+    constant with its variance, LSB^2) and white noise (LSB^2 per sample,
+    the registers' rounding included), the last two at the filter's input."""
 
     slope_sigma: float = 0.0
     flicker: tuple[tuple[float, float], ...] = ()  # (time constant s, variance)
+    white_variance: float = 0.0
 
     @classmethod
     def of(cls, model: Model, channel: str) -> DeclaredNoise:
@@ -115,18 +122,134 @@ class DeclaredNoise:
             floor = float(model.terms["bias_instability"]["allan_floor_lsb"][axis])
             variance = floor**2 * FLICKER_VARIANCE_PER_FLOOR
             flicker = tuple((tau, variance) for tau in FLICKER_TIME_CONSTANTS_S)
-        return cls(slope, flicker)
+        white = (
+            float(model.terms["noise"]["sigma_lsb"][axis]) ** 2 + REGISTER_ROUNDING_VARIANCE
+            if model.enabled("noise")
+            else 0.0
+        )
+        return cls(slope, flicker, white)
 
 
-def _flicker_blocks(lag_s: np.ndarray, block_s: float, flicker: tuple[tuple[float, float], ...]) -> np.ndarray:
-    """The block-mean covariance of Gauss-Markov processes (time constant
-    s, variance) over the whole run: flicker does not stop at a table move.
-    A block's mean keeps the share of a process slower than the block,
-    about 2 tau / block of a faster one."""
-    covariance = np.zeros_like(lag_s)
-    for tau, variance in flicker:
-        covariance += variance * min(1.0, 2.0 * tau / block_s) * np.exp(-lag_s / tau)
-    return covariance
+@functools.cache
+def filter_pole() -> float:
+    """The firmware's Kalman filter in steady state is the exponential
+    smoother estimate += gain * (sample - estimate): its pole 1 - gain per
+    sample, read from the filter itself (thermotilt.native) as the decay of
+    its step response long after a reset (lib/Kalman: the gain settles
+    within 0.5 % after ~3000 samples)."""
+    settle, after, size = 20000, 1000, 1.0e4
+    samples = np.zeros(settle + after + 1)
+    samples[settle:] = size
+    estimate = float(native.kalman_estimates(samples)[settle + after])
+    return float((1.0 - estimate / size) ** (1.0 / (after + 1)))
+
+
+def filtered_exponentials(white_variance: float, gauss_markov: tuple[tuple[float, float], ...]) -> dict[float, float]:
+    """The autocovariance of the filter's output, as {time constant s:
+    coefficient} of exponentials in the lag, for white noise (variance per
+    sample) and Gauss-Markov processes (time constant s, variance) at its
+    input. Each Gauss-Markov process through the smoother is an AR(2) with
+    the roots rho and the pole, whose autocovariance is the standard sum of
+    two geometric terms (Brockwell and Davis, Introduction to Time Series
+    and Forecasting, 3.3); white noise is the filter's own geometric term."""
+    pole = filter_pole()
+    gain = 1.0 - pole
+    filter_s = -SAMPLE_PERIOD_S / math.log(pole)
+    terms = {filter_s: white_variance * gain / (1.0 + pole)}
+    for tau, variance in gauss_markov:
+        rho = math.exp(-SAMPLE_PERIOD_S / tau)
+        if abs(rho - pole) < 1e-9:
+            # Equal roots make the two terms one of another form; a root
+            # moved by 1e-9 changes the covariance by about 1e-6 of itself.
+            rho = pole - 1e-9
+        innovation = gain**2 * variance * (1.0 - rho**2)
+        common = innovation / ((rho - pole) * (1.0 - rho * pole))
+        terms[-SAMPLE_PERIOD_S / math.log(rho)] = terms.get(-SAMPLE_PERIOD_S / math.log(rho), 0.0) + (
+            common * rho / (1.0 - rho**2)
+        )
+        terms[filter_s] -= common * pole / (1.0 - pole**2)
+    return terms
+
+
+class BlockTimes:
+    """Where each block of a channel lies in time: its frames' times, the
+    block each belongs to, and each block's first and last frame."""
+
+    def __init__(self, time_s: np.ndarray, block: np.ndarray, counts: np.ndarray) -> None:
+        self.time_s, self.block, self.counts = time_s, block, counts
+        self.start = np.full(len(counts), np.inf)
+        np.minimum.at(self.start, block, time_s)
+        self.end = np.full(len(counts), -np.inf)
+        np.maximum.at(self.end, block, time_s)
+
+    def mean_exponential(self, time_constant_s: float) -> np.ndarray:
+        """Block by block, the mean over pairs of their frames of
+        exp(-|lag| / time constant): blocks do not overlap, so for one
+        before another the double sum factors into the first's tail and
+        the second's head; within a block the frames are evenly spaced."""
+        decay = 1.0 / time_constant_s
+        tail = np.bincount(self.block, np.exp(-(self.end[self.block] - self.time_s) * decay)) / self.counts
+        head = np.bincount(self.block, np.exp(-(self.time_s - self.start[self.block]) * decay)) / self.counts
+        before = self.start[:, None] < self.start[None, :]
+        between = np.where(before, self.start[None, :] - self.end[:, None], 0.0)
+        upper = np.where(before, np.exp(-np.maximum(between, 0.0) * decay) * np.outer(tail, head), 0.0)
+        covariance = upper + upper.T
+        m = self.counts.astype(float)
+        spacing = np.where(m > 1, (self.end - self.start) / np.maximum(m - 1, 1), 0.0)
+        r = np.exp(-spacing * decay)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            pairs = np.where(r < 1.0, r * (m * (1.0 - r) - (1.0 - r**m)) / (1.0 - r) ** 2, m * (m - 1) / 2.0)
+        covariance[np.diag_indices_from(covariance)] = (m + 2.0 * pairs) / m**2
+        return covariance
+
+    def covariance(self, exponentials: dict[float, float]) -> np.ndarray:
+        covariance = np.zeros((len(self.counts), len(self.counts)))
+        for time_constant_s, coefficient in exponentials.items():
+            if coefficient:
+                covariance += coefficient * self.mean_exponential(time_constant_s)
+        return covariance
+
+
+@dataclass(frozen=True)
+class GoodnessOfFit:
+    """Whether the noise the model declares explains a channel's residual.
+    gap: the RMS of its block means about their mean (each block weighted
+    by its rows, LSB); allowed: the RMS the declared noise alone exceeds
+    with probability `level`; p_value: that it exceeds the gap."""
+
+    channel: str
+    gap: float
+    allowed: float
+    p_value: float
+    level: float
+
+    @property
+    def explained(self) -> bool:
+        return self.p_value >= self.level
+
+    @classmethod
+    def of(
+        cls, channel: str, blocks: np.ndarray, counts: np.ndarray, declared: np.ndarray, level: float
+    ) -> GoodnessOfFit:
+        """The gap's square is a quadratic form y'Ay of the blocks (A the
+        weighted centring), so under the declared covariance S it is a sum
+        of chi-squares weighted by the eigenvalues of AS. Its tail is taken
+        from the first three cumulants, the traces of the powers of AS, by
+        Hall-Buckley-Eagleson's scaled chi-square (Bodenham and Adams,
+        Statistics and Computing 26, 2016, compare it with exact methods;
+        test_discovery_inference checks it against draws). Written here: no
+        maintained library offers it."""
+        weights = counts / counts.sum()
+        centred = blocks - weights @ blocks
+        gap_square = float(weights @ centred**2)
+        product = weights[:, None] * declared - np.outer(weights, weights @ declared)
+        squared = product @ product
+        first, second, third = np.trace(product), np.trace(squared), float(np.sum(squared * product.T))
+        dof = second**3 / third**2 if third > 0 else np.inf
+        spread = math.sqrt(2.0 * second) / math.sqrt(2.0 * dof)
+        p_value = float(stats.chi2.sf(dof + (gap_square - first) / spread, dof))
+        allowed_square = first + (float(stats.chi2.isf(level, dof)) - dof) * spread
+        return cls(channel, math.sqrt(gap_square), math.sqrt(max(allowed_square, 0.0)), p_value, level)
 
 
 class UndeclaredFlicker:
@@ -150,11 +273,11 @@ class UndeclaredFlicker:
     Written here because statsmodels' REML (MixedLM) takes only random
     effects, not a covariance of this form."""
 
-    def __init__(self, design: np.ndarray, declared: np.ndarray, lag_s: np.ndarray, block_s: float) -> None:
+    def __init__(self, design: np.ndarray, declared: np.ndarray, times: BlockTimes, block_s: float) -> None:
         self.design = design
         self.declared = declared
         slow = tuple((tau, 1.0) for tau in FLICKER_TIME_CONSTANTS_S if tau >= block_s)
-        self.unit_flicker = _flicker_blocks(lag_s, block_s, slow)
+        self.unit_flicker = times.covariance(filtered_exponentials(0.0, slow))
 
     def covariance(self, theta: np.ndarray, scale: float) -> np.ndarray:
         flicker, white = np.exp(theta)
@@ -241,7 +364,7 @@ class Channel:
         _, self._block, counts = np.unique(keys, return_inverse=True, return_counts=True)
         self._counts = counts
         self._mounting = np.rint(self.blocks(mounting.astype(float))).astype(np.int64)
-        block_time = self.blocks(time_s)
+        times = BlockTimes(time_s, self._block, counts)
         excursion = self.blocks(temperature_c[used]) - REFERENCE_C
         self.y = self.blocks(self.residual_rows)
         if _nuisance(channel):
@@ -251,12 +374,19 @@ class Channel:
         else:
             self.nuisance = np.empty((len(self.y), 0))
         noise_blocks = self.y if noise_residual is None else self.blocks(noise_residual[used])
-        self.whiten = self._whitening(block_time, excursion, block_s, noise, noise_blocks)
+        self.whiten = self._whitening(times, excursion, block_s, noise, noise_blocks)
         self.y_w = self.whiten(self.y)
         self.nuisance_w = self.whiten(self.nuisance)
 
     def blocks(self, values: np.ndarray) -> np.ndarray:
         return np.bincount(self._block, weights=values) / self._counts
+
+    def goodness_of_fit(self, level: float) -> GoodnessOfFit | None:
+        """The residual against the noise the model declares here; None on
+        a channel where it declares none."""
+        if not np.any(self.declared):
+            return None
+        return GoodnessOfFit.of(self.name, self.y, self._counts, self.declared, level)
 
     def refitted(self, effect_rows: np.ndarray) -> Channel:
         """The same channel with its undeclared noise fitted to the residual
@@ -273,23 +403,23 @@ class Channel:
 
     def _whitening(
         self,
-        block_time: np.ndarray,
+        times: BlockTimes,
         excursion: np.ndarray,
         block_s: float,
         noise: DeclaredNoise,
         noise_blocks: np.ndarray,
     ) -> Callable[[np.ndarray], np.ndarray]:
-        lag_s = np.abs(np.subtract.outer(block_time, block_time))
         same = np.equal.outer(self._mounting, self._mounting)
         declared = noise.slope_sigma**2 * np.outer(excursion, excursion) * same
-        declared += _flicker_blocks(lag_s, block_s, noise.flicker)
+        declared += times.covariance(filtered_exponentials(noise.white_variance, noise.flicker))
+        self.declared = declared
         columns = []
         for m in np.unique(self._mounting):
             inside = (self._mounting == m).astype(float)
             columns += [inside[:, None], (inside * excursion)[:, None]]
         design = np.hstack(columns)
         if self.name in ACCELERATION_CHANNELS:
-            lower = UndeclaredFlicker(design, declared, lag_s, block_s).fitted(noise_blocks)
+            lower = UndeclaredFlicker(design, declared, times, block_s).fitted(noise_blocks)
         else:
             lower = np.linalg.cholesky(declared + _position_ar1(_left_by(design, noise_blocks), same, self._mounting))
 

@@ -64,6 +64,15 @@ FLICKER_FACTOR = 5.0
 # to the next, its standard deviation the flicker family's Allan floor, so
 # that it is as large as the undeclared part of that family.
 WANDER_ROW_CORRELATION = {"ar1-0.99": 0.99, "ar1-0.999": 0.999}
+# The families whose world differs from the model discovery is given in one
+# declared noise term: (term, its per-axis parameter, the factor on it).
+MISSPECIFIED = {
+    "slope-0.5x": ("drift_repeatability", "sigma_lsb_per_c", 0.5),
+    "slope-2x": ("drift_repeatability", "sigma_lsb_per_c", 2.0),
+    "white-0.7x": ("noise", "sigma_lsb", 0.7),
+    "white-1.3x": ("noise", "sigma_lsb", 1.3),
+    "flicker-3x": ("bias_instability", "allan_floor_lsb", 3.0),
+}
 DEFAULT_SNR_RANGE = (0.5, 8.0)
 # The chamber reports its readings to 0.01 degC (CHS, firmware/thermal_chamber).
 CHS_DECIMALS = 2
@@ -95,6 +104,10 @@ def noisy(model: Model, noise: str) -> Model:
         return model
     if noise == "white" or noise in WANDER_ROW_CORRELATION:
         return model.with_terms({"bias_instability": False, "drift_repeatability": False})
+    if noise in MISSPECIFIED:
+        term, parameter, factor = MISSPECIFIED[noise]
+        values = model.terms[term][parameter]
+        return with_values(model, term, {parameter: {axis: factor * float(values[axis]) for axis in "xyz"}})
     if noise == "flicker":
         return with_values(
             model,

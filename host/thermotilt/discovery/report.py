@@ -50,6 +50,17 @@ def document(
             for group in outcome.ambiguous
         ],
         "not_testable": outcome.not_testable,
+        "fit": {
+            channel: {
+                "unit": UNITS[channel],
+                "gap": fit.gap,
+                "allowed": fit.allowed,
+                "p_value": fit.p_value,
+                "level": fit.level,
+                "explained": fit.explained,
+            }
+            for channel, fit in outcome.fit.items()
+        },
         "gap": {
             channel: {
                 "unit": UNITS[channel],
@@ -200,6 +211,7 @@ def _markdown(result: dict[str, Any]) -> str:
         f"**Verdict: {result['verdict']}.**",
         "",
         *_findings(result),
+        *_fit_table(result),
         *_gap_table(result),
         *_regime_tables(result),
         "![residuals before and after](residuals.png)",
@@ -246,6 +258,32 @@ def _findings(result: dict[str, Any]) -> list[str]:
     for channel, why in result["skipped_channels"].items():
         lines += [f"Channel {channel} skipped: {why}.", ""]
     return lines
+
+
+def unexplained_line(channel: str, fit: dict[str, Any]) -> str:
+    return (
+        f"{channel}: {fit['gap']:.3g} {fit['unit']} RMS where the model allows {fit['allowed']:.3g} "
+        f"(p {fit['p_value']:.2g})"
+    )
+
+
+def _fit_table(result: dict[str, Any]) -> list[str]:
+    if not result["fit"]:
+        return []
+    level = next(iter(result["fit"].values()))["level"]
+    lines = [
+        "## Does the model's noise explain what is left? (RMS of the 20 s block means about their mean; "
+        f"'allowed' is what the declared noise exceeds with probability {level:.3g})",
+        "",
+        "| channel | gap | allowed | p | explained |",
+        "|---|---|---|---|---|",
+    ]
+    for channel, fit in result["fit"].items():
+        lines.append(
+            f"| {channel} | {fit['gap']:.3g} {fit['unit']} | {fit['allowed']:.3g} {fit['unit']} | "
+            f"{fit['p_value']:.2g} | {'yes' if fit['explained'] else '**no**'} |"
+        )
+    return [*lines, ""]
 
 
 def _gap_table(result: dict[str, Any]) -> list[str]:
@@ -319,6 +357,9 @@ def summary_lines(result: dict) -> list[str]:
         )
     if result["not_testable"]:
         lines.append(f"  not testable here: {', '.join(result['not_testable'])}")
+    for channel, fit in result["fit"].items():
+        if not fit["explained"]:
+            lines.append(f"  unexplained: {unexplained_line(channel, fit)}")
     for channel, gap in result["gap"].items():
         twin_text = f"; twin {gap['twin']['before']:.3f} -> {gap['twin']['after']:.3f}" if "twin" in gap else ""
         lines.append(

@@ -30,7 +30,7 @@ from threadpoolctl import threadpool_limits
 
 from ..physics import Model
 from .candidates import BY_NAME, CANDIDATES, Candidate, experiment
-from .channel import Channel, DeclaredNoise, gap_rms
+from .channel import Channel, DeclaredNoise, GoodnessOfFit, gap_rms
 from .nonlinear import NonlinearFits
 from .replay import CHAMBER_CHANNELS, Measured, Replay
 
@@ -98,6 +98,12 @@ class Outcome:
     residual_before: dict[str, np.ndarray] = field(default_factory=dict)
     residual_after: dict[str, np.ndarray] = field(default_factory=dict)
     gap: dict[str, dict[str, float]] = field(default_factory=dict)
+    fit: dict[str, GoodnessOfFit] = field(default_factory=dict)
+
+    @property
+    def unexplained(self) -> list[GoodnessOfFit]:
+        """The channels whose residual the declared noise does not explain."""
+        return [fit for fit in self.fit.values() if not fit.explained]
 
 
 def _probe_step(candidate: Candidate, value: float) -> float:
@@ -137,6 +143,7 @@ class Search:
         outcome = Outcome(verdict="none", model=model)
         outcome.residual_before = self.residuals(base)
         done: set[tuple[str, str]] = set()
+        channels: dict[str, Channel] = {}
         for round_index in range(MAX_ROUNDS):
             self._progress(f"round {round_index + 1}: testing {len(CANDIDATES)} candidates")
             channels = self._channels(model, base)
@@ -161,13 +168,14 @@ class Search:
             best = self._refined(best, channels[best.channel], regressors[best.candidate][best.channel], model, base)
             effect, model = self._add(candidate, best, model)
             outcome.effects.append(effect)
+            channels = {}
             # One value acting on every channel is set once, where it
             # explained most.
             done.update(
                 [best.key] if candidate.per_axis else [(candidate.name, channel) for channel in candidate.channels]
             )
             base = self.predict(model)
-        self._conclude(outcome, model, base)
+        self._conclude(outcome, model, base, channels or self._channels(model, base))
         return outcome
 
     def _channels(self, model: Model, base: Mapping[str, np.ndarray]) -> dict[str, Channel]:
@@ -208,11 +216,30 @@ class Search:
         )
         return [t for t in accepted if not self._contradicted_elsewhere(t, model, base, channels)]
 
-    def _conclude(self, outcome: Outcome, model: Model, base: Mapping[str, np.ndarray]) -> None:
-        """The outcome's model, verdict and gaps once the rounds are over."""
+    def _conclude(
+        self, outcome: Outcome, model: Model, base: Mapping[str, np.ndarray], channels: Mapping[str, Channel]
+    ) -> None:
+        """The outcome's model, gaps, goodness of fit and verdict once the
+        rounds are over: `unexplained` where nothing was named and a
+        channel's residual is more than its declared noise makes (each
+        channel at ALPHA shared among those tested, so that a run the model
+        fits is called unexplained at most at ALPHA)."""
         outcome.model = model
         outcome.residual_after = self.residuals(base)
-        outcome.verdict = "found" if outcome.effects else "ambiguous" if outcome.ambiguous else "none"
+        tested = [channel for channel in channels.values() if np.any(channel.declared)]
+        for channel in tested:
+            fit = channel.goodness_of_fit(ALPHA / len(tested))
+            if fit is not None:
+                outcome.fit[channel.name] = fit
+        outcome.verdict = (
+            "found"
+            if outcome.effects
+            else "ambiguous"
+            if outcome.ambiguous
+            else "unexplained"
+            if outcome.unexplained
+            else "none"
+        )
         outcome.gap = {
             channel: {
                 "before": gap_rms(channel, outcome.residual_before[channel][self.measured.used[channel]]),
