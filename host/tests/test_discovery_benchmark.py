@@ -12,6 +12,7 @@ from distributed import LocalCluster
 from thermotilt.cluster import ClusterError, connect_cluster
 from thermotilt.discovery import rates
 from thermotilt.discovery.benchmark import (
+    BASES,
     COLUMNS,
     Base,
     Cell,
@@ -66,7 +67,7 @@ def test_runs_on_a_cluster_by_its_address_and_a_second_start_runs_nothing(tmp_pa
             assert [_without_seconds(row) for row in read_record(record)] == [_without_seconds(row) for row in rows]
     assert [row["key"] for row in rows] == [task.key for cell in CELLS for task in cell.tasks()]
     hidden = rows[1]
-    assert hidden["verdict"] in ("found", "none", "ambiguous", "not_testable")
+    assert hidden["verdict"] in ("found", "none", "ambiguous", "not_testable", "unexplained")
     assert hidden["channel"] == "X" and float(hidden["truth"]) != 0.0
     assert float(hidden["snr_actual"]) == pytest.approx(4.0, rel=1e-3)
     # One row made again alone, from its seed only, is the same row.
@@ -90,9 +91,20 @@ def test_every_run_has_its_own_seed_and_the_design_has_the_sizes_asked_for():
     null = [c for c in cells if c.kind == "null"]
     assert sum(c.runs for c in null) >= 400 and len({c.noise for c in null}) >= 4
     assert {c.base for c in null} == {"staircase", "cycle"}
+    assert all(c.runs >= 100 for c in null)
     effect = [c for c in cells if c.kind == "effect"]
     assert all(c.runs >= 50 for c in effect) and {c.snr for c in effect} == {0.5, 1.0, 2.0, 4.0}
     assert all(c.runs >= 50 for c in cells if c.kind == "collinear")
+    # Every cell's runs spread over at least 20 bases of its kind, each a
+    # base the benchmark can make.
+    for cell in cells:
+        bases = {task.base for task in cell.tasks()}
+        assert len(bases) >= 20 and bases <= set(BASES), cell
+    # A collinear cell changed after its results stays beside its successor.
+    collinear = [(c.effect, c.base) for c in cells if c.kind == "collinear"]
+    assert ("sensor_lag", "ramp") in collinear and ("sensor_lag", "wave") in collinear
+    assert ("thermistor_offset", "fig8") in collinear and ("temperature_offset", "fig8") in collinear
+    assert all(c.since for c in cells)
 
 
 def _row(**values):
@@ -145,7 +157,7 @@ def test_the_rates_carry_wilson_intervals_and_say_which_targets_are_missed(tmp_p
     ]
     text = rates.report(rows)
     # 0 of 400: the Wilson upper bound is z^2 / (n + z^2) = 0.95 %.
-    assert "| white | 400 | 0/400 = 0% (0%–1.0%) | – | 0/400 = 0% (0%–1.0%) | met |" in text
+    assert "| white | 400 | 0/400 = 0% (0%–1.0%) | – | 0/400 = 0% (0%–1.0%) | met | 0/400 = 0% (0%–1.0%) | – |" in text
     # 40 of 400: 10 %, 7.5-13.3 % (Wilson).
     assert "| ar1-0.999 | 400 | 40/400 = 10% (7.4%–13%) | – | 40/400 = 10% (7.4%–13%) | **missed** |" in text
     # Both families: 40 of 800, 5 %, 3.7-6.7 % (Wilson).
@@ -158,7 +170,10 @@ def test_the_rates_carry_wilson_intervals_and_say_which_targets_are_missed(tmp_p
     assert "Cells at their target: 1 of 2." in text
     assert "| candidate | none | another effect | the effect on another channel |" in text
     assert "| `hysteresis` | 0 | 0 | 1 |" in text and "| `cross_axis` | 10 | 6 | 0 |" in text
-    assert "The whole design's cost is not known: no collinear on fig8, collinear on wave, effect on cycle" in text
+    assert (
+        "The whole design's cost is not known: no collinear on fig8, collinear on ramp, collinear on wave, "
+        "effect on cycle" in text
+    )
     rates.figure(rows, tmp_path / "rates.png")
     assert (tmp_path / "rates.png").stat().st_size > 10_000
 

@@ -14,13 +14,16 @@ from __future__ import annotations
 import csv
 import functools
 import hashlib
+import os
 import subprocess
 import sys
 import tempfile
 import time
+import tomllib
 import uuid
 import zlib
 from collections.abc import Callable, Iterable, Mapping
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -29,13 +32,11 @@ import numpy as np
 
 from ..run.folder import RunFolder
 from .candidates import BY_NAME, CANDIDATES
-from .noise_families import NOISE_FAMILIES
 from .replay import CHAMBER_CHANNELS
 
 if TYPE_CHECKING:
     from distributed import Client
 
-SNRS = (0.5, 1.0, 2.0, 4.0)
 NULL, EFFECT, COLLINEAR = "null", "effect", "collinear"
 FOUND, NONE, AMBIGUOUS, NOT_TESTABLE, UNEXPLAINED = "found", "none", "ambiguous", "not_testable", "unexplained"
 COLUMNS = (
@@ -101,16 +102,13 @@ class Base:
     make: Callable[[Path], None]
 
 
-def _staircase(folder: Path) -> None:
-    from .hide import staircase_inputs
+def _inputs(maker: str, **shape: Any) -> Callable[[Path], None]:
+    def make(folder: Path) -> None:
+        from . import hide
 
-    staircase_inputs(RunFolder.at(folder).log)
+        getattr(hide, maker)(RunFolder.at(folder).log, **shape)
 
-
-def _wave(folder: Path) -> None:
-    from .hide import wave_inputs
-
-    wave_inputs(RunFolder.at(folder).log)
+    return make
 
 
 def _twin(scenario: str, *options: str) -> Callable[[Path], None]:
@@ -127,28 +125,94 @@ def _twin(scenario: str, *options: str) -> Callable[[Path], None]:
 # The scatter terms off in the twin's own runs: hide_effect generates the
 # sensor side again with the family's noise.
 _SCATTER_OFF = ("--disable", "drift_repeatability", "--disable", "bias_instability")
-BASES = {
-    base.name: base
-    for base in (
-        Base(
-            "staircase", "0..40 degC in 5 degC steps held 40 s at X +30, X -30 and Y +30 deg (inputs only)", _staircase
-        ),
-        Base("wave", "a temperature wave 15..35 degC, period 2000 s, 1.5 periods at X +30 deg (inputs only)", _wave),
-        Base(
-            "cycle",
-            "the twin's calibration cycle, -10..45 degC (simulate cycle --rest-seconds 60)",
-            _twin("cycle", "--rest-seconds", "60", *_SCATTER_OFF),
-        ),
-        Base("fig8", "the twin's Figure 8 run, 342 s (simulate fig8)", _twin("fig8", *_SCATTER_OFF)),
-    )
-}
+
+
+def _variant(kind: str, index: int) -> Base:
+    """The kind's base number `index`: each kind's bases differ in their
+    tilt, temperatures and (the twin's) seed and ambient, so that a rate
+    counts histories, not only noise drawn on one."""
+    tilt = 25.0 + 2.5 * (index % 5)
+    shift = index // 5 % 4
+    name = f"{kind}-{index:02d}"
+    if kind == "staircase":
+        low = -2.5 * shift
+        return Base(
+            name,
+            f"{low:g}..{low + 40:g} degC in 5 degC steps held 40 s at X +{tilt:g}, X -{tilt:g} and Y +{tilt:g} deg "
+            "(inputs only)",
+            _inputs("staircase_inputs", positions=((tilt, 0.0), (-tilt, 0.0), (0.0, tilt)), low_c=low, high_c=low + 40),
+        )
+    if kind == "wave":
+        middle = 22.5 + 1.5 * shift
+        return Base(
+            name,
+            f"a temperature wave {middle - 10:g}..{middle + 10:g} degC, period 2000 s, 1.5 periods at X +{tilt:g} deg "
+            "(inputs only)",
+            _inputs("wave_inputs", middle_c=middle, incl_x_deg=tilt),
+        )
+    if kind == "ramp":
+        low = 18.0 + 1.5 * shift
+        return Base(
+            name,
+            f"one ramp {low:g}..{low + 10:g}..{low:g} degC at 0.01 degC/s at X +{tilt:g} deg (inputs only)",
+            _inputs(
+                "staircase_inputs",
+                positions=((tilt, 0.0),),
+                low_c=low,
+                high_c=low + 10.0,
+                step_c=10.0,
+                hold_s=0.0,
+                ramp_c_per_s=0.01,
+            ),
+        )
+    seed, ambient = str(index + 1), f"{20 + index % 5:g}"
+    if kind == "cycle":
+        incl = (0.0, 15.0, 30.0, -15.0)[shift]
+        return Base(
+            name,
+            f"the twin's calibration cycle, -10..45 degC, seed {seed}, ambient {ambient} degC, X {incl:+g} deg "
+            "(simulate cycle --rest-seconds 60)",
+            _twin(
+                "cycle",
+                "--rest-seconds",
+                "60",
+                "--seed",
+                seed,
+                "--ambient",
+                ambient,
+                "--incl-x",
+                f"{incl:g}",
+                *_SCATTER_OFF,
+            ),
+        )
+    if kind == "fig8":
+        return Base(
+            name,
+            f"the twin's Figure 8 run, 342 s, seed {seed}, ambient {ambient} degC (simulate fig8)",
+            _twin("fig8", "--seed", seed, "--ambient", ambient, *_SCATTER_OFF),
+        )
+    raise ValueError(f"unknown base kind {kind!r}")
+
+
+BASE_KINDS = ("staircase", "wave", "ramp", "cycle", "fig8")
+# Every cell's runs spread over this many bases of its kind.
+BASES_PER_KIND = 20
+BASES = {base.name: base for base in (_variant(kind, index) for kind in BASE_KINDS for index in range(BASES_PER_KIND))}
+
+
+def kind_of(base: str) -> str:
+    """A base's kind from its name ("cycle-07": "cycle")."""
+    return base.split("-")[0]
 
 
 @dataclass(frozen=True)
 class Cell:
-    """Runs alike but for their seed. effect: a candidate, or "none";
-    channel: the channel it is sized on, or None for one drawn per run;
-    pair: for a collinear cell, the candidates that run cannot tell apart."""
+    """Runs alike but for their seed and base. effect: a candidate, or
+    "none"; base: the bases' kind, run i on its base i mod `bases` (or on the
+    base of that name when `bases` is 1); channel: the channel it is sized
+    on, or None for one drawn per run; pair: for a collinear cell, the
+    candidates that run cannot tell apart; since, note: when the design took
+    the cell in and why, or what replaced it."""
 
     kind: str
     effect: str
@@ -158,6 +222,9 @@ class Cell:
     runs: int
     channel: str | None = None
     pair: tuple[str, ...] = ()
+    bases: int = 1
+    since: str = ""
+    note: str = ""
 
     def tasks(self) -> list[Task]:
         return [Task(self, index) for index in range(self.runs)]
@@ -175,38 +242,69 @@ class Task:
         return f"{c.kind}/{c.effect}/{c.channel or ''}/{snr}/{c.noise}/{c.base}/{self.index}"
 
     @property
+    def base(self) -> str:
+        c = self.cell
+        return c.base if c.bases == 1 else f"{c.base}-{self.index % c.bases:02d}"
+
+    @property
     def seed(self) -> int:
         return zlib.crc32(self.key.encode())
 
 
-# 100 per family and base: a family's 200 null runs show a rate of 1 %
-# below 5 % at 95 % (Wilson: 3/200 has 4.3 % as its upper bound), where 80
-# could not show it with a single false discovery (1/80: 6.8 %).
-NULL_RUNS = 100
+DESIGN = Path(__file__).with_name("benchmark_design.toml")
 
 
-def default_cells(null_runs: int = NULL_RUNS, effect_runs: int = 50, collinear_runs: int = 50) -> list[Cell]:
-    """The benchmark's design: null runs in every noise family on a sensor
-    run and a chamber run; every candidate at every SNR with the model's
-    noise, on the staircase (sensor) or the twin's cycle (chamber); the two
-    designed collinear pairs."""
+@functools.cache
+def _design() -> dict[str, Any]:
+    with open(DESIGN, "rb") as stream:
+        return tomllib.load(stream)
+
+
+SNRS = tuple(float(snr) for snr in _design()["effect"]["snr"])
+
+
+def default_cells(
+    null_runs: int | None = None, effect_runs: int | None = None, collinear_runs: int | None = None
+) -> list[Cell]:
+    """The benchmark's design as DESIGN states it (the sizes may be asked
+    smaller): null runs in every noise family on the sensor's and the
+    chamber's bases; every candidate at every SNR with the model's noise, on
+    the staircases (sensor) or the twin's cycles (chamber); the collinear
+    pairs, each cell with the date the design took it in."""
+    design = _design()
+    runs = design["runs"]
+    bases = int(runs["bases"])
+    null_runs = int(runs["null"]) if null_runs is None else null_runs
+    effect_runs = int(runs["effect"]) if effect_runs is None else effect_runs
+    collinear_runs = int(runs["collinear"]) if collinear_runs is None else collinear_runs
     cells = [
-        Cell(NULL, "none", None, noise, base, null_runs) for base in ("staircase", "cycle") for noise in NOISE_FAMILIES
+        Cell(NULL, "none", None, noise, kind, null_runs, bases=bases, since=group["since"], note=group["why"])
+        for group in design["null"]
+        for kind in group["bases"]
+        for noise in group["noise"]
     ]
+    effect = design["effect"]
     for candidate in CANDIDATES:
-        base = "cycle" if set(candidate.channels) <= set(CHAMBER_CHANNELS) else "staircase"
-        cells += [Cell(EFFECT, candidate.name, snr, "model", base, effect_runs) for snr in SNRS]
+        kind = effect["chamber_base"] if set(candidate.channels) <= set(CHAMBER_CHANNELS) else effect["sensor_base"]
+        cells += [
+            Cell(EFFECT, candidate.name, float(snr), "model", kind, effect_runs, bases=bases, since=effect["since"])
+            for snr in effect["snr"]
+        ]
     cells += [
-        Cell(COLLINEAR, "sensor_lag", 4.0, "model", "wave", collinear_runs, pair=("rate_sensitivity", "sensor_lag")),
         Cell(
             COLLINEAR,
-            "temperature_offset",
-            4.0,
+            pair["effect"],
+            float(pair["snr"]),
             "model",
-            "fig8",
+            pair["base"],
             collinear_runs,
-            pair=("temperature_offset", "thermistor_offset"),
-        ),
+            channel=pair.get("channel"),
+            pair=tuple(pair["pair"]),
+            bases=bases,
+            since=pair["since"],
+            note=pair["why"],
+        )
+        for pair in design["collinear"]
     ]
     return cells
 
@@ -261,7 +359,7 @@ def run_task(task: Task, base_csv: bytes) -> dict[str, Any]:
         "channel": truth.channel or "",
         "snr": "" if cell.snr is None else cell.snr,
         "noise": cell.noise,
-        "base": cell.base,
+        "base": task.base,
         "index": task.index,
         "seed": task.seed,
         "verdict": verdict,
@@ -350,17 +448,19 @@ def _sorted_record(path: Path) -> None:
 def make_bases(
     names: Iterable[str], folder: Path, say: Callable[[str], None], bases: Mapping[str, Base] = BASES
 ) -> dict[str, bytes]:
-    """Each base's run.csv, made once into folder/NAME and read from there
-    after."""
-    made = {}
-    for name in names:
-        target = folder / name
-        if not RunFolder.at(target).log.exists():
-            say(f"making the base run {name}: {bases[name].what}")
-            target.mkdir(parents=True, exist_ok=True)
-            bases[name].make(target)
-        made[name] = RunFolder.at(target).log.read_bytes()
-    return made
+    """Each base's run.csv, made once into folder/NAME (as many at a time
+    as the machine has cores: a twin's base is a process of its own) and
+    read from there after."""
+    missing = [name for name in names if not RunFolder.at(folder / name).log.exists()]
+
+    def make(name: str) -> None:
+        say(f"making the base run {name}: {bases[name].what}")
+        (folder / name).mkdir(parents=True, exist_ok=True)
+        bases[name].make(folder / name)
+
+    with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
+        list(pool.map(make, missing))
+    return {name: RunFolder.at(folder / name).log.read_bytes() for name in names}
 
 
 @dataclass
@@ -398,7 +498,7 @@ def run_benchmark(
     todo = sorted((task for task in tasks if task.key not in done), key=lambda task: task.index)
     progress = Progress(len(tasks) - len(todo), len(todo), [])
     if todo:
-        made = make_bases(sorted({task.cell.base for task in todo}), bases_folder, say, bases)
+        made = make_bases(sorted({task.base for task in todo}), bases_folder, say, bases)
         # Keys of this start's own (hash=False, the uuid): a key an earlier
         # start released may still be being forgotten by the scheduler, which
         # then loses the data a new task of the same key needs.
@@ -406,7 +506,7 @@ def run_benchmark(
         start = uuid.uuid4().hex
         record.parent.mkdir(parents=True, exist_ok=True)
         futures = {
-            client.submit(run_task, task, shipped[task.cell.base], key=f"bench-{task.key}-{start}", pure=False): task
+            client.submit(run_task, task, shipped[task.base], key=f"bench-{task.key}-{start}", pure=False): task
             for task in todo
         }
         try:

@@ -24,6 +24,7 @@ from .benchmark import (
     UNEXPLAINED,
     default_cells,
     gap_ratio,
+    kind_of,
     named_right,
 )
 from .candidates import CANDIDATES
@@ -120,7 +121,7 @@ def report(rows: list[Row]) -> str:
         *_null_table(null),
     ]
     if effect:
-        lines += _effect_table(effect) + _missed_table(effect)
+        lines += _effect_table(effect) + _channel_table(effect) + _missed_table(effect)
     if collinear:
         lines += _collinear_table(collinear)
     lines += _coverage_table([r for r in effect if named_right(r)])
@@ -147,7 +148,7 @@ def _null_table(null: list[Row]) -> list[str]:
         named = rate(family, _named)
         unexplained = rate(family, _unexplained)
         by_base = [
-            [str(rate([r for r in family if r["base"] == base], hit)) for base in ("staircase", "cycle")]
+            [str(rate([r for r in family if kind_of(r["base"]) == kind], hit)) for kind in ("staircase", "cycle")]
             for hit in (_named, _unexplained)
         ]
         ratio = float(np.median([gap_ratio(r) for r in family]))
@@ -210,6 +211,35 @@ def _effect_table(effect: list[Row]) -> list[str]:
     ]
 
 
+def _channel_table(effect: list[Row]) -> list[str]:
+    """Power by the channel an effect was sized on, for the candidates with
+    one value acting on several channels: sized on a channel where it is
+    small against the noise, it is found on another, at another SNR."""
+    shared = [
+        c for c in CANDIDATES if not c.per_axis and len({r["channel"] for r in effect if r["effect"] == c.name}) > 1
+    ]
+    if not shared:
+        return []
+    lines = [
+        "",
+        "**By the channel the SNR was set on** (drawn per run), for the candidates with one value on several "
+        "channels; found: where the first effect was named.",
+        "",
+        "| candidate | sized on | " + " | ".join(f"SNR {snr:g}" for snr in SNRS) + " | found on |",
+        "|---|---|" + "---|" * (len(SNRS) + 1),
+    ]
+    for candidate in shared:
+        mine = [r for r in effect if r["effect"] == candidate.name]
+        for channel in sorted({r["channel"] for r in mine}):
+            sized = [r for r in mine if r["channel"] == channel]
+            cells = [str(rate([r for r in sized if float(r["snr"]) == snr], named_right)) for snr in SNRS]
+            found_on = sorted({r["named_channel"] for r in sized if named_right(r)})
+            lines.append(
+                f"| `{candidate.name}` | {channel} | " + " | ".join(cells) + f" | {', '.join(found_on) or '–'} |"
+            )
+    return lines
+
+
 def _missed_table(effect: list[Row]) -> list[str]:
     missed_rows = [r for r in effect if float(r["snr"]) >= 1.0 and not named_right(r)]
     if not missed_rows:
@@ -236,17 +266,20 @@ def _collinear_table(collinear: list[Row]) -> list[str]:
         "",
         f"**Collinear pairs** (target: ambiguous, naming both, on at least {MIN_AMBIGUOUS:.0%}):",
         "",
-        "| hidden | pair | base | ambiguous | found one | none | target |",
-        "|---|---|---|---|---|---|---|",
+        "| hidden | pair | base | ambiguous | found one | none | target | in the design since |",
+        "|---|---|---|---|---|---|---|---|",
     ]
-    for key in dict.fromkeys((r["effect"], r["expected_pair"], r["base"]) for r in collinear):
-        mine = [r for r in collinear if (r["effect"], r["expected_pair"], r["base"]) == key]
+    design = {(c.effect, "+".join(c.pair), c.base): c for c in default_cells() if c.kind == COLLINEAR}
+    for key in dict.fromkeys((r["effect"], r["expected_pair"], kind_of(r["base"])) for r in collinear):
+        mine = [r for r in collinear if (r["effect"], r["expected_pair"], kind_of(r["base"])) == key]
         ambiguous = rate(mine, _pair_ambiguous)
         found = sum(r["verdict"] == FOUND for r in mine)
         none = sum(r["verdict"] == NONE for r in mine)
+        cell = design.get(key)
         lines.append(
             f"| `{key[0]}` | {key[1].replace('+', ', ')} | {key[2]} | {ambiguous} | {found} | {none} | "
-            f"{_met(ambiguous, ambiguous.share >= MIN_AMBIGUOUS)} |"
+            f"{_met(ambiguous, ambiguous.share >= MIN_AMBIGUOUS)} | "
+            f"{f'{cell.since}: {cell.note}' if cell else 'not in the design'} |"
         )
     return lines
 
@@ -280,8 +313,8 @@ def _cost(rows: list[Row]) -> list[str]:
     if not len(seconds):
         return []
     by_base = {
-        base: np.median([float(r["seconds"]) for r in rows if r["base"] == base])
-        for base in dict.fromkeys(r["base"] for r in rows)
+        kind: np.median([float(r["seconds"]) for r in rows if kind_of(r["base"]) == kind])
+        for kind in dict.fromkeys(kind_of(r["base"]) for r in rows)
     }
     return [
         "",
@@ -296,8 +329,8 @@ def _design_cost(rows: list[Row]) -> str:
     kind and base (a run's cost depends on both: an effect found means
     another round of replays)."""
     mean: dict[tuple[str, str], float] = {}
-    for key in dict.fromkeys((r["kind"], r["base"]) for r in rows):
-        mean[key] = float(np.mean([float(r["seconds"]) for r in rows if (r["kind"], r["base"]) == key]))
+    for key in dict.fromkeys((r["kind"], kind_of(r["base"])) for r in rows):
+        mean[key] = float(np.mean([float(r["seconds"]) for r in rows if (r["kind"], kind_of(r["base"])) == key]))
     cells = default_cells()
     unknown = sorted({f"{c.kind} on {c.base}" for c in cells if (c.kind, c.base) not in mean})
     if unknown:
