@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 from pathlib import Path
 
@@ -205,6 +206,21 @@ def test_discover_writes_a_model_that_loads_and_closes_the_gap(inputs: Path, tmp
     assert again.verdict == "none"
     assert (tmp_path / "found" / "report.md").read_text().count("hysteresis") >= 1
     assert (tmp_path / "found" / "residuals.png").stat().st_size > 0
+
+
+@pytest.mark.slow
+@pytest.mark.twin
+def test_discover_says_which_channel_the_models_noise_does_not_explain(inputs: Path, tmp_path: Path) -> None:
+    # The flicker floor 5x the declared: on Z, which declares no drift
+    # slope, the gap is then over twice what the model allows.
+    hide_effect(inputs, tmp_path / "run", "none", seed=5, noise="flicker")
+    result = _cli("discover", str(tmp_path / "run"), "--out", str(tmp_path / "out"))
+    assert result.returncode == 0, result.stderr
+    assert "verdict: unexplained" in result.stdout
+    assert re.search(r"unexplained: Z: [\d.]+ LSB RMS where the model allows [\d.]+ \(p ", result.stdout)
+    fit = json.loads((tmp_path / "out" / "discovery.json").read_text())["fit"]
+    assert set(fit) == {"X", "Y", "Z"} and not fit["Z"]["explained"] and fit["Z"]["p_value"] < fit["Z"]["level"]
+    assert "| Z |" in (tmp_path / "out" / "report.md").read_text()
 
 
 @pytest.mark.long
