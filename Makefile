@@ -19,7 +19,7 @@ VENV_READY := $(VENV)/.installed
 SCENARIO ?= fig8
 RUNS ?= runs
 
-.PHONY: all firmware simulate demo test test-long deps system-deps python-deps build native avr bench bench-discovery bench-field fuzz fuzz-build lint lint-cpp lint-python clean
+.PHONY: all firmware simulate demo test test-long deps system-deps python-deps build native avr bench bench-discovery chamber-floor bench-field fuzz fuzz-build lint lint-cpp lint-python clean
 
 all: demo
 
@@ -89,6 +89,13 @@ bench: build python-deps
 # docs/discovery.md and docs/benchmarks/discovery-rates.png.
 bench-discovery: build python-deps
 	THERMOTILT_BUILD_DIR=$(abspath $(BUILD)) $(VENV)/bin/python host/tools/bench_discovery.py $(if $(SCHEDULER),--scheduler $(SCHEDULER))
+
+# What the chamber's replay leaves on the twin's own runs from the default
+# model: the floor discovery declares on the chamber's channels, written to
+# host/thermotilt/discovery/chamber_floor.toml (twin runs kept in
+# build/chamber-floor).
+chamber-floor: build python-deps
+	THERMOTILT_BUILD_DIR=$(abspath $(BUILD)) $(VENV)/bin/python host/tools/chamber_floor.py
 
 # Whether each sensor's certificate bounds what a monitoring user reads in the
 # field: sensors drawn from the batch population, calibrated through one twin

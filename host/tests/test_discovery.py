@@ -121,6 +121,25 @@ def test_a_null_twin_cycle_gives_none(cycle_runs, tmp_path: Path) -> None:
     assert outcome.verdict == "none", [(e.candidate, e.channel, e.adjusted_p) for e in outcome.effects]
 
 
+@pytest.mark.slow
+@pytest.mark.twin
+def test_a_chamber_the_model_does_not_describe_is_unexplained_not_none(tmp_path: Path) -> None:
+    # The twin's heatsink holds four times the heat the model says, a
+    # parameter no candidate varies: on Figure 8 the outer face's gap was
+    # 1.43 degC RMS where the replay's declared floor allows 0.08 (run once).
+    model = Model.load()
+    capacity = float(model.terms["heatsink"]["heat_capacity_j_per_k"])
+    write_model(with_values(model, "heatsink", {"heat_capacity_j_per_k": 4.0 * capacity}), tmp_path / "world.toml")
+    twin = tmp_path / "twin"
+    result = _cli("simulate", "fig8", "--model", str(tmp_path / "world.toml"), "--out", str(twin), *SCATTER_OFF)
+    assert result.returncode == 0, result.stderr
+    hide_effect(twin, tmp_path / "run", "none", seed=3)
+    outcome = _discover(tmp_path / "run" / "run.csv")
+    assert outcome.verdict == "unexplained", [(e.candidate, e.channel) for e in outcome.effects]
+    outer = outcome.fit["outer"]
+    assert not outer.explained and outer.gap > 5.0 * outer.allowed
+
+
 def test_a_log_without_the_drive_skips_the_chamber_channels_and_says_why(inputs: Path) -> None:
     measured = load_measured(inputs, inputs_only=True)
     assert "inner" not in measured.channels and "outer" not in measured.channels

@@ -27,7 +27,8 @@ from .. import native
 from ..physics import Model
 from ..physics.terms.sensor import FLICKER_TIME_CONSTANTS_S, FLICKER_VARIANCE_PER_FLOOR
 from ..surfaces import REFERENCE_C
-from .replay import ACCELERATION_CHANNELS, SAMPLE_PERIOD_S, Measured
+from .chamber_floor import floors
+from .replay import ACCELERATION_CHANNELS, CHAMBER_CHANNELS, SAMPLE_PERIOD_S, Measured
 
 # Long against the Kalman filters' ~10 s and short against a 60 s
 # staircase hold, so a block still follows the temperature.
@@ -98,17 +99,25 @@ class Fit:
 
 @dataclass(frozen=True)
 class DeclaredNoise:
-    """The noise the model declares on a channel: a random drift slope per
-    mounting (LSB/degC), flicker (one Gauss-Markov process per time
-    constant with its variance, LSB^2) and white noise (LSB^2 per sample,
-    the registers' rounding included), the last two at the filter's input."""
+    """The noise discovery declares on a channel. On the acceleration
+    channels the model's: a random drift slope per mounting (LSB/degC),
+    flicker (one Gauss-Markov process per time constant with its variance,
+    LSB^2) and white noise (LSB^2 per sample, the registers' rounding
+    included), the last two at the IMU filter's input. On the chamber's
+    channels the replay's measured floor (chamber_floor.py): one
+    Gauss-Markov process in the readings themselves, which no filter of
+    the IMU's smooths."""
 
     slope_sigma: float = 0.0
     flicker: tuple[tuple[float, float], ...] = ()  # (time constant s, variance)
     white_variance: float = 0.0
+    through_imu_filter: bool = True
 
     @classmethod
     def of(cls, model: Model, channel: str) -> DeclaredNoise:
+        if channel in CHAMBER_CHANNELS and channel in floors():
+            floor = floors()[channel]
+            return cls(flicker=((floor.time_constant_s, floor.sigma_c**2),), through_imu_filter=False)
         if channel not in ACCELERATION_CHANNELS:
             return cls()
         axis = channel.lower()
@@ -128,6 +137,13 @@ class DeclaredNoise:
             else 0.0
         )
         return cls(slope, flicker, white)
+
+    def exponentials(self) -> dict[float, float]:
+        """The autocovariance of the channel's noise as {time constant s:
+        coefficient} of exponentials in the lag."""
+        if self.through_imu_filter:
+            return filtered_exponentials(self.white_variance, self.flicker)
+        return dict(self.flicker)
 
 
 @functools.cache
@@ -212,10 +228,12 @@ class BlockTimes:
 
 @dataclass(frozen=True)
 class GoodnessOfFit:
-    """Whether the noise the model declares explains a channel's residual.
-    gap: the RMS of its block means about their mean (each block weighted
-    by its rows, LSB); allowed: the RMS the declared noise alone exceeds
-    with probability `level`; p_value: that it exceeds the gap."""
+    """Whether the noise declared on a channel explains its residual. gap:
+    the RMS of what its nuisance leaves of its block means (their mean on
+    an acceleration channel, the chamber's start on the chamber's; each
+    block weighted by its rows, in the channel's unit); allowed: the RMS
+    the declared noise alone exceeds with probability `level`; p_value:
+    that it exceeds the gap."""
 
     channel: str
     gap: float
@@ -228,11 +246,19 @@ class GoodnessOfFit:
         return self.p_value >= self.level
 
     @classmethod
-    def of(
-        cls, channel: str, blocks: np.ndarray, counts: np.ndarray, declared: np.ndarray, level: float
+    def of(  # noqa: PLR0913 - the blocks, their weights and covariance, the level and the nuisance
+        cls,
+        channel: str,
+        blocks: np.ndarray,
+        counts: np.ndarray,
+        declared: np.ndarray,
+        level: float,
+        nuisance: np.ndarray,
     ) -> GoodnessOfFit:
-        """The gap's square is a quadratic form y'Ay of the blocks (A the
-        weighted centring), so under the declared covariance S it is a sum
+        """The gap is what a fit of the nuisance columns (an offset, the
+        chamber's start), weighted by the blocks' rows, leaves of them. Its
+        square is a quadratic form y'Ay of the blocks (A = M'WM, M that
+        fit's residual maker), so under the declared covariance S it is a sum
         of chi-squares weighted by the eigenvalues of AS. Its tail is taken
         from the first three cumulants, the traces of the powers of AS, by
         Hall-Buckley-Eagleson's scaled chi-square (Bodenham and Adams,
@@ -240,9 +266,13 @@ class GoodnessOfFit:
         test_discovery_inference checks it against draws). Written here: no
         maintained library offers it."""
         weights = counts / counts.sum()
-        centred = blocks - weights @ blocks
-        gap_square = float(weights @ centred**2)
-        product = weights[:, None] * declared - np.outer(weights, weights @ declared)
+        weighted = nuisance * weights[:, None]
+        maker = np.eye(len(blocks))
+        if nuisance.shape[1]:
+            maker -= nuisance @ np.linalg.solve(nuisance.T @ weighted, weighted.T)
+        left = maker @ blocks
+        gap_square = float(weights @ left**2)
+        product = (maker.T * weights) @ maker @ declared
         squared = product @ product
         first, second, third = np.trace(product), np.trace(squared), float(np.sum(squared * product.T))
         dof = second**3 / third**2 if third > 0 else np.inf
@@ -364,7 +394,7 @@ class Channel:
         _, self._block, counts = np.unique(keys, return_inverse=True, return_counts=True)
         self._counts = counts
         self._mounting = np.rint(self.blocks(mounting.astype(float))).astype(np.int64)
-        times = BlockTimes(time_s, self._block, counts)
+        self.times = times = BlockTimes(time_s, self._block, counts)
         excursion = self.blocks(temperature_c[used]) - REFERENCE_C
         self.y = self.blocks(self.residual_rows)
         if _nuisance(channel):
@@ -381,12 +411,14 @@ class Channel:
     def blocks(self, values: np.ndarray) -> np.ndarray:
         return np.bincount(self._block, weights=values) / self._counts
 
-    def goodness_of_fit(self, level: float) -> GoodnessOfFit | None:
-        """The residual against the noise the model declares here; None on
-        a channel where it declares none."""
-        if not np.any(self.declared):
-            return None
-        return GoodnessOfFit.of(self.name, self.y, self._counts, self.declared, level)
+    def goodness_of_fit(self, level: float) -> GoodnessOfFit:
+        """The residual beyond the nuisance against the noise declared here."""
+        return GoodnessOfFit.of(self.name, self.y, self._counts, self.declared, level, self.nuisance)
+
+    def unit_covariance(self, time_constant_s: float) -> np.ndarray:
+        """The blocks' covariance for a Gauss-Markov process of unit
+        variance in the channel's values."""
+        return self.times.mean_exponential(time_constant_s)
 
     def refitted(self, effect_rows: np.ndarray) -> Channel:
         """The same channel with its undeclared noise fitted to the residual
@@ -411,7 +443,7 @@ class Channel:
     ) -> Callable[[np.ndarray], np.ndarray]:
         same = np.equal.outer(self._mounting, self._mounting)
         declared = noise.slope_sigma**2 * np.outer(excursion, excursion) * same
-        declared += times.covariance(filtered_exponentials(noise.white_variance, noise.flicker))
+        declared += times.covariance(noise.exponentials())
         self.declared = declared
         columns = []
         for m in np.unique(self._mounting):
@@ -421,7 +453,9 @@ class Channel:
         if self.name in ACCELERATION_CHANNELS:
             lower = UndeclaredFlicker(design, declared, times, block_s).fitted(noise_blocks)
         else:
-            lower = np.linalg.cholesky(declared + _position_ar1(_left_by(design, noise_blocks), same, self._mounting))
+            # The AR(1) fitted to the residual takes in the chamber's declared
+            # floor, itself one exponential, and what a real rig adds to it.
+            lower = np.linalg.cholesky(_position_ar1(_left_by(design, noise_blocks), same, self._mounting))
 
         def whiten(values: np.ndarray) -> np.ndarray:
             return solve_triangular(lower, values, lower=True)

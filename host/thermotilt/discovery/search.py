@@ -178,6 +178,11 @@ class Search:
         self._conclude(outcome, model, base, channels or self._channels(model, base))
         return outcome
 
+    def channels(self) -> dict[str, Channel]:
+        """Every channel's blocks and whitening on what the given model
+        leaves (before any round)."""
+        return self._channels(self.model, self.predict(self.model))
+
     def _channels(self, model: Model, base: Mapping[str, np.ndarray]) -> dict[str, Channel]:
         """Every channel's blocks and whitening for a round on the residual
         the model leaves."""
@@ -227,10 +232,7 @@ class Search:
         outcome.model = model
         outcome.residual_after = self.residuals(base)
         tested = [channel for channel in channels.values() if np.any(channel.declared)]
-        for channel in tested:
-            fit = channel.goodness_of_fit(ALPHA / len(tested))
-            if fit is not None:
-                outcome.fit[channel.name] = fit
+        outcome.fit = {channel.name: channel.goodness_of_fit(ALPHA / len(tested)) for channel in tested}
         outcome.verdict = (
             "found"
             if outcome.effects
