@@ -11,10 +11,9 @@ from distributed import LocalCluster
 
 from thermotilt.cluster import ClusterError, connect_cluster
 from thermotilt.discovery import rates
+from thermotilt.discovery.bases import BASES, Base
 from thermotilt.discovery.benchmark import (
-    BASES,
     COLUMNS,
-    Base,
     Cell,
     Task,
     default_cells,
@@ -95,6 +94,11 @@ def test_every_run_has_its_own_seed_and_the_design_has_the_sizes_asked_for():
     effect = [c for c in cells if c.kind == "effect"]
     assert all(c.runs >= 50 for c in effect) and {c.snr for c in effect} == {0.5, 1.0, 2.0, 4.0}
     assert all(c.runs >= 50 for c in cells if c.kind == "collinear")
+    # Worlds the model does not describe: a chamber parameter no candidate
+    # varies, each base another parameter or factor.
+    world = [c for c in cells if c.kind == "world"]
+    assert [c.base for c in world] == ["chamber"] and all(c.runs >= 100 for c in world)
+    assert len({BASES[task.base].what for task in world[0].tasks()}) >= 20
     # Every cell's runs spread over at least 20 bases of its kind, each a
     # base the benchmark can make.
     for cell in cells:
@@ -178,13 +182,36 @@ def test_the_rates_carry_wilson_intervals_and_say_which_targets_are_missed(tmp_p
     assert (tmp_path / "rates.png").stat().st_size > 10_000
 
 
+def test_chamber_worlds_are_counted_by_what_discover_said():
+    # chamber-03 and chamber-07: the Peltier gain x0.5 and x0.8
+    # (benchmark.chamber_change). Nineteen runs unexplained and one none at
+    # 3x and 0.5x what the model allows; five named at 5x.
+    rows = [
+        _row(kind="world", base="chamber-03", key=f"w{i}", verdict="unexplained", fit="inner:0.3/0.1;X:1/2")
+        for i in range(19)
+    ]
+    rows.append(_row(kind="world", base="chamber-03", key="w19", verdict="none", fit="inner:0.05/0.1"))
+    rows += [
+        _row(kind="world", base="chamber-07", key=f"v{i}", verdict="found", named="heatsink", fit="outer:0.5/0.1")
+        for i in range(5)
+    ]
+    text = rates.report(rows)
+    assert "| peltier_pumping.full_duty_w ×0.5 | 20 | 3.00 | 19 | 0 | 1 |" in text
+    assert "| peltier_pumping.full_duty_w ×0.8 | 5 | 5.00 | 0 | 5 (heatsink) | 0 |" in text
+    # 19 of the 24 runs beyond twice what is allowed: 79 %, 60-91 % (Wilson).
+    assert "Of the 24 runs with a gap at least 2 times what the model allows: unexplained 19/24 = 79%" in text
+    assert "(**missed**), none 0/24 = 0% (0%–14%) (**missed**)." in text
+
+
 def test_the_whole_designs_cost_comes_from_the_mean_run_of_each_kind_and_base(monkeypatch):
     monkeypatch.setattr(rates.os, "cpu_count", lambda: 2)
     cells = default_cells()
     # A second of CPU a run on every base but the cycle's, where runs take
     # 1 s and 3 s: the cycle's cells cost 2 s a run.
-    rows = [_row(kind=c.kind, base=c.base, snr=str(c.snr or ""), seconds="1.0") for c in cells]
-    rows += [_row(kind=c.kind, base=c.base, snr=str(c.snr or ""), seconds="3.0") for c in cells if c.base == "cycle"]
+    rows = [_row(kind=c.kind, base=f"{c.base}-00", snr=str(c.snr or ""), seconds="1.0") for c in cells]
+    rows += [
+        _row(kind=c.kind, base=f"{c.base}-00", snr=str(c.snr or ""), seconds="3.0") for c in cells if c.base == "cycle"
+    ]
     runs = sum(c.runs for c in cells)
     cpu_s = sum(c.runs * (2.0 if c.base == "cycle" else 1.0) for c in cells)
     text = rates.report(rows)

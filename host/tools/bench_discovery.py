@@ -50,8 +50,13 @@ def main() -> int:
     parser.add_argument("--null-runs", type=int, help="per noise family and base (default: the design's)")
     parser.add_argument("--effect-runs", type=int, help="per candidate and SNR (default: the design's)")
     parser.add_argument("--collinear-runs", type=int, help="per designed pair (default: the design's)")
-    parser.add_argument("--kind", action="append", choices=("null", "effect", "collinear"), help="only these runs")
-    parser.add_argument("--base", action="append", help="only the runs on these bases (staircase, cycle, wave, fig8)")
+    parser.add_argument("--world-runs", type=int, help="per cell of changed worlds (default: the design's)")
+    parser.add_argument(
+        "--kind", action="append", choices=("null", "effect", "collinear", "world"), help="only these runs"
+    )
+    parser.add_argument(
+        "--base", action="append", help="only the runs on these bases (staircase, cycle, wave, ramp, fig8, chamber)"
+    )
     parser.add_argument("--report-only", action="store_true", help="only write the tables and figure from the record")
     args = parser.parse_args()
 
@@ -61,7 +66,12 @@ def main() -> int:
     from thermotilt.discovery import rates
     from thermotilt.discovery.benchmark import cell_summary, default_cells, read_record, run_benchmark
 
-    sizes = {"null_runs": args.null_runs, "effect_runs": args.effect_runs, "collinear_runs": args.collinear_runs}
+    sizes = {
+        "null_runs": args.null_runs,
+        "effect_runs": args.effect_runs,
+        "collinear_runs": args.collinear_runs,
+        "world_runs": args.world_runs,
+    }
     cells = [
         cell
         for cell in default_cells(**{name: runs for name, runs in sizes.items() if runs is not None})

@@ -14,16 +14,12 @@ from __future__ import annotations
 import csv
 import functools
 import hashlib
-import os
-import subprocess
-import sys
 import tempfile
 import time
 import tomllib
 import uuid
 import zlib
-from collections.abc import Callable, Iterable, Mapping
-from concurrent.futures import ThreadPoolExecutor
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -31,13 +27,15 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..run.folder import RunFolder
+from .bases import BASES, Base, make_bases
 from .candidates import BY_NAME, CANDIDATES
 from .replay import CHAMBER_CHANNELS
 
 if TYPE_CHECKING:
     from distributed import Client
 
-NULL, EFFECT, COLLINEAR = "null", "effect", "collinear"
+NULL, EFFECT, COLLINEAR, WORLD = "null", "effect", "collinear", "world"
+KINDS = (NULL, EFFECT, COLLINEAR, WORLD)
 FOUND, NONE, AMBIGUOUS, NOT_TESTABLE, UNEXPLAINED = "found", "none", "ambiguous", "not_testable", "unexplained"
 COLUMNS = (
     "key",
@@ -70,8 +68,11 @@ COLUMNS = (
 # record stale, as does a change in the default model or in what the native
 # library computes.
 METHOD_SOURCES = (
+    "discovery/bases.py",
     "discovery/benchmark.py",
     "discovery/candidates.py",
+    "discovery/chamber_floor.py",
+    "discovery/chamber_floor.toml",
     "discovery/chamber_readings.py",
     "discovery/channel.py",
     "discovery/hide.py",
@@ -90,119 +91,6 @@ METHOD_SOURCES = (
     "run/positions.py",
     "surfaces.py",
 )
-
-
-@dataclass(frozen=True)
-class Base:
-    """A run the benchmark hides effects in: `make(folder)` writes it (a run
-    folder with run.csv) on the machine that submits the runs."""
-
-    name: str
-    what: str
-    make: Callable[[Path], None]
-
-
-def _inputs(maker: str, **shape: Any) -> Callable[[Path], None]:
-    def make(folder: Path) -> None:
-        from . import hide
-
-        getattr(hide, maker)(RunFolder.at(folder).log, **shape)
-
-    return make
-
-
-def _twin(scenario: str, *options: str) -> Callable[[Path], None]:
-    def make(folder: Path) -> None:
-        subprocess.run(
-            [sys.executable, "-m", "thermotilt", "simulate", scenario, *options, "--out", str(folder)],
-            check=True,
-            stdout=subprocess.DEVNULL,
-        )
-
-    return make
-
-
-# The scatter terms off in the twin's own runs: hide_effect generates the
-# sensor side again with the family's noise.
-_SCATTER_OFF = ("--disable", "drift_repeatability", "--disable", "bias_instability")
-
-
-def _variant(kind: str, index: int) -> Base:
-    """The kind's base number `index`: each kind's bases differ in their
-    tilt, temperatures and (the twin's) seed and ambient, so that a rate
-    counts histories, not only noise drawn on one."""
-    tilt = 25.0 + 2.5 * (index % 5)
-    shift = index // 5 % 4
-    name = f"{kind}-{index:02d}"
-    if kind == "staircase":
-        low = -2.5 * shift
-        return Base(
-            name,
-            f"{low:g}..{low + 40:g} degC in 5 degC steps held 40 s at X +{tilt:g}, X -{tilt:g} and Y +{tilt:g} deg "
-            "(inputs only)",
-            _inputs("staircase_inputs", positions=((tilt, 0.0), (-tilt, 0.0), (0.0, tilt)), low_c=low, high_c=low + 40),
-        )
-    if kind == "wave":
-        middle = 22.5 + 1.5 * shift
-        return Base(
-            name,
-            f"a temperature wave {middle - 10:g}..{middle + 10:g} degC, period 2000 s, 1.5 periods at X +{tilt:g} deg "
-            "(inputs only)",
-            _inputs("wave_inputs", middle_c=middle, incl_x_deg=tilt),
-        )
-    if kind == "ramp":
-        low = 18.0 + 1.5 * shift
-        return Base(
-            name,
-            f"one ramp {low:g}..{low + 10:g}..{low:g} degC at 0.01 degC/s at X +{tilt:g} deg (inputs only)",
-            _inputs(
-                "staircase_inputs",
-                positions=((tilt, 0.0),),
-                low_c=low,
-                high_c=low + 10.0,
-                step_c=10.0,
-                hold_s=0.0,
-                ramp_c_per_s=0.01,
-            ),
-        )
-    seed, ambient = str(index + 1), f"{20 + index % 5:g}"
-    if kind == "cycle":
-        incl = (0.0, 15.0, 30.0, -15.0)[shift]
-        return Base(
-            name,
-            f"the twin's calibration cycle, -10..45 degC, seed {seed}, ambient {ambient} degC, X {incl:+g} deg "
-            "(simulate cycle --rest-seconds 60)",
-            _twin(
-                "cycle",
-                "--rest-seconds",
-                "60",
-                "--seed",
-                seed,
-                "--ambient",
-                ambient,
-                "--incl-x",
-                f"{incl:g}",
-                *_SCATTER_OFF,
-            ),
-        )
-    if kind == "fig8":
-        return Base(
-            name,
-            f"the twin's Figure 8 run, 342 s, seed {seed}, ambient {ambient} degC (simulate fig8)",
-            _twin("fig8", "--seed", seed, "--ambient", ambient, *_SCATTER_OFF),
-        )
-    raise ValueError(f"unknown base kind {kind!r}")
-
-
-BASE_KINDS = ("staircase", "wave", "ramp", "cycle", "fig8")
-# Every cell's runs spread over this many bases of its kind.
-BASES_PER_KIND = 20
-BASES = {base.name: base for base in (_variant(kind, index) for kind in BASE_KINDS for index in range(BASES_PER_KIND))}
-
-
-def kind_of(base: str) -> str:
-    """A base's kind from its name ("cycle-07": "cycle")."""
-    return base.split("-")[0]
 
 
 @dataclass(frozen=True)
@@ -264,19 +152,24 @@ SNRS = tuple(float(snr) for snr in _design()["effect"]["snr"])
 
 
 def default_cells(
-    null_runs: int | None = None, effect_runs: int | None = None, collinear_runs: int | None = None
+    null_runs: int | None = None,
+    effect_runs: int | None = None,
+    collinear_runs: int | None = None,
+    world_runs: int | None = None,
 ) -> list[Cell]:
     """The benchmark's design as DESIGN states it (the sizes may be asked
     smaller): null runs in every noise family on the sensor's and the
     chamber's bases; every candidate at every SNR with the model's noise, on
     the staircases (sensor) or the twin's cycles (chamber); the collinear
-    pairs, each cell with the date the design took it in."""
+    pairs; worlds the model does not describe, with nothing hidden; each
+    cell with the date the design took it in."""
     design = _design()
     runs = design["runs"]
     bases = int(runs["bases"])
     null_runs = int(runs["null"]) if null_runs is None else null_runs
     effect_runs = int(runs["effect"]) if effect_runs is None else effect_runs
     collinear_runs = int(runs["collinear"]) if collinear_runs is None else collinear_runs
+    world_runs = int(runs["world"]) if world_runs is None else world_runs
     cells = [
         Cell(NULL, "none", None, noise, kind, null_runs, bases=bases, since=group["since"], note=group["why"])
         for group in design["null"]
@@ -305,6 +198,20 @@ def default_cells(
             note=pair["why"],
         )
         for pair in design["collinear"]
+    ]
+    cells += [
+        Cell(
+            WORLD,
+            "none",
+            None,
+            "model",
+            world["base"],
+            world_runs,
+            bases=bases,
+            since=world["since"],
+            note=world["why"],
+        )
+        for world in design["world"]
     ]
     return cells
 
@@ -436,31 +343,12 @@ def write_record(path: Path, rows: list[dict[str, str]]) -> None:
 def _sorted_record(path: Path) -> None:
     """The record in one order whatever order the runs finished in, so that
     a rerun diffs row by row."""
-    kinds = (NULL, EFFECT, COLLINEAR)
 
     def order(row: dict[str, str]) -> tuple:
         snr = float(row["snr"]) if row["snr"] else 0.0
-        return kinds.index(row["kind"]), row["effect"], snr, row["noise"], row["base"], int(row["index"])
+        return KINDS.index(row["kind"]), row["effect"], snr, row["noise"], row["base"], int(row["index"])
 
     write_record(path, sorted(read_record(path), key=order))
-
-
-def make_bases(
-    names: Iterable[str], folder: Path, say: Callable[[str], None], bases: Mapping[str, Base] = BASES
-) -> dict[str, bytes]:
-    """Each base's run.csv, made once into folder/NAME (as many at a time
-    as the machine has cores: a twin's base is a process of its own) and
-    read from there after."""
-    missing = [name for name in names if not RunFolder.at(folder / name).log.exists()]
-
-    def make(name: str) -> None:
-        say(f"making the base run {name}: {bases[name].what}")
-        (folder / name).mkdir(parents=True, exist_ok=True)
-        bases[name].make(folder / name)
-
-    with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
-        list(pool.map(make, missing))
-    return {name: RunFolder.at(folder / name).log.read_bytes() for name in names}
 
 
 @dataclass
