@@ -21,6 +21,8 @@ import numpy as np
 # device does not know its sensor's history at power-up, so it starts halfway.
 FIRMWARE_TRANSITION_C = 1.5
 FIRMWARE_POWER_UP_SHARE = 0.5
+# warming_shares' first window of steps: a stretch at a hold is a few dozen.
+_FIRST_WINDOW = 64
 
 
 class SetBlend:
@@ -44,11 +46,39 @@ def warming_shares(
 ) -> np.ndarray:
     """SetBlend(transition_c, warming_share) updated with each change of the
     temperature from start_c on, as an array: the same floats as
-    SetBlend.update, whose clipping a cumulative sum cannot follow, so a
-    loop over the steps."""
-    state = SetBlend(transition_c, warming_share)
-    changes = np.diff(np.asarray(temperature_c, dtype=float), prepend=start_c)
-    return np.array([state.update(change) for change in changes.tolist()])
+    SetBlend.update. A cumulative sum adds one step at a time as update
+    does, but cannot clip, so the steps go in stretches: from the share,
+    a cumulative sum up to the first step that leaves 0..1, clipped there;
+    from a bound, up to the first step away from it (a step towards it, or
+    none, clips back to it). Stretches are looked for in windows that grow
+    while none ends in them."""
+    steps = np.diff(np.asarray(temperature_c, dtype=float), prepend=start_c) / transition_c
+    shares = np.empty(len(steps))
+    share, index, window, at_bound = float(warming_share), 0, _FIRST_WINDOW, False
+    while index < len(steps):
+        ahead = steps[index : index + window]
+        if at_bound:
+            # Not "<" or ">": a NaN step leaves the bound, as it makes update's share NaN.
+            leaving = np.flatnonzero(~(ahead >= 0.0) if share == 1.0 else ~(ahead <= 0.0))
+            ended = len(leaving) > 0
+            stop = int(leaving[0]) if ended else len(ahead)
+            shares[index : index + stop] = share
+            at_bound = not ended
+        else:
+            values = np.cumsum(np.concatenate(([share], ahead)))[1:]
+            outside = np.flatnonzero((values > 1.0) | (values < 0.0))
+            ended = len(outside) > 0
+            stop = int(outside[0]) if ended else len(ahead)
+            shares[index : index + stop] = values[:stop]
+            if ended:
+                share = shares[index + stop] = 1.0 if values[stop] > 1.0 else 0.0
+                stop += 1
+                at_bound = True
+            else:
+                share = float(values[-1])
+        index += stop
+        window = max(_FIRST_WINDOW, 2 * stop) if ended else 2 * window
+    return shares
 
 
 def blend(warming_share: Any, warming: Any, cooling: Any) -> Any:

@@ -12,6 +12,7 @@ import numpy as np
 from ..set_blend import SetBlend, blend, warming_shares
 from .model import Model
 from .terms import SENSOR_STAGES, SensorContext, SensorTerm
+from .terms.lag import SeriesMemo
 from .terms.sensor import INT16_MAX, INT16_MIN
 
 # The LSM9DS0 temperature output is 12-bit two's complement.
@@ -399,8 +400,7 @@ def sensor_series(  # noqa: PLR0913 - Sensor's arguments and the steps' inputs, 
 
     die = _lagged(stages["die"], float(start_c), environment_c, dt_s)
     rate = np.diff(die, prepend=float(start_c)) / dt_s
-    drift_set = drift_sets(model.terms["drift"]["schmitt_band_c"], float(start_c), die)
-    shares = warming_shares(model.terms["drift"]["set_transition_c"], float(start_c), die, warming_share)
+    drift_set, shares = _set_series(model, float(start_c), die, warming_share)
     reported, structure_start = die, float(start_c)
     for offset in stages["reported"]:
         reported = offset(reported)
@@ -434,6 +434,20 @@ def sensor_series(  # noqa: PLR0913 - Sensor's arguments and the steps' inputs, 
         mounting,
         *raw,
         structure,
+    )
+
+
+# A search replays many models on one die: few candidates change it.
+_SET_SERIES = SeriesMemo(32 * 2**20)
+
+
+def _set_series(model: Model, start_c: float, die: np.ndarray, warming_share: float) -> tuple[np.ndarray, np.ndarray]:
+    """The die's drift sets and warming shares (read only), kept for the
+    same die and drift parameters: they go step by step."""
+    band_c, transition_c = model.terms["drift"]["schmitt_band_c"], model.terms["drift"]["set_transition_c"]
+    return _SET_SERIES.get(
+        (band_c, transition_c, start_c, warming_share, die),
+        lambda: (drift_sets(band_c, start_c, die), warming_shares(transition_c, start_c, die, warming_share)),
     )
 
 

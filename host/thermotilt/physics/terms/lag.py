@@ -7,6 +7,7 @@ import itertools
 import math
 from collections import OrderedDict
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -41,42 +42,53 @@ def first_order(tau_s: float) -> Callable[[float, float, float], float]:
     return follow
 
 
-class _SeriesMemo:
-    """The last series first_order_series computed, by their inputs: the
-    die follows the same chamber in every replay of a run, whatever else
-    the model changes, and the loop is the step's own arithmetic, one float
-    at a time, so its value is worth keeping rather than recomputing."""
+class SeriesMemo:
+    """The last series computed, by their inputs (numbers and arrays of
+    floats), the oldest dropped beyond budget_bytes: the die follows the
+    same chamber in every replay of a run, whatever else the model changes,
+    and its lag and what follows from it go one float at a time, so their
+    values are worth keeping rather than recomputing. The arrays kept are
+    read only."""
 
-    SIZE = 8
+    def __init__(self, budget_bytes: int) -> None:
+        self._budget_bytes = budget_bytes
+        self._series: OrderedDict[bytes, Any] = OrderedDict()
+        self._bytes = 0
 
-    def __init__(self) -> None:
-        self._series: OrderedDict[bytes, np.ndarray] = OrderedDict()
-
-    def get(
-        self, tau_s: float, start: float, targets: np.ndarray, dt_s: np.ndarray, make: Callable[[], np.ndarray]
-    ) -> np.ndarray:
+    def get(self, inputs: tuple[float | np.ndarray, ...], make: Callable[[], Any]) -> Any:
+        """make()'s array, or tuple of arrays, for these inputs."""
         digest = hashlib.blake2b(digest_size=16)
-        digest.update(np.array([tau_s, start], dtype=float).tobytes())
-        for values in (targets, dt_s):
-            digest.update(np.ascontiguousarray(values, dtype=float).tobytes())
+        for values in inputs:
+            array = np.ascontiguousarray(values, dtype=float)
+            digest.update(np.array([array.size], dtype=np.int64).tobytes())
+            digest.update(array.tobytes())
         key = digest.digest()
         if key in self._series:
             self._series.move_to_end(key)
-        else:
-            self._series[key] = make()
-            self._series[key].flags.writeable = False
-            if len(self._series) > self.SIZE:
-                self._series.popitem(last=False)
-        return self._series[key]
+            return self._series[key]
+        made = make()
+        for array in _arrays(made):
+            array.flags.writeable = False
+        self._series[key] = made
+        self._bytes += sum(array.nbytes for array in _arrays(made))
+        while self._bytes > self._budget_bytes and len(self._series) > 1:
+            _, dropped = self._series.popitem(last=False)
+            self._bytes -= sum(array.nbytes for array in _arrays(dropped))
+        return made
 
 
-_MEMO = _SeriesMemo()
+def _arrays(made: Any) -> tuple[np.ndarray, ...]:
+    return made if isinstance(made, tuple) else (made,)
+
+
+# A cycle's 100 Hz die is 3.5 MB; a replay's, 0.2 MB.
+_MEMO = SeriesMemo(64 * 2**20)
 
 
 def first_order_series(tau_s: float) -> Callable[[float, np.ndarray, np.ndarray], np.ndarray]:
     """(start, targets, dt s) -> the values first_order's steps reach from
     start, each towards its target: the same floats, in one loop (read
-    only: the series are kept for the same inputs, _SeriesMemo)."""
+    only: the series are kept for the same inputs, SeriesMemo)."""
 
     def series(start: float, targets: np.ndarray, dt_s: np.ndarray) -> np.ndarray:
         lengths, which = np.unique(dt_s, return_inverse=True)
@@ -98,6 +110,6 @@ def first_order_series(tau_s: float) -> Callable[[float, np.ndarray, np.ndarray]
         return np.array(values)
 
     def follow(start: float, targets: np.ndarray, dt_s: np.ndarray) -> np.ndarray:
-        return _MEMO.get(tau_s, start, targets, dt_s, lambda: series(start, targets, dt_s))
+        return _MEMO.get((tau_s, start, targets, dt_s), lambda: series(start, targets, dt_s))
 
     return follow
