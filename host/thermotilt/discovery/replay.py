@@ -485,7 +485,13 @@ class Replay:
         """Per chamber channel, how its replay moves for 1 degC more on each
         face at the start (rows x 2: inner, outer): the start is not known
         better than the readings' offsets, so discovery takes these as
-        nuisance columns."""
+        nuisance columns. Kept as the replay's parts are: a search that
+        finds nothing asks again for the model it started with."""
+        return _PARTS.get(
+            ("chamber start", self._inputs, _chamber_key(model)), lambda: self._chamber_start_response(model)
+        )
+
+    def _chamber_start_response(self, model: Model) -> dict[str, np.ndarray]:
         base = self._chamber(model)
         moved = [chamber_replay(self.measured, model, shift) for shift in ((1.0, 0.0), (0.0, 1.0))]
         return {channel: np.column_stack([m[channel] - base[channel] for m in moved]) for channel in CHAMBER_CHANNELS}
