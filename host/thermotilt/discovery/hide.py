@@ -273,8 +273,8 @@ def _scaled(
         near, far = math.log(start), math.log(end)
         if excess(near) >= 0.0:
             return start, effect_rms(start)
-        # A quarter of what 30 halvings of the bracket would leave, in about
-        # half their replays.
+        # To 2^-33 of the bracket in log value: a relative precision of
+        # about 1e-9 or finer on the parameter's value.
         value = math.exp(brentq(excess, near, far, xtol=abs(far - near) / 2**33))
         return value, effect_rms(value)
     raise _NotExcited
