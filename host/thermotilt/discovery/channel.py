@@ -347,16 +347,22 @@ def _left_by(design: np.ndarray, values: np.ndarray) -> np.ndarray:
     return values - design @ np.linalg.lstsq(design, values, rcond=None)[0]
 
 
-def _position_ar1(left: np.ndarray, same: np.ndarray, mounting: np.ndarray) -> np.ndarray:
-    """An AR(1) within each position, from the lag-1 correlation of what a
-    free offset and slope per position leave: the temperature and chamber
-    channels' undeclared noise (the readings' rounding, a real rig's)."""
+def _position_ar1(left: np.ndarray, same: np.ndarray, mounting: np.ndarray, declared: np.ndarray) -> np.ndarray:
+    """An AR(1) within each position for what a free offset and slope per
+    position leave beyond the declared noise: its variance and lag-1
+    covariance less the declared covariance's (method of moments). The
+    temperature and chamber channels' undeclared noise: the readings'
+    rounding, a real rig's."""
     total = max(float(np.mean(left**2)), 1e-12)
     neighbours = mounting[1:] == mounting[:-1]
     lag1 = float(np.mean((left[1:] * left[:-1])[neighbours])) if neighbours.any() else 0.0
-    rho = float(np.clip(lag1 / total, 0.0, MAX_AR_RHO))
+    declared_lag1 = float(np.mean(np.diagonal(declared, 1)[neighbours])) if neighbours.any() else 0.0
+    variance = max(total - float(np.mean(np.diagonal(declared))), 0.0)
+    rho = float(np.clip((lag1 - declared_lag1) / variance, 0.0, MAX_AR_RHO)) if variance > 0.0 else 0.0
     index = np.arange(len(left))
-    return total * rho ** np.abs(np.subtract.outer(index, index)) * same + MIN_WHITE_SHARE * total * np.eye(len(left))
+    return variance * rho ** np.abs(np.subtract.outer(index, index)) * same + MIN_WHITE_SHARE * total * np.eye(
+        len(left)
+    )
 
 
 class Channel:
@@ -453,9 +459,8 @@ class Channel:
         if self.name in ACCELERATION_CHANNELS:
             lower = UndeclaredFlicker(design, declared, times, block_s).fitted(noise_blocks)
         else:
-            # The AR(1) fitted to the residual takes in the chamber's declared
-            # floor, itself one exponential, and what a real rig adds to it.
-            lower = np.linalg.cholesky(_position_ar1(_left_by(design, noise_blocks), same, self._mounting))
+            left = _left_by(design, noise_blocks)
+            lower = np.linalg.cholesky(declared + _position_ar1(left, same, self._mounting, declared))
 
         def whiten(values: np.ndarray) -> np.ndarray:
             return solve_triangular(lower, values, lower=True)
