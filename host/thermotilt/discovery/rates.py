@@ -300,8 +300,8 @@ def _world_table(world: list[Row]) -> list[str]:
         f"run's largest ratio. Target, on the runs whose ratio is at least {GAP_RATIO:g}: `unexplained` in at "
         f"least {MIN_DIAGNOSED:.0%} (no candidate is right), `none` in at most {MAX_FALSE_DISCOVERY:.0%}.",
         "",
-        "| world | runs | gap / allowed | unexplained | named | none |",
-        "|---|---|---|---|---|---|",
+        "| world | runs | gap / allowed | unexplained | named | ambiguous | none |",
+        "|---|---|---|---|---|---|---|",
     ]
     for base in sorted(dict.fromkeys(r["base"] for r in world), key=lambda name: chamber_change(_index(name))):
         mine = [r for r in world if r["base"] == base]
@@ -311,7 +311,7 @@ def _world_table(world: list[Row]) -> list[str]:
             f"| {section}.{parameter} ×{factor:g} | {len(mine)} | "
             f"{float(np.median([gap_ratio(r) for r in mine])):.2f} | {sum(map(_unexplained, mine))} | "
             f"{sum(map(_named, mine))}{f' ({names})' if names else ''} | "
-            f"{sum(r['verdict'] == NONE for r in mine)} |"
+            f"{sum(r['verdict'] == AMBIGUOUS for r in mine)} | {sum(r['verdict'] == NONE for r in mine)} |"
         )
     wide = [r for r in world if gap_ratio(r) >= GAP_RATIO]
     unexplained, none = rate(wide, _unexplained), rate(wide, lambda r: r["verdict"] == NONE)
