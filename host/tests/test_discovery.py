@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import json
+import math
 import re
 import subprocess
 from pathlib import Path
@@ -14,8 +15,10 @@ from child_process import THERMOTILT, run
 from conftest import SCATTER_OFF
 from scipy import stats
 
+from thermotilt.discovery import hide
 from thermotilt.discovery.candidates import BY_NAME
 from thermotilt.discovery.chamber_readings import ADC_CONVERSIONS_PER_READING, ADC_NOISE_CODES
+from thermotilt.discovery.channel import gap_rms
 from thermotilt.discovery.hide import hide_effect, staircase_inputs, wave_inputs
 from thermotilt.discovery.replay import Replay, load_measured
 from thermotilt.discovery.search import Search
@@ -385,3 +388,40 @@ def test_an_effect_the_inputs_do_not_excite_cannot_be_hidden(inputs: Path, tmp_p
     )
     assert result.returncode == 1
     assert "hardly excite" in result.stderr and len(result.stderr.strip().splitlines()) == 1
+
+
+def bisected(candidate, model, frames, channel, target_rms, end):
+    """The value hide._scaled found before the root finder: 30 halvings of
+    the log-scale bracket from the model's value (its least, for a term the
+    model has off) to the bound; and the precision that gives."""
+    predict = Replay(frames)
+    used = frames.used[channel]
+    base = predict(model)[channel][used]
+
+    def effect_rms(value: float) -> float:
+        return gap_rms(channel, predict(candidate.changed(model, {channel: value}))[channel][used] - base)
+
+    start = candidate.value(model, channel) if model.enabled(candidate.name) else candidate.bounds[0]
+    near, far = math.log(start), math.log(end)
+    for _ in range(30):
+        middle = 0.5 * (near + far)
+        if effect_rms(math.exp(middle)) < target_rms:
+            near = middle
+        else:
+            far = middle
+    return math.exp(0.5 * (near + far)), abs(math.log(end / start)) / 2**31
+
+
+@pytest.mark.twin
+@pytest.mark.parametrize("snr", [1.0, 4.0])
+def test_a_non_additive_effect_is_sized_as_finely_as_by_bisection(tmp_path: Path, snr: float):
+    inputs = staircase_inputs(tmp_path / "run.csv", positions=((30.0, 0.0),), high_c=20.0, step_c=10.0)
+    model = Model.load()
+    measured = hide._read_inputs(inputs).measured
+    run = hide._NullRun.of(measured, model, "model", seed=7)
+    candidate, channel = BY_NAME["sensor_lag"], "X"
+    target_rms = snr * hide._noise_rms(run.measured, model, channel)
+    value, effect_rms = hide._scaled(candidate, model, run.measured, channel, target_rms, sign=1.0)
+    expected, bisection_precision = bisected(candidate, model, run.measured, channel, target_rms, candidate.bounds[1])
+    assert abs(math.log(value / expected)) <= 2 * bisection_precision
+    assert effect_rms == pytest.approx(target_rms, rel=1e-6)

@@ -67,3 +67,18 @@ def test_a_series_refuses_a_step_that_does_not_advance():
     zero = np.zeros(3)
     with pytest.raises(ValueError, match="dt_s must be > 0"):
         sensor_series(Model.load(), 1, 20.0, np.array([0.01, 0.0, 0.01]), zero + 20.0, zero, zero)
+
+
+def test_a_series_on_a_die_it_has_seen_gives_the_steps_samples_again():
+    # The set series are kept per die (physics/sensor.py): a second model
+    # on the same die must still give its own steps' samples.
+    rng = np.random.default_rng(5)
+    count = 3000
+    dt_s = np.where(rng.random(count) < 0.05, 0.2, 0.01)
+    environment_c = 20.0 + np.cumsum(rng.normal(0.0, 0.05, count))
+    incl_x = np.repeat([30.0, -30.0, 0.0], count // 3)
+    incl_y = np.repeat([0.0, 0.0, 30.0], count // 3)
+    run = (dt_s, environment_c, incl_x, incl_y)
+    for switches in ({"scale_tempco": False}, {"scale_tempco": True}, {"hysteresis": True}):
+        model = Model.load().with_terms(switches)
+        assert_same(sensor_series(model, 3, 20.2, *run), stepped(model, 3, 20.2, 1.0, *run))
