@@ -18,10 +18,11 @@ from scipy import stats
 from thermotilt.discovery import hide
 from thermotilt.discovery.candidates import BY_NAME
 from thermotilt.discovery.chamber_readings import ADC_CONVERSIONS_PER_READING, ADC_NOISE_CODES
-from thermotilt.discovery.channel import gap_rms
+from thermotilt.discovery.channel import GoodnessOfFit, gap_rms
 from thermotilt.discovery.hide import hide_effect, staircase_inputs, wave_inputs
 from thermotilt.discovery.replay import Replay, load_measured
-from thermotilt.discovery.search import Search
+from thermotilt.discovery.report import PARTIAL, summary_lines
+from thermotilt.discovery.search import Ambiguity, Effect, Outcome, Search
 from thermotilt.physics import Chamber, Model
 from thermotilt.physics.document import with_values, write_model
 
@@ -141,6 +142,65 @@ def test_a_chamber_the_model_does_not_describe_is_unexplained_not_none(tmp_path:
     assert outcome.verdict == "unexplained", [(e.candidate, e.channel) for e in outcome.effects]
     outer = outcome.fit["outer"]
     assert not outer.explained and outer.gap > 5.0 * outer.allowed
+
+
+def _fit(channel: str, explained: bool) -> GoodnessOfFit:
+    return GoodnessOfFit(channel, gap=1.0 if explained else 9.0, allowed=3.0, p_value=0.5 if explained else 1e-6, level=0.01)
+
+
+def _effect(channel: str) -> Effect:
+    return Effect("heatsink", channel, "heat_capacity_j_per_k", "J/K", 1.0, (0.9, 1.1), 1e-4, 0.2)
+
+
+@pytest.mark.parametrize(
+    ("effects", "ambiguous", "left", "verdict"),
+    [
+        ([], [], [], "none"),
+        (["outer"], [], [], "found"),
+        # A name that leaves a channel beyond its declared noise explains a part of the gap only.
+        (["outer"], [], ["inner"], "unexplained"),
+        ([], [], ["inner"], "unexplained"),
+        # The ambiguous channel still holds the unresolved effect: its gap counts against no one.
+        ([], ["X"], ["X"], "ambiguous"),
+        ([], ["X"], ["Y"], "unexplained"),
+        (["inner"], ["X"], ["X"], "found"),
+    ],
+)
+def test_a_verdict_is_found_or_none_only_where_every_channel_is_explained(
+    effects: list[str], ambiguous: list[str], left: list[str], verdict: str
+) -> None:
+    outcome = Outcome(
+        verdict="",
+        model=Model.load(),
+        effects=[_effect(channel) for channel in effects],
+        ambiguous=[Ambiguity(("rate_sensitivity", "sensor_lag"), channel, "") for channel in ambiguous],
+        fit={channel: _fit(channel, channel not in left) for channel in ("X", "Y", "inner", "outer")},
+    )
+    assert outcome.judged() == verdict
+
+
+def test_the_summary_calls_names_that_leave_a_channel_unexplained_partial() -> None:
+    result = {
+        "verdict": "unexplained",
+        "effects": [
+            {
+                "name": "heatsink",
+                "channel": "outer",
+                "parameters": {"heat_capacity_j_per_k": 300.0},
+                "interval_95": {"heat_capacity_j_per_k": [280.0, 320.0]},
+                "unit": "J/K",
+                "adjusted_p": 1e-5,
+                "gap_reduction": 0.3,
+            }
+        ],
+        "ambiguous": [],
+        "not_testable": [],
+        "fit": {"inner": {"unit": "degC", "gap": 3.9, "allowed": 0.12, "p_value": 1e-9, "explained": False}},
+        "gap": {},
+    }
+    lines = summary_lines(result)
+    assert lines[1].strip() == PARTIAL + ":"
+    assert lines[-1] == "  unexplained: inner: 3.9 degC RMS where the model allows 0.12 (p 1e-09)"
 
 
 def test_a_log_without_the_drive_skips_the_chamber_channels_and_says_why(inputs: Path) -> None:

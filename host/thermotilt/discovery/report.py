@@ -18,6 +18,9 @@ UNITS = {"temperature": "degC", "X": "LSB", "Y": "LSB", "Z": "LSB", "inner": "de
 COLUMNS = {**CHANNEL_COLUMNS, **CHAMBER_CHANNEL_COLUMNS}
 
 
+PARTIAL = "These effects explain only a part of the gap: with them, a channel is still beyond the declared noise"
+
+
 def _number(value: float) -> float | None:
     return None if not math.isfinite(value) else value
 
@@ -230,6 +233,8 @@ def _findings(result: dict[str, Any]) -> list[str]:
     """The effects found, the ambiguous groups, what was not testable and
     the channels skipped."""
     lines = []
+    if result["effects"] and result["verdict"] == "unexplained":
+        lines += [PARTIAL + " (the table below the effects says where).", ""]
     if result["effects"]:
         lines += [
             "| effect | channel | parameter | value | 95 % interval | adjusted p | gap reduction |",
@@ -343,6 +348,8 @@ def _tests_table(result: dict[str, Any]) -> list[str]:
 def summary_lines(result: dict) -> list[str]:
     """What ``thermotilt discover`` prints of a discovery.json."""
     lines = [f"verdict: {result['verdict']}"]
+    if result["effects"] and result["verdict"] == "unexplained":
+        lines.append(f"  {PARTIAL}:")
     for effect in result["effects"]:
         ((parameter, value),) = effect["parameters"].items()
         low, high = effect["interval_95"][parameter]

@@ -105,6 +105,16 @@ class Outcome:
         """The channels whose residual the declared noise does not explain."""
         return [fit for fit in self.fit.values() if not fit.explained]
 
+    def judged(self) -> str:
+        """The verdict: `unexplained` while a channel is beyond its declared
+        noise, the effects named (if any) then explaining only a part of
+        the gap; a channel left ambiguous still holds its unresolved effect
+        and does not count."""
+        ambiguous_channels = {group.channel for group in self.ambiguous}
+        if any(fit.channel not in ambiguous_channels for fit in self.unexplained):
+            return "unexplained"
+        return "found" if self.effects else "ambiguous" if self.ambiguous else "none"
+
 
 def _probe_step(candidate: Candidate, value: float) -> float:
     """The candidate's probe from value, turned back where it would leave
@@ -225,23 +235,14 @@ class Search:
         self, outcome: Outcome, model: Model, base: Mapping[str, np.ndarray], channels: Mapping[str, Channel]
     ) -> None:
         """The outcome's model, gaps, goodness of fit and verdict once the
-        rounds are over: `unexplained` where nothing was named and a
-        channel's residual is more than its declared noise makes (each
-        channel at ALPHA shared among those tested, so that a run the model
-        fits is called unexplained at most at ALPHA)."""
+        rounds are over; each channel's fit at ALPHA shared among those
+        tested, so that a run the model fits is called unexplained at most
+        at ALPHA."""
         outcome.model = model
         outcome.residual_after = self.residuals(base)
         tested = [channel for channel in channels.values() if np.any(channel.declared)]
         outcome.fit = {channel.name: channel.goodness_of_fit(ALPHA / len(tested)) for channel in tested}
-        outcome.verdict = (
-            "found"
-            if outcome.effects
-            else "ambiguous"
-            if outcome.ambiguous
-            else "unexplained"
-            if outcome.unexplained
-            else "none"
-        )
+        outcome.verdict = outcome.judged()
         outcome.gap = {
             channel: {
                 "before": gap_rms(channel, outcome.residual_before[channel][self.measured.used[channel]]),
