@@ -78,6 +78,7 @@ METHOD_SOURCES = (
     "discovery/hide.py",
     "discovery/noise_families.py",
     "discovery/nonlinear.py",
+    "discovery/reml.py",
     "discovery/replay.py",
     "discovery/search.py",
     "physics/sensor.py",

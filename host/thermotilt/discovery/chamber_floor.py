@@ -21,8 +21,9 @@ from pathlib import Path
 from typing import Protocol
 
 import numpy as np
-from scipy.linalg import cholesky, qr, solve_triangular
 from scipy.optimize import minimize_scalar
+
+from .reml import restricted_parts
 
 FLOOR_FILE = Path(__file__).with_name("chamber_floor.toml")
 # The time constants searched: from a few frames to longer than a cycle.
@@ -70,14 +71,10 @@ def _restricted_deviance(series: Sequence[BlockSeries], time_constant_s: float) 
     for run in series:
         unit = run.unit_covariance(time_constant_s)
         unit[np.diag_indices_from(unit)] += JITTER
-        lower = cholesky(unit, lower=True)
-        y = solve_triangular(lower, run.y, lower=True)
-        design = solve_triangular(lower, run.nuisance, lower=True)
-        q, r = qr(design, mode="economic")
-        left = y - q @ (q.T @ y)
-        quadratic += float(left @ left)
-        dof += len(y) - design.shape[1]
-        log_det += 2.0 * float(np.sum(np.log(np.diag(lower)))) + 2.0 * float(np.sum(np.log(np.abs(np.diag(r)))))
+        run_log_det, run_quadratic = restricted_parts(unit, run.nuisance, run.y)
+        quadratic += run_quadratic
+        log_det += run_log_det
+        dof += len(run.y) - run.nuisance.shape[1]
     variance = quadratic / dof
     return dof * math.log(variance) + log_det, variance
 

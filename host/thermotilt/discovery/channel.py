@@ -28,6 +28,7 @@ from ..physics import Model
 from ..physics.terms.sensor import FLICKER_TIME_CONSTANTS_S, FLICKER_VARIANCE_PER_FLOOR
 from ..surfaces import REFERENCE_C
 from .chamber_floor import floors
+from .reml import restricted_parts
 from .replay import ACCELERATION_CHANNELS, CHAMBER_CHANNELS, SAMPLE_PERIOD_S, Measured
 
 # Long against the Kalman filters' ~10 s and short against a 60 s
@@ -299,9 +300,7 @@ class UndeclaredFlicker:
     since it widens intervals.
 
     REML integrates out a free offset and slope per position, so that no
-    effect constant or linear within a position is taken for noise.
-    Written here because statsmodels' REML (MixedLM) takes only random
-    effects, not a covariance of this form."""
+    effect constant or linear within a position is taken for noise."""
 
     def __init__(self, design: np.ndarray, declared: np.ndarray, times: BlockTimes, block_s: float) -> None:
         self.design = design
@@ -322,16 +321,9 @@ class UndeclaredFlicker:
 
         def restricted_deviance(theta: np.ndarray) -> float:
             try:
-                lower = np.linalg.cholesky(self.covariance(theta, scale))
+                return sum(restricted_parts(self.covariance(theta, scale), self.design, values))
             except np.linalg.LinAlgError:
                 return 1e300
-            x_w = solve_triangular(lower, self.design, lower=True)
-            y_w = solve_triangular(lower, values, lower=True)
-            q, r = np.linalg.qr(x_w)
-            residual = y_w - q @ (q.T @ y_w)
-            return float(
-                2.0 * np.sum(np.log(np.diag(lower))) + 2.0 * np.sum(np.log(np.abs(np.diag(r)))) + residual @ residual
-            )
 
         bounds = [(LOG_LEVEL_MIN, LOG_LEVEL_MAX)] * 2
         theta = minimize(restricted_deviance, np.log([0.1, 0.5]), method="L-BFGS-B", bounds=bounds).x
