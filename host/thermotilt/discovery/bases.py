@@ -164,6 +164,11 @@ def kind_of(base: str) -> str:
     return base.split("-")[0]
 
 
+def index_of(base: str) -> int:
+    """A base's number within its kind ("cycle-07": 7)."""
+    return int(base.rsplit("-", 1)[1])
+
+
 def make_bases(
     names: Iterable[str], folder: Path, say: Callable[[str], None], bases: Mapping[str, Base] = BASES
 ) -> dict[str, bytes]:

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..record import Share
-from .bases import chamber_change, kind_of
+from .bases import chamber_change, index_of, kind_of
 from .benchmark import (
     AMBIGUOUS,
     COLLINEAR,
@@ -303,9 +303,9 @@ def _world_table(world: list[Row]) -> list[str]:
         "| world | runs | gap / allowed | unexplained | named | ambiguous | none |",
         "|---|---|---|---|---|---|---|",
     ]
-    for base in sorted(dict.fromkeys(r["base"] for r in world), key=lambda name: chamber_change(_index(name))):
+    for base in sorted(dict.fromkeys(r["base"] for r in world), key=lambda name: chamber_change(index_of(name))):
         mine = [r for r in world if r["base"] == base]
-        section, parameter, factor = chamber_change(_index(base))
+        section, parameter, factor = chamber_change(index_of(base))
         names = ", ".join(sorted({r["named"] for r in mine if r["verdict"] == FOUND}))
         lines.append(
             f"| {section}.{parameter} ×{factor:g} | {len(mine)} | "
@@ -322,10 +322,6 @@ def _world_table(world: list[Row]) -> list[str]:
         f"({_met(none, none.interval[1] <= MAX_FALSE_DISCOVERY)}).",
     ]
     return lines
-
-
-def _index(base: str) -> int:
-    return int(base.rsplit("-", 1)[1])
 
 
 def _coverage_table(named: list[Row]) -> list[str]:
