@@ -411,9 +411,8 @@ def sensor_series(  # noqa: PLR0913 - Sensor's arguments and the steps' inputs, 
     moved[1:] = (incl_x_deg[1:] != incl_x_deg[:-1]) | (incl_y_deg[1:] != incl_y_deg[:-1])
     mounting = np.cumsum(moved) - 1
     ideal = _ideal_series(stages, incl_x_deg, incl_y_deg, moved, mounting)
-    runs = _runs(moved, shares, mounting)
-    drift = _drift_series(stages, runs, shares, structure, ideal)
-    raw = _raw_series(stages, runs, ideal, drift, (shares, reported, rate, dt_s))
+    drift = _drift_series(stages, shares, structure, ideal)
+    raw = _raw_series(stages, _mountings(moved), ideal, drift, (shares, reported, rate, dt_s))
 
     temperature_lsb = (reported - constants["temperature_zero_c"]) * constants["temperature_lsb_per_c"]
     for register in stages["register"]:
@@ -451,11 +450,6 @@ def _set_series(model: Model, start_c: float, die: np.ndarray, warming_share: fl
     )
 
 
-# Steps that share their set state and mounting: which steps, the state
-# ("W" wholly warming, "C" wholly cooling, "" between), the mounting.
-_Run = tuple[slice, str, int]
-
-
 def _ideal_series(
     stages: dict[str, list[Any]],
     incl_x_deg: np.ndarray,
@@ -475,45 +469,38 @@ def _ideal_series(
     return np.array(accelerations, dtype=float).reshape(-1, 3)[mounting].T
 
 
-def _runs(moved: np.ndarray, warming_share: np.ndarray, mounting: np.ndarray) -> list[_Run]:
-    """The runs of steps that share their set state and mounting, in order:
-    the set-dependent and per-mounting terms take them whole."""
-    state = np.where(warming_share == 1.0, "W", np.where(warming_share == 0.0, "C", ""))
-    starts = np.flatnonzero(moved | np.concatenate([[True], state[1:] != state[:-1]]))
+# Steps on one mounting: which steps, the mounting. The per-mounting terms
+# take them whole.
+_Mounting = tuple[slice, int]
+
+
+def _mountings(moved: np.ndarray) -> list[_Mounting]:
+    starts = np.flatnonzero(moved)
     return [
-        (slice(start, end), str(state[start]), int(mounting[start]))
-        for start, end in zip(starts.tolist(), [*starts[1:].tolist(), len(moved)])
+        (slice(start, end), index)
+        for index, (start, end) in enumerate(zip(starts.tolist(), [*starts[1:].tolist(), len(moved)]))
     ]
 
 
 def _drift_series(
     stages: dict[str, list[Any]],
-    runs: list[_Run],
     warming_share: np.ndarray,
     structure: np.ndarray,
     ideal: np.ndarray,
 ) -> np.ndarray:
     """The drift of every step, x, y and z by rows; zero with the drift off.
-    Between the sets, both sets' drift blended as Sensor._drift_at blends it."""
-    drift = np.zeros(ideal.shape)
+    Both sets' drift blended as Sensor._drift_at blends it, which at a share
+    of 1 or 0 is exactly that set's."""
     if not stages["drift"]:
-        return drift
+        return np.zeros(ideal.shape)
     (surfaces,) = stages["drift"]
-    ideal_x, ideal_y, ideal_z = ideal
-    for part, state, _ in runs:
-        arguments = (structure[part], ideal_x[part], ideal_y[part], ideal_z[part])
-        if state:
-            drift[:, part] = surfaces(state, *arguments)
-        else:
-            drift[:, part] = blend(
-                warming_share[part], np.array(surfaces("W", *arguments)), np.array(surfaces("C", *arguments))
-            )
-    return drift
+    arguments = (structure, *ideal)
+    return blend(warming_share, np.array(surfaces("W", *arguments)), np.array(surfaces("C", *arguments)))
 
 
 def _raw_series(
     stages: dict[str, list[Any]],
-    runs: list[_Run],
+    mountings: list[_Mounting],
     ideal: np.ndarray,
     drift: np.ndarray,
     conditions: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
@@ -527,7 +514,7 @@ def _raw_series(
     raw = np.stack([ideal_x, ideal_y, ideal_z]) + drift
     for scale in stages["scale"]:
         raw += np.stack(np.broadcast_arrays(*scale(reported, ideal_x, ideal_y, ideal_z)))
-    for part, _, mounting_here in runs:
+    for part, mounting_here in mountings:
         for error in stages["error"]:
             error_x, error_y, error_z = error(
                 warming_share[part], reported[part], rate[part], dt_s[part], mounting_here
