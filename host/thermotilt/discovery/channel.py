@@ -483,13 +483,19 @@ class Channel:
         first_p, second_p = self.fit(np.column_stack([first, second])).pvalues
         return float(first_p), float(second_p)
 
-    def testable(self, regressor: np.ndarray) -> bool:
+    def untestable(self, regressor: np.ndarray) -> str:
+        """Why this run cannot test an effect of these block means here, in
+        a few words; "" where it can."""
         g = self.whiten(regressor)
         total = float(g @ g)
         if total == 0.0:
-            return False
+            return "nothing in this run moves it"
         left = self.beyond_nuisance(g)
-        return 1.0 - float(left @ left) / total < NOT_TESTABLE_R2
+        if 1.0 - float(left @ left) / total < NOT_TESTABLE_R2:
+            return ""
+        if self.name in ACCELERATION_CHANNELS:
+            return "a constant offset on this run, which the sensor's measuring offset takes"
+        return "what the chamber's unknown start already fits"
 
     def reduction(self, explained_rows: np.ndarray) -> float:
         """The share of the RMS residual an effect takes off."""

@@ -255,11 +255,8 @@ def _findings(result: dict[str, Any]) -> list[str]:
             f"residual on this run. To tell them apart: {group['experiment']}.",
             "",
         ]
-    if result["not_testable"]:
-        lines += [
-            "Not testable on this run (nothing in it excites them): " + ", ".join(result["not_testable"]) + ".",
-            "",
-        ]
+    for name, why in result["not_testable"].items():
+        lines += [f"Not testable on this run: {name} ({why}).", ""]
     for channel, why in result["skipped_channels"].items():
         lines += [f"Channel {channel} skipped: {why}.", ""]
     return lines
@@ -362,8 +359,8 @@ def summary_lines(result: dict) -> list[str]:
         lines.append(
             f"  ambiguous on {group['channel']}: {', '.join(group['names'])}; to separate them: {group['experiment']}"
         )
-    if result["not_testable"]:
-        lines.append(f"  not testable here: {', '.join(result['not_testable'])}")
+    for name, why in result["not_testable"].items():
+        lines.append(f"  not testable here: {name} ({why})")
     for channel, fit in result["fit"].items():
         if not fit["explained"]:
             lines.append(f"  unexplained: {unexplained_line(channel, fit)}")
