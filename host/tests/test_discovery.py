@@ -25,6 +25,7 @@ from thermotilt.discovery.report import PARTIAL, summary_lines
 from thermotilt.discovery.search import Ambiguity, Effect, Outcome, Search
 from thermotilt.physics import Chamber, Model
 from thermotilt.physics.document import with_values, write_model
+from thermotilt.run.log import read_run_columns
 
 # Every candidate on the channel it is sized on, on staircase_inputs' three
 # positions (X +30, X -30, Y +30 deg), so that each is excited somewhere
@@ -237,6 +238,35 @@ def test_null_runs_name_nothing_and_say_whether_the_declared_noise_explains_them
     assert [fit.channel for fit in outcome.unexplained] == ([] if verdict == "none" else ["Z"])
     if outcome.unexplained:
         assert outcome.unexplained[0].gap > 2.0 * outcome.unexplained[0].allowed
+
+
+@pytest.mark.slow
+@pytest.mark.twin
+def test_a_drift_cubic_in_temperature_is_unexplained_on_the_axes_it_acts_on(inputs: Path, tmp_path: Path) -> None:
+    # As large as the paper's surfaces leave over -10..45 degC; the model
+    # declares that much as its drift-slope spread, once per mounting,
+    # which cannot take a curve shared by every mounting.
+    hide_effect(inputs, tmp_path, "none", seed=5, noise="cubic")
+    outcome = _discover(tmp_path / "run.csv")
+    assert outcome.verdict == "unexplained", [(e.candidate, e.channel) for e in outcome.effects]
+    assert {fit.channel for fit in outcome.unexplained} <= {"X", "Y"}
+
+
+@pytest.mark.slow
+@pytest.mark.twin
+@pytest.mark.parametrize("noise", ["temperature-noise", "temperature-coarse"])
+def test_the_temperature_families_change_the_reading_not_the_drift(inputs: Path, tmp_path: Path, noise: str) -> None:
+    hide_effect(inputs, tmp_path / "model", "none", seed=5)
+    hide_effect(inputs, tmp_path / noise, "none", seed=5, noise=noise)
+    model, changed = (read_run_columns(str(tmp_path / name / "run.csv")).numbers for name in ("model", noise))
+    for column in ("ax_raw", "ay_raw", "az_raw"):
+        assert np.array_equal(model[column], changed[column])
+    difference = np.abs(np.asarray(changed["imu_temp_c"]) - np.asarray(model["imu_temp_c"]))
+    assert difference.max() > 0.0
+    if noise == "temperature-coarse":
+        # Each sample within half a coarse step of the fine one; the firmware's
+        # filter averages samples, and writes 3 decimals.
+        assert difference.max() <= hide.COARSE_TEMPERATURE_STEP_C / 2 + 1e-3
 
 
 @pytest.mark.slow

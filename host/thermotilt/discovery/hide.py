@@ -37,11 +37,12 @@ from scipy.signal import lfilter
 from .. import native
 from ..physics import Model
 from ..physics.document import with_values
-from ..physics.sensor import sensor_series
+from ..physics.sensor import SensorSeries, sensor_series
 from ..run import SETTLE_S
 from ..run import positions as run_positions
 from ..run.folder import RunFolder, RunFolderError
 from ..run.log import RunColumns, RunLogWriter, format_numbers
+from ..surfaces import REFERENCE_C
 from .candidates import BY_NAME, CANDIDATES, Candidate
 from .chamber_readings import ChamberChange, adc_noise_c, frames_measured
 from .channel import gap_rms
@@ -74,6 +75,20 @@ MISSPECIFIED = {
     "white-1.3x": ("noise", "sigma_lsb", 1.3),
     "flicker-3x": ("bias_instability", "allan_floor_lsb", 3.0),
 }
+# "cubic": a drift term in (T - 25 degC)^3 on each axis, T the temperature
+# the surfaces are evaluated at, whose part no quadratic in T fits has, over
+# the paper's -10..45 degC (section 3.2), the RMS the paper's surfaces leave
+# (Tables 2, 3): what the model declares as its drift-slope spread per
+# mounting, sigma_lsb_per_c times the RMS of T - 25 degC over that span.
+CUBIC_SPAN_C = (-10.0, 45.0)
+# "temperature-noise": white noise on the temperature register, this many
+# degC RMS per 100 Hz sample (4 register steps; assumed, the LSM9DS0
+# datasheet gives none). The model declares only the register's rounding.
+TEMPERATURE_NOISE_C = 0.5
+# "temperature-coarse": the temperature register in steps of this many degC
+# (the LSM9DS0's are 1/8 degC), the drift still following the fine one.
+COARSE_TEMPERATURE_STEP_C = 1.0
+REGISTER_FAMILIES = ("cubic", "temperature-noise", "temperature-coarse")
 DEFAULT_SNR_RANGE = (0.5, 8.0)
 # The chamber reports its readings to 0.01 degC (CHS, firmware/thermal_chamber).
 CHS_DECIMALS = 2
@@ -99,9 +114,9 @@ class Truth:
 
 
 def noisy(model: Model, noise: str) -> Model:
-    """The model with the noise terms of this family (the AR(1) wander is
-    added to the registers, _generate)."""
-    if noise == "model":
+    """The model with the noise terms of this family (the AR(1) wander and
+    the register families are added to the registers, _generate)."""
+    if noise == "model" or noise in REGISTER_FAMILIES:
         return model
     if noise == "white" or noise in WANDER_ROW_CORRELATION:
         return model.with_terms({"bias_instability": False, "drift_repeatability": False})
@@ -125,16 +140,44 @@ def _flicker_floors(model: Model) -> dict[str, float]:
 
 def _wander(model: Model, noise: str, count: int, seed: int) -> np.ndarray:
     """The AR(1) bias wander of an "ar1-" family on each axis (LSB, 3 x
-    samples), stationary from the first sample; zeros for the others. Its
-    own generator, so the run with the effect gets the same wander."""
-    if noise not in WANDER_ROW_CORRELATION:
-        return np.zeros((3, count))
+    samples), stationary from the first sample."""
     phi = WANDER_ROW_CORRELATION[noise] ** (1.0 / DECIMATION)
     sd = np.array(list(_flicker_floors(model).values()))[:, None]
     rng = np.random.default_rng([seed, 1])
     shocks = rng.standard_normal((3, count)) * math.sqrt(1.0 - phi**2)
     shocks[:, 0] = rng.standard_normal(3)
     return sd * lfilter([1.0], [1.0, -phi], shocks, axis=-1)
+
+
+def cubic_per_c3(model: Model) -> np.ndarray:
+    """The "cubic" family's coefficient per axis (LSB per degC^3)."""
+    excursion = np.linspace(*CUBIC_SPAN_C, 1101) - REFERENCE_C
+    cubic = excursion**3
+    unfitted = cubic - np.polyval(np.polyfit(excursion, cubic, 2), excursion)
+    sigmas = model.terms["drift_repeatability"]["sigma_lsb_per_c"]
+    left_rms = np.array([float(sigmas[axis]) for axis in "xyz"]) * math.sqrt(float(np.mean(excursion**2)))
+    return left_rms / math.sqrt(float(np.mean(unfitted**2)))
+
+
+def _register_changes(model: Model, noise: str, series: SensorSeries, seed: int) -> np.ndarray:
+    """What the family adds to the registers beyond the model's terms (ax,
+    ay, az and temperature, 4 x samples, LSB): the AR(1) wander, the cubic
+    drift, the temperature reading's noise or coarser steps. Its own
+    generator, so the run with the effect gets the same."""
+    count = len(series.ax)
+    changes = np.zeros((4, count))
+    lsb_per_c = float(model.constants["sensor"]["temperature_lsb_per_c"])
+    if noise in WANDER_ROW_CORRELATION:
+        changes[:3] = _wander(model, noise, count, seed)
+    elif noise == "cubic":
+        changes[:3] = cubic_per_c3(model)[:, None] * (series.drift_temperature_c - REFERENCE_C) ** 3
+    elif noise == "temperature-noise":
+        changes[3] = np.random.default_rng([seed, 2]).standard_normal(count) * TEMPERATURE_NOISE_C * lsb_per_c
+    elif noise == "temperature-coarse":
+        step = COARSE_TEMPERATURE_STEP_C * lsb_per_c
+        raw = series.temperature_raw.astype(float)
+        changes[3] = step * np.round(raw / step) - raw
+    return changes
 
 
 class _Inputs:
@@ -216,8 +259,8 @@ def _generate(measured: Measured, model: Model, seed: int, noise: str = "model")
     count = len(grid.time_s)
     series = sensor_series(model, seed, float(chamber_c[0]), np.full(count, SAMPLE_PERIOD_S), chamber_c, incl_x, incl_y)
     registers = np.stack([series.ax, series.ay, series.az, series.temperature_raw]).astype(np.int16)
-    wander = np.rint(_wander(model, noise, count, seed)).astype(np.int32)
-    registers[:3] = np.clip(registers[:3] + wander, -32768, 32767)
+    changes = np.rint(_register_changes(model, noise, series, seed)).astype(np.int32)
+    registers = np.clip(registers + changes, -32768, 32767).astype(np.int16)
     processed = native.imu_process(
         registers[0], registers[1], registers[2], registers[3], grid.reset, decimation=DECIMATION
     )

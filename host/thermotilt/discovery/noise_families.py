@@ -13,4 +13,7 @@ NOISE_FAMILIES = {
     "white-0.7x": "the model's, its white noise 0.7x what the model declares",
     "white-1.3x": "the model's, its white noise 1.3x what the model declares",
     "flicker-3x": "the model's, its flicker (1/f) floor 3x what the model declares",
+    "cubic": "the model's, plus a drift term cubic in temperature as large as the paper's surfaces leave",
+    "temperature-noise": "the model's, its temperature reading with 0.5 degC RMS of white noise per sample",
+    "temperature-coarse": "the model's, its temperature reading in 1 degC steps, not 1/8",
 }
