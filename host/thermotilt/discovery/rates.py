@@ -53,6 +53,7 @@ MIN_DIAGNOSED = 0.95
 COVERAGE_RANGE = (0.90, 0.98)
 ANOTHER_EFFECT = "another effect"
 ANOTHER_CHANNEL = "the effect on another channel"
+RIGHT_BUT_PARTIAL = "unexplained, the right name partial"
 BEGIN = "<!-- bench-discovery: make bench-discovery writes from here on, from docs/benchmarks/discovery-runs.csv -->"
 END = "<!-- /bench-discovery -->"
 
@@ -105,7 +106,22 @@ def _missed_by(row: Row) -> str:
     """What a run that did not name its hidden effect said instead."""
     if row["verdict"] == FOUND:
         return ANOTHER_EFFECT if row["named"] != row["effect"] else ANOTHER_CHANNEL
+    if _partial(row) and row["named"] == row["effect"]:
+        return RIGHT_BUT_PARTIAL
     return row["verdict"]
+
+
+def _partial(row: Row) -> bool:
+    """Called unexplained after naming an effect: the name explains a part
+    of the gap only."""
+    return row["verdict"] == UNEXPLAINED and bool(row["named"])
+
+
+def _partial_names(rows: list[Row]) -> str:
+    """How many runs named an effect as partial, and which."""
+    partial = [r for r in rows if _partial(r)]
+    names = ", ".join(sorted({r["named"] for r in partial}))
+    return f"{len(partial)} ({names})" if partial else "0"
 
 
 def _met(measured: Rate, ok: bool) -> str:
@@ -142,12 +158,13 @@ def _null_table(null: list[Row]) -> list[str]:
         "**Null runs** (nothing hidden): the share that names an effect, by noise family and base "
         f"(target: 95 % upper bound at most {MAX_FALSE_DISCOVERY:.0%} in every family), and apart from "
         "those the share called `unexplained` (a channel's gap beyond what the model's declared noise "
-        "allows). Gap / allowed: the median run's largest ratio; where it is at least "
+        "allows), of which partial: an effect named that leaves a channel far beyond it (counted apart from "
+        "the names). Gap / allowed: the median run's largest ratio; where it is at least "
         f"{GAP_RATIO:g}, the target is `unexplained` in at least {MIN_UNEXPLAINED:.0%}.",
         "",
         "| noise | runs | named: staircase | named: cycle | named anything | target "
-        "| unexplained: staircase | unexplained: cycle | gap / allowed | target |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "| unexplained: staircase | unexplained: cycle | of which partial | gap / allowed | target |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     families = [(noise, [r for r in null if r["noise"] == noise]) for noise in NOISE_FAMILIES]
     for noise, family in [*families, ("all", null)]:
@@ -164,7 +181,7 @@ def _null_table(null: list[Row]) -> list[str]:
         lines.append(
             f"| {noise} | {len(family)} | {by_base[0][0]} | {by_base[0][1]} | {named} | "
             f"{_met(named, named.interval[1] <= MAX_FALSE_DISCOVERY)} | {by_base[1][0]} | {by_base[1][1]} | "
-            f"{ratio:.2f} | {_met(unexplained, unexplained.share >= MIN_UNEXPLAINED) if asked else '–'} |"
+            f"{_partial_names(family)} | {ratio:.2f} | {_met(unexplained, unexplained.share >= MIN_UNEXPLAINED) if asked else '–'} |"
         )
     return lines
 
@@ -253,7 +270,11 @@ def _missed_table(effect: list[Row]) -> list[str]:
     if not missed_rows:
         return []
     answers = {_missed_by(r) for r in missed_rows}
-    said = [a for a in (NONE, UNEXPLAINED, AMBIGUOUS, NOT_TESTABLE, ANOTHER_EFFECT, ANOTHER_CHANNEL) if a in answers]
+    said = [
+        a
+        for a in (NONE, UNEXPLAINED, RIGHT_BUT_PARTIAL, AMBIGUOUS, NOT_TESTABLE, ANOTHER_EFFECT, ANOTHER_CHANNEL)
+        if a in answers
+    ]
     lines = [
         "",
         "What the runs at SNR ≥ 1 that missed their effect said instead:",
@@ -300,8 +321,8 @@ def _world_table(world: list[Row]) -> list[str]:
         f"run's largest ratio. Target, on the runs whose ratio is at least {GAP_RATIO:g}: `unexplained` in at "
         f"least {MIN_DIAGNOSED:.0%} (no candidate is right), `none` in at most {MAX_FALSE_DISCOVERY:.0%}.",
         "",
-        "| world | runs | gap / allowed | unexplained | named | ambiguous | none |",
-        "|---|---|---|---|---|---|---|",
+        "| world | runs | gap / allowed | unexplained | of which partial | named | ambiguous | none |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for base in sorted(dict.fromkeys(r["base"] for r in world), key=lambda name: chamber_change(index_of(name))):
         mine = [r for r in world if r["base"] == base]
@@ -310,7 +331,7 @@ def _world_table(world: list[Row]) -> list[str]:
         lines.append(
             f"| {section}.{parameter} ×{factor:g} | {len(mine)} | "
             f"{float(np.median([gap_ratio(r) for r in mine])):.2f} | {sum(map(_unexplained, mine))} | "
-            f"{sum(map(_named, mine))}{f' ({names})' if names else ''} | "
+            f"{_partial_names(mine)} | {sum(map(_named, mine))}{f' ({names})' if names else ''} | "
             f"{sum(r['verdict'] == AMBIGUOUS for r in mine)} | {sum(r['verdict'] == NONE for r in mine)} |"
         )
     wide = [r for r in world if gap_ratio(r) >= GAP_RATIO]
