@@ -235,9 +235,10 @@ def test_null_runs_name_nothing_and_say_whether_the_declared_noise_explains_them
     hide_effect(inputs, tmp_path, "none", seed=5, noise=noise)
     outcome = _discover(tmp_path / "run.csv")
     assert outcome.verdict == verdict, [(e.candidate, e.channel, e.adjusted_p) for e in outcome.effects]
-    assert [fit.channel for fit in outcome.unexplained] == ([] if verdict == "none" else ["Z"])
-    if outcome.unexplained:
-        assert outcome.unexplained[0].gap > 2.0 * outcome.unexplained[0].allowed
+    unexplained = [fit for fit in outcome.fit.values() if not fit.explained]
+    assert [fit.channel for fit in unexplained] == ([] if verdict == "none" else ["Z"])
+    if unexplained:
+        assert unexplained[0].gap > 2.0 * unexplained[0].allowed
 
 
 @pytest.mark.slow
@@ -249,7 +250,7 @@ def test_a_drift_cubic_in_temperature_is_unexplained_on_the_axes_it_acts_on(inpu
     hide_effect(inputs, tmp_path, "none", seed=5, noise="cubic")
     outcome = _discover(tmp_path / "run.csv")
     assert outcome.verdict == "unexplained", [(e.candidate, e.channel) for e in outcome.effects]
-    assert {fit.channel for fit in outcome.unexplained} <= {"X", "Y"}
+    assert {fit.channel for fit in outcome.fit.values() if not fit.explained} <= {"X", "Y"}
 
 
 @pytest.mark.slow

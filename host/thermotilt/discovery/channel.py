@@ -244,7 +244,11 @@ class GoodnessOfFit:
 
     @property
     def explained(self) -> bool:
-        return self.p_value >= self.level
+        return self.explained_at(1.0)
+
+    def explained_at(self, share: float) -> bool:
+        """Explained at this share of the level (a stricter test below 1)."""
+        return self.p_value >= self.level * share
 
     @classmethod
     def of(  # noqa: PLR0913 - the blocks, their weights and covariance, the level and the nuisance

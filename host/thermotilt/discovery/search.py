@@ -108,11 +108,6 @@ class Outcome:
     gap: dict[str, dict[str, float]] = field(default_factory=dict)
     fit: dict[str, GoodnessOfFit] = field(default_factory=dict)
 
-    @property
-    def unexplained(self) -> list[GoodnessOfFit]:
-        """The channels whose residual the declared noise does not explain."""
-        return [fit for fit in self.fit.values() if not fit.explained]
-
     def judged(self) -> str:
         """The verdict: `unexplained` while a channel is beyond its declared
         noise; after effects were named, only where the model with them is
@@ -120,10 +115,8 @@ class Outcome:
         gap only. A channel left ambiguous still holds its unresolved effect
         and does not count."""
         ambiguous_channels = {group.channel for group in self.ambiguous}
-        strictness = PARTIAL_ALPHA / ALPHA if self.effects else 1.0
-        if any(
-            fit.channel not in ambiguous_channels and fit.p_value < fit.level * strictness for fit in self.fit.values()
-        ):
+        share = PARTIAL_ALPHA / ALPHA if self.effects else 1.0
+        if any(fit.channel not in ambiguous_channels and not fit.explained_at(share) for fit in self.fit.values()):
             return "unexplained"
         return "found" if self.effects else "ambiguous" if self.ambiguous else "none"
 
@@ -522,7 +515,7 @@ class Search:
     def _add(self, candidate: Candidate, test: Test, model: Model) -> tuple[Effect, Model]:
         """The found value into the model."""
         value = test.value
-        self._progress(f"found {candidate.name} on {test.channel}: {candidate.parameter} = {value:.4g}")
+        self._progress(f"named {candidate.name} on {test.channel}: {candidate.parameter} = {value:.4g}")
         effect = Effect(
             candidate.name,
             test.channel,
