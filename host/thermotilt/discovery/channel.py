@@ -37,6 +37,9 @@ BLOCK_S = 20.0
 # A regressor this well explained by the nuisance columns (the channel's
 # constant offset) cannot be told from them on this run.
 NOT_TESTABLE_R2 = 0.999
+# A 95 % interval's half width in standard errors: every value discovery
+# reports is this many either side.
+HALF_WIDTH_95 = 1.96
 # Two effects this correlated on a run (whitened, beyond the nuisance)
 # cannot be told apart by it, whatever their fits say.
 COLLINEAR = 0.99

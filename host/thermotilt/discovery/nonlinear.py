@@ -2,7 +2,8 @@
 (search.py): an additive parameter (a dead zone) by Gauss-Newton steps from
 the linear fit, a value of its own (a time constant, a conductance) by
 least squares over its log on the effect tabulated and interpolated. Each
-gives the value, its 95 % interval and the effect at that value, replayed."""
+gives the value, its standard error and the effect at that value,
+replayed."""
 
 from __future__ import annotations
 
@@ -34,7 +35,7 @@ GAUSS_NEWTON_TOLERANCE = 0.01
 # bracketed by the fine ones.
 NONLINEAR_GRID_STEP = 1.0
 
-Fitted = tuple[float, tuple[float, float], np.ndarray]
+Fitted = tuple[float, float, np.ndarray]
 
 
 @dataclass
@@ -66,7 +67,7 @@ class NonlinearFits:
         """Least squares of the whitened blocks over an additive parameter
         whose effect is not linear in it (a dead zone), by Gauss-Newton
         steps from the linear fit's value, each slope from replays: the
-        value (within its bounds), its interval from the slope there, and
+        value (within its bounds), its standard error from the slope there, and
         the effect at that value (rows)."""
         low, high = candidate.bounds
         channel_name = channel.name
@@ -87,8 +88,7 @@ class NonlinearFits:
             if abs(change) < GAUSS_NEWTON_TOLERANCE * abs(candidate.probe):
                 break
         value = float(np.clip(value, low, high))
-        half_width = 1.96 * float(result.bse[0])
-        return value, (value - half_width, value + half_width), effect(value)
+        return value, float(result.bse[0]), effect(value)
 
     def fit_tabulated(
         self, candidate: Candidate, channel: Channel, model: Model, base: Mapping[str, np.ndarray]
@@ -97,7 +97,7 @@ class NonlinearFits:
         (log scale, within its bounds): the cost on the tabulated effect,
         interpolated cubically in the log value, from the best grid value
         to the minimum between its neighbours; then the value's effect
-        replayed, and its interval from the interpolant's slope there (the
+        replayed, and its standard error from the interpolant's slope there (the
         linearised GLS)."""
         channel_name = channel.name
 
@@ -125,9 +125,7 @@ class NonlinearFits:
         value = float(np.exp(best.x))
         # d effect / d value, from the interpolant's slope in the log value.
         slope = interpolated(best.x, 1) / value
-        result = channel.fit(slope[:, None])
-        half_width = 1.96 * float(result.bse[0])
-        return value, (value - half_width, value + half_width), effect(value)
+        return value, float(channel.fit(slope[:, None]).bse[0]), effect(value)
 
     def _table(self, candidate: Candidate, model: Model, base: Mapping[str, np.ndarray]) -> Tabulated:
         """The candidate's effect on each of its channels (rows) at

@@ -29,6 +29,7 @@ from .benchmark import (
     named_right,
 )
 from .candidates import CANDIDATES
+from .channel import HALF_WIDTH_95
 from .noise_families import NOISE_FAMILIES
 from .replay import CHAMBER_CHANNELS
 
@@ -80,11 +81,11 @@ def _covered(row: Row) -> bool:
 
 def _error_in_standard_errors(rows: list[Row]) -> str:
     """Mean and spread of (value - truth) / SE over runs named right, the SE
-    read back from the 95 % interval (search.py's are +-1.96 SE): intervals
+    read back from the 95 % interval (HALF_WIDTH_95 either side): intervals
     of the right width give a spread of 1 about a mean of 0."""
     errors = []
     for row in rows:
-        standard_error = (float(row["high"]) - float(row["low"])) / (2.0 * 1.96)
+        standard_error = (float(row["high"]) - float(row["low"])) / (2.0 * HALF_WIDTH_95)
         if standard_error > 0.0:
             errors.append((float(row["value"]) - float(row["truth"])) / standard_error)
     if len(errors) < 2:

@@ -30,7 +30,7 @@ from threadpoolctl import threadpool_limits
 
 from ..physics import Model
 from .candidates import BY_NAME, CANDIDATES, Candidate, experiment
-from .channel import Channel, DeclaredNoise, GoodnessOfFit, gap_rms
+from .channel import HALF_WIDTH_95, Channel, DeclaredNoise, GoodnessOfFit, gap_rms
 from .nonlinear import NonlinearFits
 from .replay import CHAMBER_CHANNELS, Measured, Replay
 
@@ -63,7 +63,7 @@ PARTIAL_ALPHA = 0.001
 class Test:
     """One candidate on one channel in one round. value: the parameter's
     value that explains the residual best (for an additive candidate the
-    model's plus the fitted change), with its 95 % interval; p_value: that
+    model's plus the fitted change), with its standard error; p_value: that
     the effect is zero."""
 
     candidate: str
@@ -71,7 +71,7 @@ class Test:
     testable: bool
     why_not: str = ""  # why it is not testable here
     value: float = float("nan")
-    interval: tuple[float, float] = (float("nan"), float("nan"))
+    standard_error: float = float("nan")
     p_value: float = float("nan")
     adjusted_p: float = float("nan")
     gap_reduction: float = float("nan")
@@ -79,6 +79,12 @@ class Test:
     @property
     def key(self) -> tuple[str, str]:
         return self.candidate, self.channel
+
+    @property
+    def interval(self) -> tuple[float, float]:
+        """The value's 95 % interval."""
+        half_width = HALF_WIDTH_95 * self.standard_error
+        return self.value - half_width, self.value + half_width
 
 
 @dataclass(frozen=True)
@@ -205,7 +211,7 @@ class Search:
                 # chamber's replay error dominates the inner face.
                 best = min(
                     (t for t in accepted if t.candidate == best.candidate),
-                    key=lambda test: test.interval[1] - test.interval[0],
+                    key=lambda test: test.standard_error,
                 )
             effect, model = self._add(candidate, best, model)
             outcome.effects.append(effect)
@@ -345,17 +351,18 @@ class Search:
             return Test(candidate.name, channel_name, testable=False, why_not=why_not), None
         if candidate.additive and candidate.linear:
             result = channel.fit(g[:, None])
-            change, half_width = float(result.params[0]), 1.96 * float(result.bse[0])
+            change, standard_error = float(result.params[0]), float(result.bse[0])
             value = candidate.value(model, channel_name) + change
-            interval = (value - half_width, value + half_width)
             p_value, effect_rows = float(result.pvalues[0]), change * regressor_rows
         else:
             if candidate.additive:
                 if start is None:
                     start = candidate.value(model, channel_name) + float(channel.fit(g[:, None]).params[0])
-                value, interval, effect_rows = self._nonlinear.fit_gauss_newton(candidate, channel, model, base, start)
+                value, standard_error, effect_rows = self._nonlinear.fit_gauss_newton(
+                    candidate, channel, model, base, start
+                )
             else:
-                value, interval, effect_rows = self._nonlinear.fit_tabulated(candidate, channel, model, base)
+                value, standard_error, effect_rows = self._nonlinear.fit_tabulated(candidate, channel, model, base)
             effect_blocks = channel.blocks(effect_rows[channel.rows])
             p_value = float(channel.fit(effect_blocks[:, None]).pvalues[0]) if np.any(effect_blocks) else 1.0
         test = Test(
@@ -363,7 +370,7 @@ class Search:
             channel_name,
             testable=True,
             value=value,
-            interval=interval,
+            standard_error=standard_error,
             p_value=p_value,
             gap_reduction=channel.reduction(effect_rows[channel.rows]),
         )
@@ -397,8 +404,7 @@ class Search:
             )
             if refined_rows is None or not self._within_bounds(refined):
                 break
-            standard_error = (refined.interval[1] - refined.interval[0]) / (2 * 1.96)
-            settled = abs(refined.value - best.value) <= REFINEMENT_TOLERANCE * standard_error
+            settled = abs(refined.value - best.value) <= REFINEMENT_TOLERANCE * refined.standard_error
             best, effect_rows = replace(refined, adjusted_p=best.adjusted_p), refined_rows
             if settled:
                 break
