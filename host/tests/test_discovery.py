@@ -29,8 +29,8 @@ from thermotilt.run.log import read_run_columns
 
 # Every candidate on the channel it is sized on, on staircase_inputs' three
 # positions (X +30, X -30, Y +30 deg), so that each is excited somewhere
-# (sensitivity_loss needs two inclinations on its axis, cross_axis the other
-# axis tilted). make test keeps the cheapest; the others are `long`.
+# (sensitivity_loss and scale_tempco need two inclinations on their axis,
+# cross_axis the other axis tilted). make test keeps the cheapest; the others are `long`.
 CASES = (
     ("sensor_lag", "X"),
     *(
@@ -39,7 +39,7 @@ CASES = (
             ("rate_sensitivity", "Y"),
             ("hysteresis", "X"),
             ("sensitivity_loss", "X"),
-            ("scale_tempco", "Y"),
+            ("scale_tempco", "X"),
             ("cross_axis", "Y"),
             ("temperature_offset", "temperature"),
         )
@@ -308,6 +308,22 @@ def test_sensitivity_loss_at_one_inclination_is_not_testable(tmp_path: Path) -> 
         "X, Z: a constant offset on this run, which the sensor's measuring offset takes; "
         "Y: nothing in this run moves it"
     )
+
+
+@pytest.mark.slow
+@pytest.mark.twin
+def test_a_scale_tempco_on_one_mounting_is_not_testable_there(inputs: Path, tmp_path: Path) -> None:
+    hide_effect(inputs, tmp_path, "none", seed=2)
+    outcome = _discover(tmp_path / "run.csv")
+    tests = {test.channel: test for test in outcome.rounds[0] if test.candidate == "scale_tempco"}
+    # Y is tilted on one of the three positions: there a scale tempco is a
+    # drift slope of that mounting, one draw of the model's random slope.
+    # X is tilted both ways, so its slopes must be opposite; Z declares no
+    # random slope.
+    assert tests["Y"].why_not == (
+        "a drift slope of one mounting, which the model's random slope per mounting makes as well"
+    )
+    assert tests["X"].testable and tests["Z"].testable
 
 
 @pytest.mark.slow

@@ -37,6 +37,9 @@ BLOCK_S = 20.0
 # A regressor this well explained by the nuisance columns (the channel's
 # constant offset) cannot be told from them on this run.
 NOT_TESTABLE_R2 = 0.999
+# A regressor this well explained by one mounting's drift slope: what the
+# slope leaves is a tenth of the effect or less (in standard errors).
+ONE_SLOPE_R2 = 0.99
 # A 95 % interval's half width in standard errors: every value discovery
 # reports is this many either side.
 HALF_WIDTH_95 = 1.96
@@ -400,7 +403,7 @@ class Channel:
         self._counts = counts
         self._mounting = np.rint(self.blocks(mounting.astype(float))).astype(np.int64)
         self.times = times = BlockTimes(time_s, self._block, counts)
-        excursion = self.blocks(temperature_c[used]) - REFERENCE_C
+        self._excursion = excursion = self.blocks(temperature_c[used]) - REFERENCE_C
         self.y = self.blocks(self.residual_rows)
         if _nuisance(channel):
             self.nuisance = np.ones((len(self.y), 1))
@@ -503,6 +506,23 @@ class Channel:
         if self.name in ACCELERATION_CHANNELS:
             return "a constant offset on this run, which the sensor's measuring offset takes"
         return "what the chamber's unknown start already fits"
+
+    def one_mounting_slope(self, regressor: np.ndarray) -> str:
+        """Why an effect of these block means cannot be told from the
+        random drift slope the model declares per mounting, "" where it
+        can: one that moves a single mounting, and there as a slope in
+        temperature, is one draw of that mounting's slope, which no run
+        can tell from a spread of slopes wider than the model declares."""
+        if self._noise.slope_sigma == 0.0:
+            return ""
+        g = self.whiten(regressor)
+        total = float(g @ g)
+        for mounting in np.unique(self._mounting):
+            slope = self.whiten(((self._mounting == mounting) * self._excursion)[:, None])
+            left = _left_by(np.hstack([self.nuisance_w, slope]), g)
+            if 1.0 - float(left @ left) / total >= ONE_SLOPE_R2:
+                return "a drift slope of one mounting, which the model's random slope per mounting makes as well"
+        return ""
 
     def reduction(self, explained_rows: np.ndarray) -> float:
         """The share of the RMS residual an effect takes off."""
