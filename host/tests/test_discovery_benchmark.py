@@ -252,3 +252,21 @@ def test_the_whole_designs_cost_comes_from_the_mean_run_of_each_kind_and_base(mo
     text = rates.report(rows)
     assert f"The whole design, {runs} runs, takes {cpu_s / 3600:.1f} CPU hours" in text
     assert f"{cpu_s / 120:.0f} min on the 2 cores" in text
+
+
+def test_a_collinear_cell_counts_the_hidden_one_named_alone_and_whether_its_value_covers_the_truth():
+    pair = {"kind": "collinear", "effect": "sensor_lag", "expected_pair": "rate_sensitivity+sensor_lag"}
+    lag = {"verdict": "found", "named": "sensor_lag", "named_channel": "X", "low": "9", "high": "11"}
+    rows = [
+        _row(**pair, base="wave-00", key="w0", verdict="ambiguous", ambiguous="rate_sensitivity+sensor_lag"),
+        _row(**pair, base="wave-01", key="w1", **lag, value="10", truth="10.5"),
+        _row(**pair, base="wave-02", key="w2", **lag, value="10", truth="12"),
+        _row(**pair, base="wave-03", key="w3", verdict="found", named="rate_sensitivity", named_channel="X"),
+        _row(**pair, base="wave-04", key="w4"),
+    ]
+    text = rates.report(rows)
+    # Two of the lags named alone, one of them with the truth inside its interval.
+    assert (
+        "| `sensor_lag` | rate_sensitivity, sensor_lag | wave | 1/5 = 20% (3.6%–62%) | 2 (1) | 1 | 1 | **missed** |"
+        in text
+    )

@@ -296,18 +296,22 @@ def _collinear_table(collinear: list[Row]) -> list[str]:
         "",
         f"**Collinear pairs** (target: ambiguous, naming both, on at least {MIN_AMBIGUOUS:.0%}):",
         "",
-        "| hidden | pair | base | ambiguous | found one | none | target | in the design since |",
-        "|---|---|---|---|---|---|---|---|",
+        "| hidden | pair | base | ambiguous | found the hidden one (covered) | found the other | none | target "
+        "| in the design since |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     design = {(c.effect, "+".join(c.pair), c.base): c for c in default_cells() if c.kind == COLLINEAR}
     for key in dict.fromkeys((r["effect"], r["expected_pair"], kind_of(r["base"])) for r in collinear):
         mine = [r for r in collinear if (r["effect"], r["expected_pair"], kind_of(r["base"])) == key]
         ambiguous = rate(mine, _pair_ambiguous)
-        found = sum(r["verdict"] == FOUND for r in mine)
+        hidden = [r for r in mine if named_right(r)]
+        other = sum(r["verdict"] == FOUND for r in mine) - len(hidden)
+        covered = sum(_covered(r) for r in hidden)
         none = sum(r["verdict"] == NONE for r in mine)
         cell = design.get(key)
         lines.append(
-            f"| `{key[0]}` | {key[1].replace('+', ', ')} | {key[2]} | {ambiguous} | {found} | {none} | "
+            f"| `{key[0]}` | {key[1].replace('+', ', ')} | {key[2]} | {ambiguous} | {len(hidden)} ({covered}) | "
+            f"{other} | {none} | "
             f"{_met(ambiguous, ambiguous.share >= MIN_AMBIGUOUS)} | "
             f"{f'{cell.since}: {cell.note}' if cell else 'not in the design'} |"
         )
