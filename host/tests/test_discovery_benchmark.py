@@ -270,3 +270,14 @@ def test_a_collinear_cell_counts_the_hidden_one_named_alone_and_whether_its_valu
         "| `sensor_lag` | rate_sensitivity, sensor_lag | wave | 1/5 = 20% (3.6%–62%) | 2 (1) | 1 | 1 | **missed** |"
         in text
     )
+
+
+def test_runs_the_design_cannot_test_count_against_the_targets_and_are_shown_apart():
+    effect = {"kind": "effect", "effect": "scale_tempco", "snr": "4.0", "named": "scale_tempco"}
+    found = {"verdict": "found", "named_channel": "X", "value": "1", "low": "0", "high": "2", "truth": "1"}
+    rows = [_row(**effect, **found, channel="X", key=f"x{i}") for i in range(3)]
+    rows += [_row(**effect, channel="Y", key=f"y{i}", verdict="not_testable") for i in range(2)]
+    text = rates.report(rows)
+    assert "| all | at SNR ≥ 2: 3/5 = 60% (23%–88%) | target ≥ 95%: **missed** |" in text
+    assert "Of the runs the design lets the search test (the targets count all): at SNR ≥ 2 3/3 = 100%" in text
+    assert "| candidate | not testable |" in text
