@@ -21,7 +21,7 @@ from thermotilt.discovery.chamber_readings import ADC_CONVERSIONS_PER_READING, A
 from thermotilt.discovery.channel import GoodnessOfFit, gap_rms
 from thermotilt.discovery.hide import hide_effect, staircase_inputs, wave_inputs
 from thermotilt.discovery.replay import Replay, load_measured
-from thermotilt.discovery.report import PARTIAL, summary_lines
+from thermotilt.discovery.report import NOTHING_MOVES_IT, PARTIAL, summary_lines
 from thermotilt.discovery.search import Ambiguity, Effect, Outcome, Search
 from thermotilt.physics import Chamber, Model
 from thermotilt.physics.document import with_values, write_model
@@ -203,10 +203,34 @@ def test_the_summary_calls_names_that_leave_a_channel_unexplained_partial() -> N
         "not_testable": {},
         "fit": {"inner": {"unit": "degC", "gap": 3.9, "allowed": 0.12, "p_value": 1e-9, "explained": False}},
         "gap": {},
+        "tests": [[{"name": "thermistor_offset", "channel": "inner", "testable": True, "why_not": ""}]],
     }
     lines = summary_lines(result)
     assert lines[1].strip() == PARTIAL + ":"
     assert lines[-1] == "  unexplained: inner: 3.9 degC RMS where the model allows 0.12 (p 1e-09)"
+
+
+def test_an_unexplained_channel_names_what_the_run_could_not_test_there() -> None:
+    slope = "a drift slope of one mounting, which the model's random slope per mounting makes as well"
+    result = {
+        "verdict": "unexplained",
+        "effects": [],
+        "ambiguous": [],
+        "not_testable": {},
+        "fit": {"Y": {"unit": "LSB", "gap": 40.1, "allowed": 18.6, "p_value": 3.4e-10, "explained": False}},
+        "gap": {},
+        "tests": [
+            [
+                {"name": "scale_tempco", "channel": "Y", "testable": False, "why_not": slope},
+                {"name": "scale_tempco", "channel": "X", "testable": True, "why_not": ""},
+                {"name": "cross_axis", "channel": "Y", "testable": False, "why_not": NOTHING_MOVES_IT},
+            ]
+        ],
+    }
+    assert summary_lines(result)[-1] == (
+        f"  unexplained: Y: 40.1 LSB RMS where the model allows 18.6 (p 3.4e-10); not testable there: "
+        f"scale_tempco ({slope})"
+    )
 
 
 def test_a_log_without_the_drive_skips_the_chamber_channels_and_says_why(inputs: Path) -> None:
@@ -305,8 +329,7 @@ def test_sensitivity_loss_at_one_inclination_is_not_testable(tmp_path: Path) -> 
     # At one inclination a loss of sensitivity is a constant, which the
     # measuring offset takes; the untilted Y axis does not see it at all.
     assert outcome.not_testable["sensitivity_loss"] == (
-        "X, Z: a constant offset on this run, which the sensor's measuring offset takes; "
-        "Y: nothing in this run moves it"
+        f"X, Z: a constant offset on this run, which the sensor's measuring offset takes; Y: {NOTHING_MOVES_IT}"
     )
 
 

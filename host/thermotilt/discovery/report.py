@@ -14,6 +14,10 @@ from ..physics.document import write_model
 from .replay import ACCELERATION_CHANNELS, CHAMBER_CHANNEL_COLUMNS, CHANNEL_COLUMNS, Measured
 from .search import ALPHA, MIN_GAP_REDUCTION, Outcome
 
+# Channel.untestable's reason where a candidate does not act on a channel
+# in the run, which then cannot hold any of its gap.
+NOTHING_MOVES_IT = "nothing in this run moves it"
+
 UNITS = {"temperature": "degC", "X": "LSB", "Y": "LSB", "Z": "LSB", "inner": "degC", "outer": "degC"}
 COLUMNS = {**CHANNEL_COLUMNS, **CHAMBER_CHANNEL_COLUMNS}
 
@@ -81,6 +85,7 @@ def document(
                     "name": test.candidate,
                     "channel": test.channel,
                     "testable": test.testable,
+                    "why_not": test.why_not,
                     "value": _number(test.value),
                     "interval_95": [_number(test.interval[0]), _number(test.interval[1])],
                     "p_value": _number(test.p_value),
@@ -262,10 +267,21 @@ def _findings(result: dict[str, Any]) -> list[str]:
     return lines
 
 
-def unexplained_line(channel: str, fit: dict[str, Any]) -> str:
+def untested_on(channel: str, result: dict[str, Any]) -> str:
+    """The candidates acting on the channel that the run could not test
+    there, each with why: what a gap left there may hold."""
+    return "; ".join(
+        f"{test['name']} ({test['why_not']})"
+        for test in (result["tests"][0] if result["tests"] else [])
+        if test["channel"] == channel and not test["testable"] and test["why_not"] != NOTHING_MOVES_IT
+    )
+
+
+def unexplained_line(channel: str, fit: dict[str, Any], result: dict[str, Any]) -> str:
+    untested = untested_on(channel, result)
     return (
         f"{channel}: {fit['gap']:.3g} {fit['unit']} RMS where the model allows {fit['allowed']:.3g} "
-        f"(p {fit['p_value']:.2g})"
+        f"(p {fit['p_value']:.2g})" + (f"; not testable there: {untested}" if untested else "")
     )
 
 
@@ -285,7 +301,12 @@ def _fit_table(result: dict[str, Any]) -> list[str]:
             f"| {channel} | {fit['gap']:.3g} {fit['unit']} | {fit['allowed']:.3g} {fit['unit']} | "
             f"{fit['p_value']:.2g} | {'yes' if fit['explained'] else '**no**'} |"
         )
-    return [*lines, ""]
+    lines.append("")
+    for channel, fit in result["fit"].items():
+        untested = untested_on(channel, result)
+        if not fit["explained"] and untested:
+            lines += [f"Not testable on {channel}, which the declared noise does not explain: {untested}.", ""]
+    return lines
 
 
 def _gap_table(result: dict[str, Any]) -> list[str]:
@@ -363,7 +384,7 @@ def summary_lines(result: dict) -> list[str]:
         lines.append(f"  not testable here: {name} ({why})")
     for channel, fit in result["fit"].items():
         if not fit["explained"]:
-            lines.append(f"  unexplained: {unexplained_line(channel, fit)}")
+            lines.append(f"  unexplained: {unexplained_line(channel, fit, result)}")
     for channel, gap in result["gap"].items():
         twin_text = f"; twin {gap['twin']['before']:.3f} -> {gap['twin']['after']:.3f}" if "twin" in gap else ""
         lines.append(
