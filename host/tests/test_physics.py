@@ -382,12 +382,55 @@ def test_divider_millivolts():
     assert outer_mv == pytest.approx(1515.23, abs=0.05)
 
 
+@pytest.mark.parametrize(
+    "terms, faults",
+    [
+        ({}, ()),
+        ({"drive_dead_zone": True}, ()),
+        ({"heatsink": False}, ()),
+        ({"thermistor_lag": False, "thermistor_offset": True}, ()),
+        ({}, ("inner_thermistor_detached", "heatsink_failed")),
+    ],
+)
+def test_held_series_is_step_after_step(model, terms, faults):
+    rng = np.random.default_rng(8)
+    count = 600
+    # Status frames about a second apart, some gaps long enough for step()
+    # to split them into substeps; duties on a grid, so pairs repeat.
+    dt_s = np.where(rng.random(count) < 0.05, rng.uniform(2.0, 100.0, count), rng.uniform(0.9, 1.1, count))
+    duty = np.round(rng.random(count), 2)
+    direction = rng.integers(-1, 2, count)
+    ambient_c = 20.0 + np.cumsum(rng.normal(0.0, 0.01, count))
+    changed = model.with_terms(terms)
+    stepped, held = Chamber(changed, 20.0), Chamber(changed, 20.0)
+    for chamber in (stepped, held):
+        chamber.start_at_readings(31.0, 24.0)
+        for fault in faults:
+            setattr(chamber, fault, True)
+    assert max(stepped.substeps(dt) for dt in dt_s.tolist()) > 1
+    expected = []
+    for dt, d, s, a in zip(dt_s.tolist(), duty.tolist(), direction.tolist(), ambient_c.tolist()):
+        stepped.step(dt, d, s, a)
+        expected.append((*stepped.readings_c(), stepped.inner_c))
+    # A prefix scan sums in another order: the same values to rounding,
+    # far below the 0.1 degC a reading is written to.
+    np.testing.assert_allclose(np.array(held.held(dt_s, duty, direction, ambient_c)).T, expected, rtol=0, atol=1e-9)
+    assert (held.inner_c, held.outer_c) == pytest.approx((stepped.inner_c, stepped.outer_c), abs=1e-9)
+    assert held.readings_c() == pytest.approx(stepped.readings_c(), abs=1e-9)
+
+
 def test_chamber_rejects_impossible_drive(model):
     chamber = Chamber(model, 20.0)
     with pytest.raises(ValueError, match="duty"):
         chamber.step(0.01, 1.5, 1, 20.0)
     with pytest.raises(ValueError, match="direction"):
         chamber.step(0.01, 0.5, 2, 20.0)
+    with pytest.raises(ValueError, match="duty"):
+        chamber.held(np.array([1.0]), np.array([1.5]), np.array([1]), np.array([20.0]))
+    with pytest.raises(ValueError, match="direction"):
+        chamber.held(np.array([1.0]), np.array([0.5]), np.array([2]), np.array([20.0]))
+    with pytest.raises(ValueError, match="dt_s"):
+        chamber.held(np.array([0.0]), np.array([0.5]), np.array([1]), np.array([20.0]))
 
 
 # --- Figure 8 and the campaign range ----------------------------------------

@@ -339,14 +339,13 @@ def chamber_replay(
     )
     values = np.empty((3, len(status)))
     values[:, 0] = (*chamber.readings_c(), chamber.inner_c)
-    time_s = measured.time_s[status].tolist()
-    duty = measured.duty[status].tolist()
-    direction = measured.direction[status].astype(int).tolist()
-    ambient_c = measured.ambient_c[status].tolist()
-    for index in range(1, len(status)):
-        before = index - 1
-        chamber.step(time_s[index] - time_s[before], duty[before], direction[before], ambient_c[before])
-        values[:, index] = (*chamber.readings_c(), chamber.inner_c)
+    held = status[:-1]
+    values[:, 1:] = chamber.held(
+        np.diff(measured.time_s[status]),
+        measured.duty[held],
+        measured.direction[held],
+        measured.ambient_c[held],
+    )
     latest = np.cumsum(measured.status) - 1
     inner, outer, face = values[:, latest]
     return {"inner": inner, "outer": outer, "face": face}

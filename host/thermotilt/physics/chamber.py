@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from .faults import FAILED_HEATSINK_FRACTION
 from .model import Model
 from .terms import ChamberTerm, HeatFlows
@@ -125,15 +127,7 @@ class Chamber:
             raise ValueError(f"duty must be within 0..1, got {duty}")
         if direction not in (-1, 0, 1):
             raise ValueError(f"direction must be -1, 0 or +1, got {direction}")
-        if direction == 0:
-            duty = 0.0
-        for seen in self._seen_duties:
-            duty = seen(duty)
-        inner_drive_w = outer_drive_w = 0.0
-        for drive in self._drives:
-            inner_w, outer_w = drive(duty, direction)
-            inner_drive_w += inner_w
-            outer_drive_w += outer_w
+        inner_drive_w, outer_drive_w = self._drive_w(0.0 if direction == 0 else duty, direction)
 
         substeps = self.substeps(dt_s)
         h = dt_s / substeps
@@ -166,6 +160,86 @@ class Chamber:
             self.inner_thermistor_c = inner_sensed
             self.outer_thermistor_c = outer
 
+    def held(
+        self, dt_s: np.ndarray, duty: np.ndarray, direction: np.ndarray, ambient_c: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """step() through a series of intervals, each with its own drive and
+        ambient: the inner and outer readings (readings_c) and the inner face
+        after each. The same Euler substeps as step() takes, composed as
+        affine maps by a prefix scan instead of one Python call per
+        interval, so the same values to rounding (test_physics)."""
+        dt_s, duty, ambient_c = (np.asarray(values, dtype=float) for values in (dt_s, duty, ambient_c))
+        direction = np.asarray(direction, dtype=int)
+        if not np.all(dt_s > 0.0):
+            raise ValueError(f"dt_s must be > 0, got {dt_s.min()}")
+        if not np.all((duty >= 0.0) & (duty <= 1.0)):
+            raise ValueError("duty must be within 0..1")
+        if not np.all(np.isin(direction, (-1, 0, 1))):
+            raise ValueError("direction must be -1, 0 or +1")
+        duty = np.where(direction == 0, 0.0, duty)
+        # The terms' drives are functions of one duty and direction: asked
+        # once per pair (direction * 2 + duty tells the pairs apart).
+        _, first, which = np.unique(direction * 2.0 + duty, return_index=True, return_inverse=True)
+        drives = np.array([self._drive_w(float(duty[k]), int(direction[k])) for k in first.tolist()]).reshape(-1, 2)[
+            which
+        ]
+
+        substeps = np.where(dt_s <= self._max_substep, 1, np.ceil(dt_s / self._max_substep)).astype(int)
+        h = np.repeat(dt_s / substeps, substeps)
+        ambient = np.repeat(ambient_c, substeps)
+        inner_drive_w, outer_drive_w = np.repeat(drives, substeps, axis=0).T
+        inner_capacity = self._inner_capacity
+        cell = self._cell_conductance
+        leak = self._leak
+        sink = self._heatsink_conductance * (FAILED_HEATSINK_FRACTION if self.heatsink_failed else 1.0)
+        if self._outer_node:
+            outer_capacity = self._outer_capacity
+            maps = np.empty((len(h), 2, 2))
+            maps[:, 0, 0] = 1.0 - h * (cell + leak) / inner_capacity
+            maps[:, 0, 1] = h * cell / inner_capacity
+            maps[:, 1, 0] = h * cell / outer_capacity
+            maps[:, 1, 1] = 1.0 - h * (cell + sink) / outer_capacity
+            shifts = np.stack(
+                [
+                    h * (inner_drive_w + leak * ambient) / inner_capacity,
+                    h * (outer_drive_w + sink * ambient) / outer_capacity,
+                ],
+                axis=1,
+            )
+            faces = _affine_scan(maps, shifts, np.array([self.inner_c, self.outer_c]))
+        else:
+            maps = (1.0 - h * (cell + leak) / inner_capacity)[:, None]
+            shifts = (h * (inner_drive_w + (cell + leak) * ambient) / inner_capacity)[:, None]
+            inner = _affine_scan(maps, shifts, np.array([self.inner_c]))
+            faces = np.concatenate([inner, ambient[:, None]], axis=1)
+        inner, outer = faces[np.cumsum(substeps) - 1].T
+
+        inner_sensed = np.broadcast_to(ambient_c, inner.shape) if self.inner_thermistor_detached else inner
+        if self._thermistor_lag is not None:
+            fraction = -np.expm1(-dt_s / self._thermistor_lag.tau_s)[:, None]
+            sensed = _affine_scan(
+                np.repeat(1.0 - fraction, 2, axis=1),
+                fraction * np.stack([inner_sensed, outer], axis=1),
+                np.array([self.inner_thermistor_c, self.outer_thermistor_c]),
+            )
+        else:
+            sensed = np.stack([inner_sensed, outer], axis=1)
+        self.inner_c, self.outer_c = float(inner[-1]), float(outer[-1])
+        self.inner_thermistor_c, self.outer_thermistor_c = (float(value) for value in sensed[-1])
+        offsets = np.array(self._reading_offsets or (0.0, 0.0))
+        readings = sensed + offsets
+        return readings[:, 0], readings[:, 1], inner
+
+    def _drive_w(self, duty: float, direction: int) -> tuple[float, float]:
+        for seen in self._seen_duties:
+            duty = seen(duty)
+        inner_drive_w = outer_drive_w = 0.0
+        for drive in self._drives:
+            inner_w, outer_w = drive(duty, direction)
+            inner_drive_w += inner_w
+            outer_drive_w += outer_w
+        return inner_drive_w, outer_drive_w
+
     def substeps(self, dt_s: float) -> int:
         """How many Euler steps step() splits dt_s into."""
         return 1 if dt_s <= self._max_substep else math.ceil(dt_s / self._max_substep)
@@ -197,3 +271,23 @@ class Chamber:
         inverse_kelvin_from_25 = 1.0 / kelvin - 1.0 / (25.0 + _ZERO_CELSIUS_K)
         ohms = self._r25_ohm * math.exp(self._beta_k * inverse_kelvin_from_25)
         return self._supply_mv * ohms / (ohms + self._reference_ohm)
+
+
+def _affine_scan(maps: np.ndarray, shifts: np.ndarray, start: np.ndarray) -> np.ndarray:
+    """x_k = maps[k] x_(k-1) + shifts[k] from x_0 = start, for every k; maps
+    (n, m, m) matrices, or (n, m) the diagonals of diagonal ones. The maps
+    are composed in log2(n) passes (Hillis and Steele's prefix scan), each a
+    few array operations however long the series."""
+    diagonal = maps.ndim == 2
+    maps, shifts = maps.copy(), shifts.copy()
+    span = 1
+    while span < len(maps):
+        later = maps[span:]
+        if diagonal:
+            shifts[span:] += later * shifts[:-span]
+            maps[span:] = later * maps[:-span]
+        else:
+            shifts[span:] += np.einsum("kij,kj->ki", later, shifts[:-span])
+            maps[span:] = later @ maps[:-span]
+        span *= 2
+    return (maps * start if diagonal else maps @ start) + shifts

@@ -24,6 +24,10 @@ class LagFraction:
         self._dt_s = -1.0
         self._fraction = 1.0
 
+    @property
+    def tau_s(self) -> float:
+        return self._tau_s
+
     def of_step(self, dt_s: float) -> float:
         if dt_s != self._dt_s:
             self._dt_s = dt_s
