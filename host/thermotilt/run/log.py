@@ -17,6 +17,8 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import IO, Any
 
+import numpy as np
+
 COLUMNS: tuple[str, ...] = (
     "time_s",
     "ambient_c",
@@ -85,7 +87,82 @@ HEADERS: tuple[tuple[str, ...], ...] = (
 
 def format_numbers(values: Iterable[float | None], decimals: int) -> list[str]:
     """Fixed decimals, so the same run always writes the same bytes; NaN and
-    None (unknown) are empty cells."""
+    None (unknown) are empty cells.
+
+    A log's column is long, so its texts are built in numpy, from each number
+    times 10**decimals rounded as Python's format rounds (_scaled_and_rounded).
+    Values numpy does not read as plain numbers, and numbers it cannot round
+    that way in float64 (infinite, or 2**50 and more once scaled), go through
+    _format_each, one at a time, byte for byte as before."""
+    values = values if isinstance(values, list | tuple | np.ndarray) else list(values)
+    numbers = _as_floats(values) if len(values) >= 256 else None  # fewer are quicker one by one
+    if numbers is None or type(decimals) is not int or not 0 <= decimals <= 10:
+        return _format_each(values, decimals)
+    unknown = np.isnan(numbers)
+    if unknown.all():  # a column of unknowns
+        return [""] * len(numbers)
+    with np.errstate(invalid="ignore", over="ignore"):  # NaN (signalling too) and inf are _format_each's
+        rest, fast = _scaled_and_rounded(abs(numbers), decimals)
+        sign_due = (numbers < 0) & (rest > 0)  # no sign on a number rounded to zero
+    whole_digits = len(str(int(rest.max()) // 10**decimals))
+    # A line of characters a number, right-aligned: spaces, a sign slot, the
+    # integer digits, the point and the fraction. A number left out of the
+    # fast path (NaN, inf, too large) reads 0 here and is replaced below.
+    width = 1 + whole_digits + (decimals + 1 if decimals else 0)
+    chars = np.full((len(rest), width + 1), ord("."), np.uint8)
+    chars[:, width] = ord("\n")
+    for column in (column for column in range(width - 1, -1, -1) if column != whole_digits + 1):
+        higher = rest // 10
+        digit = rest - 10 * higher + ord("0")
+        if column < whole_digits:  # left of the units digit
+            blank = rest == 0
+            digit = np.where(blank, np.where(sign_due, ord("-"), ord(" ")), digit)
+            sign_due &= ~blank
+        chars[:, column] = digit
+        rest = higher
+    texts = chars.tobytes().decode("ascii").split()
+    for at in np.flatnonzero(unknown).tolist():
+        texts[at] = ""
+    slow = np.flatnonzero(~fast & ~unknown).tolist()
+    for at, text in zip(slow, _format_each([values[at] for at in slow], decimals)):
+        texts[at] = text
+    return texts
+
+
+def _scaled_and_rounded(magnitudes: Any, decimals: int) -> tuple[Any, Any]:
+    """magnitudes (>= 0) times 10**decimals rounded to int64 as Python's
+    format rounds: the exact product to nearest, half to even; and where that
+    was done (finite, under 2**50 scaled). Rounding to float64 is monotone and
+    a half-integer under 2**50 is a float64, so the float64 product is on the
+    exact one's side of every .5 boundary, or on one; only there can np.rint
+    round otherwise, and the product's rounding error, found exactly (Dekker's
+    two-product: 10**decimals has at most 26 significant bits), decides."""
+    scale = 10.0**decimals
+    product = magnitudes * scale
+    fast = product < 2.0**50
+    product = np.where(fast, product, 0.0)
+    rounded = np.rint(product)
+    on_half = np.flatnonzero(abs(product - rounded) == 0.5)
+    x, product = magnitudes[on_half], product[on_half]
+    x_high = x * 134217729.0 - (x * 134217729.0 - x)
+    error = (x - x_high) * scale - (product - x_high * scale)  # the exact product - product
+    rounded[on_half] = np.rint(product + 0.5 * np.sign(error))
+    return rounded.astype(np.int64), fast
+
+
+def _as_floats(values: Sequence[Any]) -> Any:
+    """values as a float64 array, None unknown (NaN); None when numpy does
+    not read them as a list of plain numbers."""
+    try:
+        numbers = np.array(values)
+        if numbers.dtype == object:
+            numbers = np.array([math.nan if value is None else value for value in values])
+    except (TypeError, ValueError, OverflowError):
+        return None
+    return numbers.astype(np.float64, copy=False) if numbers.ndim == 1 and numbers.dtype.kind in "biuf" else None
+
+
+def _format_each(values: Iterable[Any], decimals: int) -> list[str]:
     pattern = f"{{:.{decimals}f}}".format
     texts = []
     for value in values:
@@ -99,7 +176,7 @@ def format_numbers(values: Iterable[float | None], decimals: int) -> list[str]:
 
 
 def format_number(value: float | None, decimals: int) -> str:
-    return format_numbers((value,), decimals)[0]
+    return _format_each((value,), decimals)[0]
 
 
 class RunLogWriter:
@@ -252,8 +329,6 @@ def _header(path: str) -> tuple[str, ...]:
 
 def _columns_of_rows(path: str, rows: list[dict[str, str]]) -> RunColumns:
     """RunColumns of rows read_run_log checked; unreadable cells counted."""
-    import numpy as np
-
     header = tuple(rows[0]) if rows else COLUMNS
     numbers: dict[str, Any] = {}
     texts: dict[str, Any] = {}
