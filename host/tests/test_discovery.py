@@ -18,10 +18,10 @@ from scipy import stats
 from thermotilt.discovery import hide
 from thermotilt.discovery.candidates import BY_NAME
 from thermotilt.discovery.chamber_readings import ADC_CONVERSIONS_PER_READING, ADC_NOISE_CODES
-from thermotilt.discovery.channel import GoodnessOfFit, gap_rms
+from thermotilt.discovery.channel import NOTHING_MOVES_IT, GoodnessOfFit, gap_rms
 from thermotilt.discovery.hide import hide_effect, staircase_inputs, wave_inputs
 from thermotilt.discovery.replay import Replay, load_measured
-from thermotilt.discovery.report import NOTHING_MOVES_IT, PARTIAL, summary_lines
+from thermotilt.discovery.report import PARTIAL, summary_lines
 from thermotilt.discovery.search import Ambiguity, Effect, Outcome, Search
 from thermotilt.physics import Chamber, Model
 from thermotilt.physics.document import with_values, write_model

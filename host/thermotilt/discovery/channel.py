@@ -61,6 +61,10 @@ MIN_WHITE_SHARE = 1e-3
 # A register holds a whole LSB: rounding adds a uniform error of +-0.5.
 REGISTER_ROUNDING_VARIANCE = 1.0 / 12.0
 
+# Why a candidate cannot be tested on a channel it does not act on in the
+# run, which then cannot hold any of its gap.
+NOTHING_MOVES_IT = "nothing in this run moves it"
+
 
 def _nuisance(channel: str) -> bool:
     """The acceleration channels carry an unknown constant offset (the
@@ -496,10 +500,21 @@ class Channel:
     def untestable(self, regressor: np.ndarray) -> str:
         """Why this run cannot test an effect of these block means here, in
         a few words; "" where it can."""
+        return self._untestable(self.whiten(regressor))
+
+    def why_not_testable(self, regressor: np.ndarray) -> str:
+        """untestable's reason, or else that the effect is a drift slope of
+        one mounting: one that moves a single mounting, and there as a slope
+        in temperature, is one draw of that mounting's random slope, which
+        no run can tell from a spread of slopes wider than the model
+        declares; "" where this run can test it."""
         g = self.whiten(regressor)
+        return self._untestable(g) or self._one_mounting_slope(g)
+
+    def _untestable(self, g: np.ndarray) -> str:
         total = float(g @ g)
         if total == 0.0:
-            return "nothing in this run moves it"
+            return NOTHING_MOVES_IT
         left = self.beyond_nuisance(g)
         if 1.0 - float(left @ left) / total < NOT_TESTABLE_R2:
             return ""
@@ -507,22 +522,25 @@ class Channel:
             return "a constant offset on this run, which the sensor's measuring offset takes"
         return "what the chamber's unknown start already fits"
 
-    def one_mounting_slope(self, regressor: np.ndarray) -> str:
-        """Why an effect of these block means cannot be told from the
-        random drift slope the model declares per mounting, "" where it
-        can: one that moves a single mounting, and there as a slope in
-        temperature, is one draw of that mounting's slope, which no run
-        can tell from a spread of slopes wider than the model declares."""
-        if self._noise.slope_sigma == 0.0:
-            return ""
-        g = self.whiten(regressor)
+    def _one_mounting_slope(self, g: np.ndarray) -> str:
+        """For a whitened g that moves something (_untestable said "")."""
         total = float(g @ g)
-        for mounting in np.unique(self._mounting):
-            slope = self.whiten(((self._mounting == mounting) * self._excursion)[:, None])
-            left = _left_by(np.hstack([self.nuisance_w, slope]), g)
+        for beside in self._one_mounting_designs:
+            left = _left_by(beside, g)
             if 1.0 - float(left @ left) / total >= ONE_SLOPE_R2:
                 return "a drift slope of one mounting, which the model's random slope per mounting makes as well"
         return ""
+
+    @functools.cached_property
+    def _one_mounting_designs(self) -> list[np.ndarray]:
+        """The whitened nuisance beside each mounting's drift slope in
+        temperature, where the model declares a random one."""
+        if self._noise.slope_sigma == 0.0:
+            return []
+        return [
+            np.hstack([self.nuisance_w, self.whiten(((self._mounting == mounting) * self._excursion)[:, None])])
+            for mounting in np.unique(self._mounting)
+        ]
 
     def reduction(self, explained_rows: np.ndarray) -> float:
         """The share of the RMS residual an effect takes off."""

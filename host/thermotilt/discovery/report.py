@@ -11,12 +11,9 @@ from typing import Any
 import numpy as np
 
 from ..physics.document import write_model
+from .channel import NOTHING_MOVES_IT
 from .replay import ACCELERATION_CHANNELS, CHAMBER_CHANNEL_COLUMNS, CHANNEL_COLUMNS, Measured
 from .search import ALPHA, MIN_GAP_REDUCTION, Outcome
-
-# Channel.untestable's reason where a candidate does not act on a channel
-# in the run, which then cannot hold any of its gap.
-NOTHING_MOVES_IT = "nothing in this run moves it"
 
 UNITS = {"temperature": "degC", "X": "LSB", "Y": "LSB", "Z": "LSB", "inner": "degC", "outer": "degC"}
 COLUMNS = {**CHANNEL_COLUMNS, **CHAMBER_CHANNEL_COLUMNS}

@@ -346,11 +346,7 @@ class Search:
         Gauss-Newton fit starts, if not at the linear fit's value."""
         channel_name = channel.name
         g = channel.blocks(regressor_rows[channel.rows])
-        why_not = (
-            channel.untestable(g) or channel.one_mounting_slope(g)
-            if np.all(np.isfinite(g))
-            else "its replay is not finite"
-        )
+        why_not = channel.why_not_testable(g) if np.all(np.isfinite(g)) else "its replay is not finite"
         if why_not:
             return Test(candidate.name, channel_name, testable=False, why_not=why_not), None
         if candidate.additive and candidate.linear:
