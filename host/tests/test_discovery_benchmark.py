@@ -11,7 +11,7 @@ from distributed import LocalCluster
 
 from thermotilt.cluster import ClusterError, connect_cluster
 from thermotilt.discovery import rates
-from thermotilt.discovery.bases import BASES, Base
+from thermotilt.discovery.bases import BASES, Base, read_base_seconds
 from thermotilt.discovery.benchmark import (
     COLUMNS,
     Cell,
@@ -52,12 +52,19 @@ def test_runs_on_a_cluster_by_its_address_and_a_second_start_runs_nothing(tmp_pa
     record = tmp_path / "runs.csv"
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address="127.0.0.1:0") as cluster:
         with connect_cluster(cluster.scheduler_address, _no_problem, "run discovery") as client:
-            first = run_benchmark(CELLS, record, tmp_path / "bases", client, say=lambda _: None, bases=SHORT)
+            made = tmp_path / "bases.csv"
+            first = run_benchmark(
+                CELLS, record, tmp_path / "bases", client, say=lambda _: None, bases=SHORT, base_record=made
+            )
             assert (first.done, first.todo, first.failed) == (2, 0, [])
             rows = read_record(record)
-            second = run_benchmark(CELLS, record, tmp_path / "bases", client, say=lambda _: None, bases=SHORT)
+            assert list(read_base_seconds(made)) == ["short"] and read_base_seconds(made)["short"] > 0.0
+            second = run_benchmark(
+                CELLS, record, tmp_path / "bases", client, say=lambda _: None, bases=SHORT, base_record=made
+            )
             assert (second.done, second.todo) == (2, 0)
             assert read_record(record) == rows
+            assert made.read_text().count("short") == 1  # a base kept is not made again
             # A row made by other sources of discovery is stale: run again.
             write_record(record, [{**rows[0], "method": "other"}, rows[1]])
             said = []
@@ -180,6 +187,35 @@ def test_the_rates_carry_wilson_intervals_and_say_which_targets_are_missed(tmp_p
     )
     rates.figure(rows, tmp_path / "rates.png")
     assert (tmp_path / "rates.png").stat().st_size > 10_000
+
+
+def test_the_whole_design_costs_its_runs_and_its_bases(monkeypatch):
+    monkeypatch.setattr(rates.os, "cpu_count", lambda: 2)
+    cells = default_cells()
+    # One row per kind and base kind of the design, each 2 s: every run at 2 s.
+    first = {(cell.kind, cell.base): cell for cell in reversed(cells)}
+    rows = [
+        _row(
+            kind=cell.kind,
+            effect=cell.effect,
+            snr="" if cell.snr is None else str(cell.snr),
+            noise=cell.noise,
+            base=f"{cell.base}-00",
+            expected_pair="+".join(cell.pair),
+            key=Task(cell, 0).key,
+            seconds="2.0",
+        )
+        for cell in first.values()
+    ]
+    runs = sum(cell.runs for cell in cells)
+    bases = {task.base for cell in cells for task in cell.tasks()}
+    text = rates.report(rows)
+    assert f"{runs * 2 / 60 / 2:.0f} min on the 2 cores" in text
+    assert "what making its bases takes is not known" in text
+    # Every base 30 s to make: on 2 cores, 15 s a base of wall time.
+    text = rates.report(rows, dict.fromkeys(bases, 30.0))
+    assert f"Its {len(bases)} bases took {len(bases) * 30 / 60:.0f} CPU minutes to make here" in text
+    assert f"{(runs * 2 + len(bases) * 30) / 60 / 2:.0f} min in all." in text
 
 
 def test_names_left_partial_are_counted_apart_from_the_names():

@@ -47,6 +47,12 @@ def main() -> int:
     parser.add_argument(
         "--bases", type=Path, default=ROOT / "build" / "bench-discovery", help="where base runs are kept"
     )
+    parser.add_argument(
+        "--base-record",
+        type=Path,
+        default=ROOT / "docs" / "benchmarks" / "discovery-bases.csv",
+        help="what making each base took here",
+    )
     parser.add_argument("--null-runs", type=int, help="per noise family and base (default: the design's)")
     parser.add_argument("--effect-runs", type=int, help="per candidate and SNR (default: the design's)")
     parser.add_argument("--collinear-runs", type=int, help="per designed pair (default: the design's)")
@@ -64,6 +70,7 @@ def main() -> int:
 
     from thermotilt.cluster import ClusterError, connect_cluster
     from thermotilt.discovery import rates
+    from thermotilt.discovery.bases import read_base_seconds
     from thermotilt.discovery.benchmark import cell_summary, default_cells, read_record, run_benchmark
 
     sizes = {
@@ -113,7 +120,9 @@ def main() -> int:
                     bar.refresh()
 
             try:
-                progress = run_benchmark(cells, args.record, args.bases, client, say=bar.write, bar=advance)
+                progress = run_benchmark(
+                    cells, args.record, args.bases, client, say=bar.write, bar=advance, base_record=args.base_record
+                )
             except KeyboardInterrupt:
                 print("\nbench-discovery: stopped; the finished runs are in the record", file=sys.stderr)
                 return 130
@@ -121,7 +130,7 @@ def main() -> int:
             print(f"bench-discovery: run failed: {failure}", file=sys.stderr)
     rows = read_record(args.record)
     text = (
-        rates.report(rows)
+        rates.report(rows, read_base_seconds(args.base_record))
         + "\nSpeed: `make bench` times `discover` end to end on 100 000 rows (docs/performance.md).\n"
     )
     try:

@@ -5,9 +5,12 @@ twin's, the last from a chamber the model does not describe."""
 
 from __future__ import annotations
 
+import csv
 import os
 import subprocess
 import sys
+import threading
+import time
 from collections.abc import Callable, Iterable, Mapping
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -159,6 +162,36 @@ BASES_PER_KIND = 20
 BASES = {base.name: base for base in (_variant(kind, index) for kind in BASE_KINDS for index in range(BASES_PER_KIND))}
 
 
+# What making each base took, a row a base made (make_bases' `made`).
+BASE_RECORD_COLUMNS = ("base", "seconds")
+
+
+def read_base_seconds(path: Path) -> dict[str, float]:
+    """What making each base took, by name; the last time a base was made
+    counts."""
+    if not path.exists():
+        return {}
+    with open(path, newline="", encoding="utf-8") as stream:
+        return {row["base"]: float(row["seconds"]) for row in csv.DictReader(stream)}
+
+
+def base_recorder(path: Path) -> Callable[[str, float], None]:
+    """make_bases' `made`, appending each base's seconds to the CSV at path."""
+    lock = threading.Lock()
+
+    def made(name: str, seconds: float) -> None:
+        with lock:
+            new = not path.exists() or path.stat().st_size == 0
+            path.parent.mkdir(parents=True, exist_ok=True)
+            with open(path, "a", newline="", encoding="utf-8") as stream:
+                writer = csv.writer(stream)
+                if new:
+                    writer.writerow(BASE_RECORD_COLUMNS)
+                writer.writerow((name, f"{seconds:.1f}"))
+
+    return made
+
+
 def kind_of(base: str) -> str:
     """A base's kind from its name ("cycle-07": "cycle")."""
     return base.split("-")[0]
@@ -170,17 +203,24 @@ def index_of(base: str) -> int:
 
 
 def make_bases(
-    names: Iterable[str], folder: Path, say: Callable[[str], None], bases: Mapping[str, Base] = BASES
+    names: Iterable[str],
+    folder: Path,
+    say: Callable[[str], None],
+    bases: Mapping[str, Base] = BASES,
+    made: Callable[[str, float], None] | None = None,
 ) -> dict[str, bytes]:
     """Each base's run.csv, made once into folder/NAME (as many at a time
     as the machine has cores: a twin's base is a process of its own) and
-    read from there after."""
+    read from there after; made(name, seconds) is told as each is made."""
     missing = [name for name in names if not RunFolder.at(folder / name).log.exists()]
 
     def make(name: str) -> None:
         say(f"making the base run {name}: {bases[name].what}")
         (folder / name).mkdir(parents=True, exist_ok=True)
+        started = time.perf_counter()
         bases[name].make(folder / name)
+        if made is not None:
+            made(name, time.perf_counter() - started)
 
     with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
         list(pool.map(make, missing))

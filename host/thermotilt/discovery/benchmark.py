@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..run.folder import RunFolder
-from .bases import BASES, Base, make_bases
+from .bases import BASES, Base, base_recorder, make_bases
 from .candidates import BY_NAME, CANDIDATES
 from .replay import CHAMBER_CHANNELS
 
@@ -359,7 +359,7 @@ class Progress:
     failed: list[str]
 
 
-def run_benchmark(
+def run_benchmark(  # noqa: PLR0913 - the cells, where rows and bases go, the cluster and what it reports to
     cells: list[Cell],
     record: Path,
     bases_folder: Path,
@@ -367,11 +367,13 @@ def run_benchmark(
     say: Callable[[str], None] = print,
     bar: Callable[[int, int], Any] | None = None,
     bases: Mapping[str, Base] = BASES,
+    base_record: Path | None = None,
 ) -> Progress:
     """Every run of the cells not yet in the record, on the client's
     cluster; each finished row appended at once. A run that raises is
     reported and left out of the record, to be tried on the next start.
-    bar(done, total) is told after every run."""
+    bar(done, total) is told after every run; the seconds each base made
+    here took are appended to base_record."""
     from distributed import as_completed
 
     tasks = [task for cell in cells for task in cell.tasks()]
@@ -382,12 +384,24 @@ def run_benchmark(
         say(f"{stale} rows of the record were made by other sources of discovery: they run again")
         write_record(record, [row for row in rows if row.get("method") == method])
     done = {row["key"] for row in rows if row.get("method") == method}
-    # Index by index across the cells, so that a benchmark stopped early
-    # leaves every cell about as many runs.
-    todo = sorted((task for task in tasks if task.key not in done), key=lambda task: task.index)
+    # A round of indices at a time across the cells, so that a benchmark
+    # stopped early leaves every cell about as many runs; within a round,
+    # base by base, so that a worker's runs follow one another on a base
+    # whose readings, cells and series it holds already (hide._Inputs,
+    # SeriesMemo).
+    todo = sorted(
+        (task for task in tasks if task.key not in done),
+        key=lambda task: (task.index // task.cell.bases, task.base, task.index),
+    )
     progress = Progress(len(tasks) - len(todo), len(todo), [])
     if todo:
-        made = make_bases(sorted({task.base for task in todo}), bases_folder, say, bases)
+        made = make_bases(
+            sorted({task.base for task in todo}),
+            bases_folder,
+            say,
+            bases,
+            made=None if base_record is None else base_recorder(base_record),
+        )
         # Keys of this start's own (hash=False, the uuid): a key an earlier
         # start released may still be being forgotten by the scheduler, which
         # then loses the data a new task of the same key needs.

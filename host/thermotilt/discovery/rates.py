@@ -6,7 +6,7 @@ here is computed from the record's rows; nothing is typed in."""
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import numpy as np
@@ -131,8 +131,9 @@ def _met(measured: Rate, ok: bool) -> str:
     return "met" if ok else "**missed**"
 
 
-def report(rows: list[Row]) -> str:
-    """The Markdown of the rates, their targets and what the runs cost."""
+def report(rows: list[Row], base_seconds: Mapping[str, float] | None = None) -> str:
+    """The Markdown of the rates, their targets and what the runs cost;
+    base_seconds: what making each base took, where known."""
     null = [r for r in rows if r["kind"] == NULL]
     effect = [r for r in rows if r["kind"] == EFFECT]
     collinear = [r for r in rows if r["kind"] == COLLINEAR]
@@ -150,7 +151,7 @@ def report(rows: list[Row]) -> str:
     if world:
         lines += _world_table(world)
     lines += _coverage_table([r for r in effect if named_right(r)])
-    lines += _cost(rows)
+    lines += _cost(rows, base_seconds or {})
     return "\n".join(lines) + "\n"
 
 
@@ -383,7 +384,7 @@ def _coverage_table(named: list[Row]) -> list[str]:
     return lines
 
 
-def _cost(rows: list[Row]) -> list[str]:
+def _cost(rows: list[Row], base_seconds: Mapping[str, float]) -> list[str]:
     seconds = np.array([float(r["seconds"]) for r in rows])
     if not len(seconds):
         return []
@@ -395,14 +396,14 @@ def _cost(rows: list[Row]) -> list[str]:
         "",
         f"Cost: {seconds.sum() / 3600:.1f} CPU hours in all; a run (hiding and discovery) takes a median of "
         + ", ".join(f"{value:.1f} s on {base}" for base, value in by_base.items())
-        + f". {_design_cost(rows)}",
+        + f". {_design_cost(rows, base_seconds)}",
     ]
 
 
-def _design_cost(rows: list[Row]) -> str:
+def _design_cost(rows: list[Row], base_seconds: Mapping[str, float]) -> str:
     """The whole default design's CPU time at the record's mean seconds per
     kind and base (a run's cost depends on both: an effect found means
-    another round of replays)."""
+    another round of replays), and its bases' as they were made here."""
     mean: dict[tuple[str, str], float] = {}
     for key in dict.fromkeys((r["kind"], kind_of(r["base"])) for r in rows):
         mean[key] = float(np.mean([float(r["seconds"]) for r in rows if (r["kind"], kind_of(r["base"])) == key]))
@@ -412,9 +413,17 @@ def _design_cost(rows: list[Row]) -> str:
         return f"The whole design's cost is not known: no {', '.join(unknown)} runs in the record."
     cpu_s = sum(c.runs * mean[c.kind, c.base] for c in cells)
     cores = os.cpu_count() or 1
-    return (
+    text = (
         f"The whole design, {sum(c.runs for c in cells)} runs, takes {cpu_s / 3600:.1f} CPU hours at the record's "
-        f"mean per kind and base: {cpu_s / 60 / cores:.0f} min on the {cores} cores of the machine that wrote this."
+        f"mean per kind and base: {cpu_s / 60 / cores:.0f} min on the {cores} cores of the machine that wrote this"
+    )
+    bases = sorted({task.base for cell in cells for task in cell.tasks()})
+    if not all(base in base_seconds for base in bases):
+        return text + "; what making its bases takes is not known."
+    bases_s = sum(base_seconds[base] for base in bases)
+    return (
+        text + f". Its {len(bases)} bases took {bases_s / 60:.0f} CPU minutes to make here, "
+        f"{bases_s / 60 / cores:.0f} min on {cores} cores: {(cpu_s + bases_s) / 60 / cores:.0f} min in all."
     )
 
 
