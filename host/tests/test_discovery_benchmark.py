@@ -179,6 +179,10 @@ def test_the_rates_carry_wilson_intervals_and_say_which_targets_are_missed(tmp_p
     # (truth 2: 3.92 SE low), 17 inside (truth 0): mean -1.96, SD 1.99.
     assert "| `cross_axis` | – | **34/50 = 68% (54%–79%)** | – | – | 0 | 17/34 = 50% (34%–66%) | -1.96 ± 1.99 |" in text
     assert "Cells at their target: 1 of 2." in text
+    # cross_axis is per axis and below its target, hysteresis is at it: only
+    # cross_axis is broken down by the axis it was hidden on.
+    assert "| `cross_axis` | X | – | 34/50 = 68% (54%–79%) | – | – | 0 |" in text
+    assert "| `hysteresis` | X |" not in text
     assert "| candidate | none | another effect | the effect on another channel |" in text
     assert "| `hysteresis` | 0 | 0 | 1 |" in text and "| `cross_axis` | 10 | 6 | 0 |" in text
     assert (

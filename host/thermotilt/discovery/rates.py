@@ -145,7 +145,7 @@ def report(rows: list[Row], base_seconds: Mapping[str, float] | None = None) -> 
         *_null_table(null),
     ]
     if effect:
-        lines += _effect_table(effect) + _channel_table(effect) + _missed_table(effect)
+        lines += _effect_table(effect) + _channel_table(effect) + _axis_table(effect) + _missed_table(effect)
     if collinear:
         lines += _collinear_table(collinear)
     if world:
@@ -215,9 +215,8 @@ def _effect_table(effect: list[Row]) -> list[str]:
         cells = []
         for snr in SNRS:
             measured = rate([r for r in mine if float(r["snr"]) == snr], named_right)
-            target = _right_target(snr)
-            missed = target is not None and measured.runs > 0 and measured.share < target
-            targeted += target is not None and measured.runs > 0
+            missed = _below_target(measured, snr)
+            targeted += _right_target(snr) is not None and measured.runs > 0
             short += missed
             cells.append(f"**{measured}**" if missed else str(measured))
         untestable = sum(r["verdict"] == NOT_TESTABLE for r in mine)
@@ -237,6 +236,11 @@ def _effect_table(effect: list[Row]) -> list[str]:
         f"Cells at their target: {targeted - short} of {targeted}. Of the runs the design lets the search test "
         f"(the targets count all): at SNR ≥ 2 {testable_at_2}, at SNR 1 {testable_at_1}.",
     ]
+
+
+def _below_target(measured: Rate, snr: float) -> bool:
+    target = _right_target(snr)
+    return target is not None and measured.runs > 0 and measured.share < target
 
 
 def _right_at_2_and_1(effect: list[Row]) -> tuple[Rate, Rate]:
@@ -273,6 +277,33 @@ def _channel_table(effect: list[Row]) -> list[str]:
             lines.append(
                 f"| `{candidate.name}` | {channel} | " + " | ".join(cells) + f" | {', '.join(found_on) or '–'} |"
             )
+    return lines
+
+
+def _axis_table(effect: list[Row]) -> list[str]:
+    """Power by the axis a per-axis candidate was hidden on, for those with
+    a cell below its target: where in the design its misses lie."""
+
+    def at(rows: list[Row], snr: float) -> Rate:
+        return rate([r for r in rows if float(r["snr"]) == snr], named_right)
+
+    mine = {c.name: [r for r in effect if r["effect"] == c.name] for c in CANDIDATES if c.per_axis}
+    short = [name for name, rows in mine.items() if any(_below_target(at(rows, snr), snr) for snr in SNRS)]
+    if not short:
+        return []
+    lines = [
+        "",
+        "**By the axis it was hidden on** (drawn per run), for the candidates with one value per axis and a cell "
+        "below its target.",
+        "",
+        "| candidate | hidden on | " + " | ".join(f"SNR {snr:g}" for snr in SNRS) + " | not testable |",
+        "|---|---|" + "---|" * (len(SNRS) + 1),
+    ]
+    for name in short:
+        for channel in sorted({r["channel"] for r in mine[name]}):
+            on = [r for r in mine[name] if r["channel"] == channel]
+            cells = " | ".join(str(at(on, snr)) for snr in SNRS)
+            lines.append(f"| `{name}` | {channel} | {cells} | {sum(r['verdict'] == NOT_TESTABLE for r in on)} |")
     return lines
 
 
