@@ -214,7 +214,7 @@ def _effect_table(effect: list[Row]) -> list[str]:
             continue
         cells = []
         for snr in SNRS:
-            measured = rate([r for r in mine if float(r["snr"]) == snr], named_right)
+            measured = _right_at(mine, snr)
             missed = _below_target(measured, snr)
             targeted += _right_target(snr) is not None and measured.runs > 0
             short += missed
@@ -236,6 +236,10 @@ def _effect_table(effect: list[Row]) -> list[str]:
         f"Cells at their target: {targeted - short} of {targeted}. Of the runs the design lets the search test "
         f"(the targets count all): at SNR ≥ 2 {testable_at_2}, at SNR 1 {testable_at_1}.",
     ]
+
+
+def _right_at(rows: list[Row], snr: float) -> Rate:
+    return rate([r for r in rows if float(r["snr"]) == snr], named_right)
 
 
 def _below_target(measured: Rate, snr: float) -> bool:
@@ -272,7 +276,7 @@ def _channel_table(effect: list[Row]) -> list[str]:
         mine = [r for r in effect if r["effect"] == candidate.name]
         for channel in sorted({r["channel"] for r in mine}):
             sized = [r for r in mine if r["channel"] == channel]
-            cells = [str(rate([r for r in sized if float(r["snr"]) == snr], named_right)) for snr in SNRS]
+            cells = [str(_right_at(sized, snr)) for snr in SNRS]
             found_on = sorted({r["named_channel"] for r in sized if named_right(r)})
             lines.append(
                 f"| `{candidate.name}` | {channel} | " + " | ".join(cells) + f" | {', '.join(found_on) or '–'} |"
@@ -283,12 +287,8 @@ def _channel_table(effect: list[Row]) -> list[str]:
 def _axis_table(effect: list[Row]) -> list[str]:
     """Power by the axis a per-axis candidate was hidden on, for those with
     a cell below its target: where in the design its misses lie."""
-
-    def at(rows: list[Row], snr: float) -> Rate:
-        return rate([r for r in rows if float(r["snr"]) == snr], named_right)
-
     mine = {c.name: [r for r in effect if r["effect"] == c.name] for c in CANDIDATES if c.per_axis}
-    short = [name for name, rows in mine.items() if any(_below_target(at(rows, snr), snr) for snr in SNRS)]
+    short = [name for name, rows in mine.items() if any(_below_target(_right_at(rows, snr), snr) for snr in SNRS)]
     if not short:
         return []
     lines = [
@@ -302,7 +302,7 @@ def _axis_table(effect: list[Row]) -> list[str]:
     for name in short:
         for channel in sorted({r["channel"] for r in mine[name]}):
             on = [r for r in mine[name] if r["channel"] == channel]
-            cells = " | ".join(str(at(on, snr)) for snr in SNRS)
+            cells = " | ".join(str(_right_at(on, snr)) for snr in SNRS)
             lines.append(f"| `{name}` | {channel} | {cells} | {sum(r['verdict'] == NOT_TESTABLE for r in on)} |")
     return lines
 
