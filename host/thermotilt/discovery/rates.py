@@ -260,50 +260,61 @@ def _channel_table(effect: list[Row]) -> list[str]:
     one value acting on several channels: sized on a channel where it is
     small against the noise, it is found on another, at another SNR."""
     shared = [
-        c for c in CANDIDATES if not c.per_axis and len({r["channel"] for r in effect if r["effect"] == c.name}) > 1
+        c.name
+        for c in CANDIDATES
+        if not c.per_axis and len({r["channel"] for r in effect if r["effect"] == c.name}) > 1
     ]
-    if not shared:
-        return []
-    lines = [
-        "",
+    return _by_channel(
+        effect,
+        shared,
         "**By the channel the SNR was set on** (drawn per run), for the candidates with one value on several "
         "channels; found: where the first effect was named.",
-        "",
-        "| candidate | sized on | " + " | ".join(f"SNR {snr:g}" for snr in SNRS) + " | found on |",
-        "|---|---|" + "---|" * (len(SNRS) + 1),
-    ]
-    for candidate in shared:
-        mine = [r for r in effect if r["effect"] == candidate.name]
-        for channel in sorted({r["channel"] for r in mine}):
-            sized = [r for r in mine if r["channel"] == channel]
-            cells = [str(_right_at(sized, snr)) for snr in SNRS]
-            found_on = sorted({r["named_channel"] for r in sized if named_right(r)})
-            lines.append(
-                f"| `{candidate.name}` | {channel} | " + " | ".join(cells) + f" | {', '.join(found_on) or '–'} |"
-            )
-    return lines
+        ("sized on", "found on"),
+        lambda on: ", ".join(sorted({r["named_channel"] for r in on if named_right(r)})) or "–",
+    )
 
 
 def _axis_table(effect: list[Row]) -> list[str]:
     """Power by the axis a per-axis candidate was hidden on, for those with
     a cell below its target: where in the design its misses lie."""
-    mine = {c.name: [r for r in effect if r["effect"] == c.name] for c in CANDIDATES if c.per_axis}
-    short = [name for name, rows in mine.items() if any(_below_target(_right_at(rows, snr), snr) for snr in SNRS)]
-    if not short:
-        return []
-    lines = [
-        "",
+    per_axis = [c.name for c in CANDIDATES if c.per_axis]
+    short = [
+        name
+        for name in per_axis
+        if any(_below_target(_right_at([r for r in effect if r["effect"] == name], snr), snr) for snr in SNRS)
+    ]
+    return _by_channel(
+        effect,
+        short,
         "**By the axis it was hidden on** (drawn per run), for the candidates with one value per axis and a cell "
         "below its target.",
+        ("hidden on", "not testable"),
+        lambda on: str(sum(r["verdict"] == NOT_TESTABLE for r in on)),
+    )
+
+
+def _by_channel(
+    effect: list[Row], names: list[str], heading: str, columns: tuple[str, str], last: Callable[[list[Row]], str]
+) -> list[str]:
+    """A table of these candidates' right names per SNR, a row for each
+    channel their runs were drawn on; columns: that channel's header and
+    the last one's, which `last` fills from the row's runs."""
+    if not names:
+        return []
+    channel_column, last_column = columns
+    lines = [
         "",
-        "| candidate | hidden on | " + " | ".join(f"SNR {snr:g}" for snr in SNRS) + " | not testable |",
+        heading,
+        "",
+        f"| candidate | {channel_column} | " + " | ".join(f"SNR {snr:g}" for snr in SNRS) + f" | {last_column} |",
         "|---|---|" + "---|" * (len(SNRS) + 1),
     ]
-    for name in short:
-        for channel in sorted({r["channel"] for r in mine[name]}):
-            on = [r for r in mine[name] if r["channel"] == channel]
+    for name in names:
+        mine = [r for r in effect if r["effect"] == name]
+        for channel in sorted({r["channel"] for r in mine}):
+            on = [r for r in mine if r["channel"] == channel]
             cells = " | ".join(str(_right_at(on, snr)) for snr in SNRS)
-            lines.append(f"| `{name}` | {channel} | {cells} | {sum(r['verdict'] == NOT_TESTABLE for r in on)} |")
+            lines.append(f"| `{name}` | {channel} | {cells} | {last(on)} |")
     return lines
 
 
